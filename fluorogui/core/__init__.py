@@ -1,0 +1,1 @@
+"""Pure computation (numpy, scipy, OpenCV). Never imports Qt, VTK rendering or file formats."""

@@ -1,0 +1,1 @@
+"""File formats: calibrations, images, meshes, project files, pose exports. No Qt."""
