@@ -1,0 +1,309 @@
+"""Read and write the projection geometry of one fluoroscope view.
+
+Formats, detected by content (never by extension):
+
+* MayaCam 2.0 (XMALab export): sections ``image size``, ``camera matrix``, ``rotation``,
+  ``translation``; OpenCV pinhole ``x_cam = R X + t``, pixel ``= K x_cam / z_cam``.
+* MayaCam 1.0 (older XMALab / Maya export, read as Autoscoper's ``Camera::loadMayaCam1``):
+  five lines of three numbers: camera position; rotations about the camera's x, y, z
+  axes in degrees (camera-to-world ``Rz(line2[2]) Ry(line2[1]) Rx(line2[0])``, OpenGL
+  camera looking down its -z with y up); film-plane offset (derived, ignored);
+  ``u0, v0, Z`` (1-based MATLAB principal point with ``v0`` counted from the image
+  bottom, focal length ``|Z|`` in pixels); ``scale, width, height`` (0 means 1024).
+* JointTrack ``JT_INTCALIB``: principal distance, principal-point x / y offset, pixel
+  pitch (mm). Camera frame: source at the origin looking down -Z, image y up.
+* fluorogui JSON: ``{"format": "fluorogui-calibration", "version": 1, "view": {...}}``.
+
+JointTrack pose files (``JT_EULER_312``) are read here too since they live in the
+JointTrack camera frame that ``JT_INTCALIB`` defines.
+"""
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+
+from fluorogui.core.geometry import DEFAULT_PITCH_MM, GeometryError, View
+from fluorogui.core.pose import angles_from_matrix
+from fluorogui.io.errors import InputError, atomic_write_text, describe_os_error
+
+CALIBRATION_FORMAT = "fluorogui-calibration"
+CALIBRATION_VERSION = 1
+JOINTTRACK_DEFAULT_IMAGE_SIZE = (1024, 1024)
+MAYACAM2_SECTIONS = ("image size", "camera matrix", "rotation", "translation")
+_SECTION_TITLE = re.compile(r"^[A-Za-z][A-Za-z _-]*$")
+_NON_FINITE_WORDS = {"nan", "inf", "-inf", "infinity", "-infinity"}
+
+
+# -- public API ---------------------------------------------------------------------------
+def load_view(path, name: str = "", *, image_size=JOINTTRACK_DEFAULT_IMAGE_SIZE) -> View:
+    """Read a calibration file of any supported format into a View.
+
+    ``name`` defaults to the file's stem. ``image_size`` (width, height) is only used by
+    formats that do not store it (JointTrack).
+    """
+    path = Path(path)
+    text = _read_text(path)
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    if not lines:
+        raise InputError(path, "calibration file is empty")
+    try:
+        if lines[0].startswith("{"):
+            return _parse_json(path, text, name)
+        name = name or path.stem
+        if lines[0].upper() == "JT_INTCALIB":
+            return _parse_jointtrack(path, lines, name, image_size)
+        if lines[0].lower() in MAYACAM2_SECTIONS:
+            return _parse_mayacam2(path, lines, name)
+        if _looks_like_mayacam1(lines):
+            return _parse_mayacam1(path, lines, name)
+    except GeometryError as exc:
+        raise InputError(path, f"invalid calibration: {exc}") from None
+    raise InputError(
+        path,
+        "unknown calibration format (expected MayaCam 1.0 or 2.0, JointTrack JT_INTCALIB "
+        "or a fluorogui calibration JSON)",
+    )
+
+
+def save_view_json(view: View, path) -> None:
+    """Write a view as fluorogui calibration JSON, atomically."""
+    document = {"format": CALIBRATION_FORMAT, "version": CALIBRATION_VERSION, "view": view.to_dict()}
+    atomic_write_text(path, json.dumps(document, indent=2, allow_nan=False) + "\n")
+
+
+def check_image_size(view: View, image_shape, path) -> None:
+    """Raise InputError when an image of numpy shape ``image_shape`` does not fit ``view``."""
+    height, width = int(image_shape[0]), int(image_shape[1])
+    cal_w, cal_h = view.image_size
+    if (width, height) != (cal_w, cal_h):
+        label = f" '{view.name}'" if view.name else ""
+        raise InputError(
+            path, f"image is {width}x{height} px but the calibration{label} is for {cal_w}x{cal_h} px"
+        )
+
+
+def load_jointtrack_poses(path) -> np.ndarray:
+    """Rows ``x, y, z, z_rot, x_rot, y_rot`` (mm, degrees) of a ``JT_EULER_312`` file, (N, 6)."""
+    path = Path(path)
+    lines = [line.strip() for line in _read_text(path).splitlines() if line.strip()]
+    if not lines or lines[0].upper() != "JT_EULER_312":
+        raise InputError(path, "not a JointTrack pose file (first line must be JT_EULER_312)")
+    rows = []
+    for number, line in enumerate(lines[1:], start=2):
+        fields = _split_row(line)
+        if not rows and not _is_number(fields[0]):
+            continue  # the column-title line
+        values = _numbers(path, fields, f"line {number}")
+        if len(values) != 6:
+            raise InputError(path, f"line {number} has {len(values)} numbers, expected 6")
+        rows.append(values)
+    if not rows:
+        raise InputError(path, "JointTrack pose file has no poses")
+    return np.array(rows, dtype=float)
+
+
+def jointtrack_matrix(row) -> np.ndarray:
+    """Rotation ``Rz Rx Ry`` of a JointTrack ``JT_EULER_312`` row (angles in degrees)."""
+    _, _, _, z_rot, x_rot, y_rot = (float(v) for v in row)
+    return _rot_z(z_rot) @ _rot_x(x_rot) @ _rot_y(y_rot)
+
+
+def jointtrack_to_pose(row) -> np.ndarray:
+    """A JointTrack row (x, y, z, z_rot, x_rot, y_rot) as our pose (x, y, z, alpha, beta, gamma).
+
+    Same world frame (JointTrack's camera frame); only the angle convention changes.
+    """
+    row = np.asarray(row, dtype=float).reshape(6)
+    alpha, beta, gamma = angles_from_matrix(jointtrack_matrix(row))
+    return np.array([row[0], row[1], row[2], alpha, beta, gamma])
+
+
+# -- reading helpers --------------------------------------------------------------------------
+def _read_text(path: Path) -> str:
+    if not path.exists():
+        raise InputError(path, "file not found")
+    if path.is_dir():
+        raise InputError(path, "is a folder, not a file")
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise InputError(path, f"cannot read the file: {describe_os_error(exc)}") from None
+    if b"\x00" in raw[:4096]:
+        raise InputError(path, "binary file, not a text calibration")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _numbers(path: Path, fields, where: str) -> list[float]:
+    values = []
+    for field in fields:
+        try:
+            value = float(field)
+        except ValueError:
+            raise InputError(path, f"non-numeric value {field!r} in {where}") from None
+        if not math.isfinite(value):
+            raise InputError(path, f"NaN or infinite value in {where}")
+        values.append(value)
+    return values
+
+
+def _split_row(line: str) -> list[str]:
+    fields = [f.strip() for f in line.split(",")]
+    if len(fields) == 1:
+        fields = line.split()
+    return [f for f in fields if f]
+
+
+# -- MayaCam 2.0 --------------------------------------------------------------------------
+def _parse_mayacam2(path: Path, lines: list[str], name: str) -> View:
+    sections: dict[str, list[list[str]]] = {}
+    current = None
+    for line in lines:
+        if _SECTION_TITLE.match(line) and line.lower() not in _NON_FINITE_WORDS:
+            current = line.lower()  # unknown sections are read and ignored
+            sections[current] = []
+        elif current is None:
+            raise InputError(path, f"unexpected line {line!r} before the first MayaCam section")
+        else:
+            sections[current].append(_split_row(line))
+    for section in MAYACAM2_SECTIONS:
+        if section not in sections:
+            raise InputError(path, f"MayaCam 2.0 file is missing the section '{section}'")
+
+    def matrix(section: str, rows: int, cols: int) -> np.ndarray:
+        values = [_numbers(path, row, f"section '{section}'") for row in sections[section]]
+        if len(values) != rows or any(len(v) != cols for v in values):
+            shape = f"{rows} rows of {cols} numbers" if rows > 1 else f"{cols} numbers"
+            raise InputError(path, f"section '{section}' needs {shape}")
+        return np.array(values, dtype=float)
+
+    size = matrix("image size", 1, 2)[0]
+    if np.any(size <= 0) or np.any(size != np.round(size)):
+        raise InputError(path, "section 'image size' needs two positive whole numbers")
+    K = matrix("camera matrix", 3, 3)
+    R = matrix("rotation", 3, 3)
+    rows = sections["translation"]
+    t = matrix("translation", 1, 3)[0] if len(rows) == 1 else matrix("translation", 3, 1)[:, 0]
+    if abs(np.linalg.det(K)) < 1e-9:
+        raise InputError(path, "camera matrix is singular")
+    view = View.from_pinhole(K, R, t, (int(size[0]), int(size[1])), pitch=DEFAULT_PITCH_MM, name=name)
+    view.extra.update(source_format="MayaCam 2.0", pitch_assumed=True)
+    return view
+
+
+# -- MayaCam 1.0 --------------------------------------------------------------------------
+def _looks_like_mayacam1(lines: list[str]) -> bool:
+    if len(lines) != 5:
+        return False
+    return all(len(_split_row(line)) == 3 for line in lines) and _is_number(_split_row(lines[0])[0])
+
+
+def _parse_mayacam1(path: Path, lines: list[str], name: str) -> View:
+    rows = [_numbers(path, _split_row(line), f"line {i + 1}") for i, line in enumerate(lines)]
+    position = np.array(rows[0])
+    roll, pitch, yaw = rows[1]  # rotations about the camera's x, y, z
+    u0_matlab, v0_matlab, z = rows[3]
+    if any(s < 0 or s != int(s) for s in rows[4][1:]):
+        raise InputError(path, "line 5 needs the image width and height as whole numbers")
+    width = int(rows[4][1]) or 1024  # Autoscoper: 0 means 1024
+    height = int(rows[4][2]) or 1024
+    focal = abs(z)
+    if focal < 1e-9:
+        raise InputError(path, "camera matrix is singular (focal length Z on line 4 is zero)")
+    # camera-to-world rotation of the OpenGL camera (x right, y up, looking down -z)
+    A = _rot_z(yaw) @ _rot_y(pitch) @ _rot_x(roll)
+    cx = u0_matlab - 1.0
+    cy = (height - 1.0) - (v0_matlab - 1.0)  # bottom-up rows to top-down rows
+    view = View(
+        source=position,
+        normal=-A[:, 2],
+        e_u=A[:, 0],
+        e_v=-A[:, 1],
+        distance=focal * DEFAULT_PITCH_MM,
+        pitch=(DEFAULT_PITCH_MM, DEFAULT_PITCH_MM),
+        principal_point=(cx, cy),
+        image_size=(width, height),
+        name=name,
+    )
+    view.extra.update(source_format="MayaCam 1.0", pitch_assumed=True)
+    return view
+
+
+# -- JointTrack ----------------------------------------------------------------------------
+def _parse_jointtrack(path: Path, lines: list[str], name: str, image_size) -> View:
+    if len(lines) < 5:
+        raise InputError(
+            path, "JT_INTCALIB needs 4 numbers: principal distance, x offset, y offset, pixel pitch (mm)"
+        )
+    distance, x_off, y_off, pitch = _numbers(path, [line.split()[0] for line in lines[1:5]], "JT_INTCALIB")
+    width, height = (int(s) for s in image_size)
+    if pitch <= 0 or distance <= 0:
+        raise InputError(path, "JT_INTCALIB principal distance and pixel pitch must be positive")
+    view = View(
+        source=(0.0, 0.0, 0.0),
+        normal=(0.0, 0.0, -1.0),
+        e_u=(1.0, 0.0, 0.0),
+        e_v=(0.0, -1.0, 0.0),
+        distance=distance,
+        pitch=(pitch, pitch),
+        principal_point=(width / 2.0 + x_off / pitch, height / 2.0 - y_off / pitch),
+        image_size=(width, height),
+        name=name,
+    )
+    view.extra.update(source_format="JointTrack JT_INTCALIB", image_size_assumed=True)
+    return view
+
+
+# -- our JSON -----------------------------------------------------------------------------------
+def _parse_json(path: Path, text: str, name: str) -> View:
+    try:
+        document = json.loads(text)
+    except json.JSONDecodeError:
+        raise InputError(path, "calibration file is truncated or not valid JSON") from None
+    if not isinstance(document, dict) or document.get("format") != CALIBRATION_FORMAT:
+        raise InputError(path, "JSON file is not a fluorogui calibration")
+    version = document.get("version")
+    if not isinstance(version, int):
+        raise InputError(path, "calibration JSON has no integer 'version'")
+    if version > CALIBRATION_VERSION:
+        raise InputError(
+            path,
+            f"written by a newer fluorogui (calibration version {version} > {CALIBRATION_VERSION}); "
+            "update fluorogui to open it",
+        )
+    if not isinstance(document.get("view"), dict):
+        raise InputError(path, "calibration JSON is missing the field 'view'")
+    stored = document["view"]
+    view = View.from_dict({**stored, "name": name or stored.get("name") or path.stem})
+    view.extra.update(source_format="fluorogui JSON")
+    return view
+
+
+# -- rotations (degrees) ----------------------------------------------------------------------
+def _rot_x(deg: float) -> np.ndarray:
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def _rot_y(deg: float) -> np.ndarray:
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def _rot_z(deg: float) -> np.ndarray:
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])

@@ -1,0 +1,100 @@
+"""Load implant surface models (STL, PLY, OBJ, VTK, VTP) as triangle arrays in millimetres.
+
+The mesh is read through pyvista, reduced to its surface, triangulated and cleaned of
+duplicate points. The local coordinate system is the file's own.
+"""
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from fluorogui.io.errors import InputError, describe_os_error
+
+MESH_SUFFIXES = (".stl", ".ply", ".obj", ".vtk", ".vtp")
+MIN_DIAGONAL_MM = 1.0
+MAX_DIAGONAL_MM = 1000.0
+
+
+def load_mesh(path) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (N, 3) float64 in mm and triangles (M, 3) int64 of a surface model file."""
+    path = Path(path)
+    if not path.exists():
+        raise InputError(path, "file not found")
+    if path.is_dir():
+        raise InputError(path, "is a folder, not a file")
+    suffix = path.suffix.lower()
+    if suffix not in MESH_SUFFIXES:
+        raise InputError(path, f"unsupported mesh type '{suffix or '(none)'}' (use STL, PLY, OBJ, VTK or VTP)")
+    try:
+        if path.stat().st_size == 0:
+            raise InputError(path, "file is empty")
+    except OSError as exc:
+        raise InputError(path, f"cannot read the file: {describe_os_error(exc)}") from None
+
+    surface = _read_surface(path)
+    if surface.n_cells == 0 or surface.n_points == 0:
+        raise InputError(path, "mesh has no faces")
+    vertices = np.asarray(surface.points, dtype=np.float64)
+    if not np.all(np.isfinite(vertices)):
+        raise InputError(path, "mesh has NaN or infinite vertex coordinates")
+    faces = _triangles(surface)
+    if faces.shape[0] == 0:
+        raise InputError(path, "mesh has no faces")
+    used = np.unique(faces)
+    extent = vertices[used].max(axis=0) - vertices[used].min(axis=0)
+    diagonal = float(np.linalg.norm(extent))
+    if diagonal < MIN_DIAGONAL_MM or diagonal > MAX_DIAGONAL_MM:
+        raise InputError(
+            path,
+            f"implausible size: bounding-box diagonal {diagonal:.4g} (expected {MIN_DIAGONAL_MM:g} to "
+            f"{MAX_DIAGONAL_MM:g}); is the mesh in mm?",
+        )
+    return vertices, faces
+
+
+def _read_surface(path: Path):
+    import pyvista as pv
+
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            data = pv.read(path)
+    except OSError as exc:
+        raise InputError(path, f"cannot read the file: {describe_os_error(exc)}") from None
+    except Exception as exc:  # VTK readers fail in many ways on corrupt files
+        raise InputError(path, f"unreadable mesh file ({type(exc).__name__})") from None
+    if data is None or any("raised an error" in str(w.message) for w in caught):
+        raise InputError(path, "unreadable mesh file (the reader reported an error)")
+    if isinstance(data, pv.MultiBlock):
+        data = data.combine()
+    if data.n_points == 0:
+        raise InputError(path, "mesh has no faces")
+    try:
+        surface = data if isinstance(data, pv.PolyData) else data.extract_surface()
+        if surface.n_cells == 0:
+            return surface
+        if not np.all(np.isfinite(np.asarray(surface.points))):
+            return surface  # reported by the caller; clean() would drop or merge NaNs
+        return surface.triangulate().clean()
+    except Exception as exc:
+        raise InputError(path, f"unreadable mesh file ({type(exc).__name__})") from None
+
+
+def _triangles(surface) -> np.ndarray:
+    """(M, 3) vertex indices of the triangles of a triangulated PolyData (lines, vertices skipped)."""
+    cells = np.asarray(surface.faces, dtype=np.int64)
+    if cells.size == 0:
+        return np.empty((0, 3), dtype=np.int64)
+    if np.all(cells[::4] == 3) and cells.size % 4 == 0:
+        return cells.reshape(-1, 4)[:, 1:].copy()
+    # mixed sizes should not survive triangulate(); walk them to be safe
+    triangles = []
+    i = 0
+    while i < cells.size:
+        n = int(cells[i])
+        if n == 3:
+            triangles.append(cells[i + 1 : i + 4])
+        i += n + 1
+    return np.array(triangles, dtype=np.int64).reshape(-1, 3)

@@ -1,0 +1,372 @@
+"""Project files (``.fluoro``): one JSON document holding a ``fluorogui.core.session.Project``.
+
+Layout (schema 2, the current one)::
+
+    {"format": "fluorogui-project", "schema_version": 2, "app_version": "...",
+     "views": [View.to_dict(), ...],
+     "sequences": [{"paths": ["cam1/0001.tif", ...]}, ...],      # one per view
+     "frames": [0, 20, ...],
+     "models": [{"component": "femur", "mesh_path": "...", "point_density": 15000,
+                 "local_frame": 4x4}],
+     "records": [{"frame": 0, "view": 0, "component": "femur", "points": Kx2,
+                  "spline": {"knots": [...], "coefficients": 2xn, "degree": 3,
+                             "t_range": [t0, t1]} or null, "reviewed": true}],
+     "poses": [{"frame": 0, "component": "femur", "pose": [x, y, z, a, b, g],
+                "match": {"objective_mm": ..., ...} or null}],
+     "settings": {...}}
+
+Arrays are nested lists of numbers; file paths are stored relative to the project file's
+folder (with "/" separators) and made absolute on load; the files they name need not exist.
+Older schemas are upgraded step by step through ``MIGRATIONS``; newer ones are refused.
+Saving is atomic and keeps the previous file as ``<name>.fluoro.bak``.
+"""
+from __future__ import annotations
+
+import copy
+import json
+import math
+import os
+from pathlib import Path, PurePosixPath
+
+import numpy as np
+
+from fluorogui import __version__
+from fluorogui.core.geometry import GeometryError, View
+from fluorogui.core.session import (
+    ImageSequence,
+    MatchRecord,
+    ModelEntry,
+    OutlineRecord,
+    PoseRecord,
+    Project,
+    SplineRecord,
+)
+from fluorogui.io.errors import InputError, atomic_write_text, describe_os_error
+
+PROJECT_FORMAT = "fluorogui-project"
+PROJECT_SUFFIX = ".fluoro"
+SCHEMA_VERSION = 2
+
+
+class _Malformed(Exception):
+    """A problem inside the document; becomes an InputError naming the file."""
+
+
+# -- migrations -----------------------------------------------------------------------------------
+def migrate_1_to_2(document: dict) -> dict:
+    """Schema 1 stored outlines as ``"outlines": [{"key": "frame/view/component", ...}]`` and
+    had no ``settings``; schema 2 stores ``records`` with separate key fields."""
+    records = []
+    for i, outline in enumerate(_get(document, "outlines", "", list)):
+        where = f"outlines[{i}]"
+        if not isinstance(outline, dict):
+            raise _Malformed(f"'{where}' must be an object")
+        parts = str(_get(outline, "key", where, str)).split("/", 2)
+        if len(parts) != 3:
+            raise _Malformed(f"'{where}.key' must read 'frame/view/component'")
+        try:
+            frame, view = int(parts[0]), int(parts[1])
+        except ValueError:
+            raise _Malformed(f"'{where}.key' must start with two whole numbers") from None
+        record = {k: v for k, v in outline.items() if k != "key"}
+        records.append({"frame": frame, "view": view, "component": parts[2], **record})
+    upgraded = {k: v for k, v in document.items() if k != "outlines"}
+    upgraded["records"] = records
+    upgraded["settings"] = {}
+    return upgraded
+
+
+MIGRATIONS = {1: migrate_1_to_2}
+
+
+def upgrade(document: dict) -> dict:
+    """Apply the migration chain to a document of any known older schema (a copy is changed)."""
+    version = document["schema_version"]
+    document = copy.deepcopy(document)
+    while version < SCHEMA_VERSION:
+        if version not in MIGRATIONS:
+            raise _Malformed(f"cannot upgrade schema {version}: no migration known")
+        try:
+            document = MIGRATIONS[version](document)
+        except _Malformed as exc:
+            raise _Malformed(f"cannot upgrade from schema {version}: {exc}") from None
+        version += 1
+        document["schema_version"] = version
+    return document
+
+
+# -- public API -----------------------------------------------------------------------------------
+def load_project(path) -> Project:
+    """Read a ``.fluoro`` project file; paths in it are resolved against its folder."""
+    path = Path(path)
+    if not path.exists():
+        raise InputError(path, "file not found")
+    if path.is_dir():
+        raise InputError(path, "is a folder, not a project file")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise InputError(path, "not a fluorogui project (not a text file)") from None
+    except OSError as exc:
+        raise InputError(path, f"cannot read the file: {describe_os_error(exc)}") from None
+    try:
+        document = json.loads(text)
+    except json.JSONDecodeError:
+        raise InputError(path, "file is truncated or not valid JSON") from None
+    if not isinstance(document, dict) or document.get("format") != PROJECT_FORMAT:
+        raise InputError(path, "not a fluorogui project")
+    version = document.get("schema_version")
+    if not isinstance(version, int) or isinstance(version, bool) or version < 1:
+        raise InputError(path, f"not a fluorogui project (unknown schema version {version!r})")
+    if version > SCHEMA_VERSION:
+        raise InputError(
+            path,
+            f"written by a newer fluorogui (schema {version} > {SCHEMA_VERSION}); update fluorogui to open it",
+        )
+    try:
+        return project_from_document(upgrade(document), path.parent.absolute())
+    except _Malformed as exc:
+        raise InputError(path, str(exc)) from None
+
+
+def save_project(project: Project, path) -> None:
+    """Write ``project`` to ``path`` atomically, keeping the previous file as ``.bak``."""
+    path = Path(path)
+    document = project_to_document(project, path.parent.absolute())
+    try:
+        text = json.dumps(document, indent=1, allow_nan=False)
+    except ValueError:
+        raise InputError(path, "cannot save: the project contains NaN or infinite numbers") from None
+    except TypeError as exc:
+        raise InputError(path, f"cannot save: a setting is not plain JSON data ({exc})") from None
+    atomic_write_text(path, text + "\n", backup=True)
+
+
+# -- Project -> document --------------------------------------------------------------------------
+def project_to_document(project: Project, base: Path) -> dict:
+    """The current-schema JSON document of a project, paths relative to ``base``."""
+    return {
+        "format": PROJECT_FORMAT,
+        "schema_version": SCHEMA_VERSION,
+        "app_version": __version__,
+        "views": [view.to_dict() for view in project.views],
+        "sequences": [{"paths": [_relative(p, base) for p in seq.paths]} for seq in project.sequences],
+        "frames": [int(f) for f in project.frames],
+        "models": [
+            {
+                "component": m.component,
+                "mesh_path": _relative(m.mesh_path, base),
+                "point_density": int(m.point_density),
+                "local_frame": m.local_frame.tolist(),
+            }
+            for m in project.models
+        ],
+        "records": [
+            {
+                "frame": int(frame),
+                "view": int(view),
+                "component": component,
+                "points": record.points.tolist(),
+                "spline": None if record.spline is None else _spline_to_dict(record.spline),
+                "reviewed": bool(record.reviewed),
+            }
+            for (frame, view, component), record in sorted(project.records.items(), key=_sort_key)
+        ],
+        "poses": [
+            {
+                "frame": int(frame),
+                "component": component,
+                "pose": record.pose.tolist(),
+                "match": None if record.match is None else _match_to_dict(record.match),
+            }
+            for (frame, component), record in sorted(project.poses.items(), key=_sort_key)
+        ],
+        "settings": project.settings,
+    }
+
+
+def _sort_key(item):
+    return tuple(str(k) if isinstance(k, str) else f"{int(k):012d}" for k in item[0])
+
+
+def _spline_to_dict(spline: SplineRecord) -> dict:
+    return {
+        "knots": spline.knots.tolist(),
+        "coefficients": spline.coefficients.tolist(),
+        "degree": spline.degree,
+        "t_range": list(spline.t_range),
+    }
+
+
+def _match_to_dict(match: MatchRecord) -> dict:
+    return {
+        "objective_mm": float(match.objective_mm),
+        "per_view_mean_mm": [float(v) for v in match.per_view_mean_mm],
+        "calls": int(match.calls),
+        "seconds": float(match.seconds),
+        "converged": bool(match.converged),
+        "method": str(match.method),
+        "settings": match.settings,
+    }
+
+
+def _relative(p: Path, base: Path) -> str:
+    p = Path(p)
+    if not p.is_absolute():
+        return PurePosixPath(*p.parts).as_posix() if p.parts else "."
+    try:
+        return Path(os.path.relpath(p, base)).as_posix()
+    except ValueError:  # another drive on Windows: keep it absolute
+        return p.as_posix()
+
+
+# -- document -> Project --------------------------------------------------------------------------
+def project_from_document(document: dict, base: Path) -> Project:
+    """A Project from a current-schema document; relative paths are joined to ``base``."""
+    views = []
+    for i, raw in enumerate(_get(document, "views", "", list)):
+        if not isinstance(raw, dict):
+            raise _Malformed(f"'views[{i}]' must be an object")
+        try:
+            views.append(View.from_dict(raw))
+        except GeometryError as exc:
+            raise _Malformed(f"'views[{i}]': {exc}") from None
+    sequences = []
+    for i, raw in enumerate(_get(document, "sequences", "", list)):
+        where = f"sequences[{i}]"
+        paths = _get(_object(raw, where), "paths", where, list)
+        sequences.append(ImageSequence([_absolute(_string(p, f"{where}.paths"), base) for p in paths]))
+    frames = [_integer(f, "frames") for f in _get(document, "frames", "", list)]
+    models = []
+    for i, raw in enumerate(_get(document, "models", "", list)):
+        where = f"models[{i}]"
+        raw = _object(raw, where)
+        models.append(
+            ModelEntry(
+                component=_get(raw, "component", where, str),
+                mesh_path=_absolute(_get(raw, "mesh_path", where, str), base),
+                point_density=_integer(_get(raw, "point_density", where), f"{where}.point_density"),
+                local_frame=_array(_get(raw, "local_frame", where), f"{where}.local_frame", (4, 4)),
+            )
+        )
+    records = {}
+    for i, raw in enumerate(_get(document, "records", "", list)):
+        where = f"records[{i}]"
+        raw = _object(raw, where)
+        key = (
+            _integer(_get(raw, "frame", where), f"{where}.frame"),
+            _integer(_get(raw, "view", where), f"{where}.view"),
+            _get(raw, "component", where, str),
+        )
+        if views and not 0 <= key[1] < len(views):
+            raise _Malformed(f"'{where}.view' is {key[1]} but the project has {len(views)} views")
+        if key in records:
+            raise _Malformed(f"'{where}' repeats the outline of frame {key[0]}, view {key[1]}, {key[2]}")
+        spline = _get(raw, "spline", where)
+        records[key] = OutlineRecord(
+            points=_array(_get(raw, "points", where), f"{where}.points", (None, 2)),
+            spline=None if spline is None else _spline_from_dict(_object(spline, f"{where}.spline"), f"{where}.spline"),
+            reviewed=_get(raw, "reviewed", where, bool),
+        )
+    poses = {}
+    for i, raw in enumerate(_get(document, "poses", "", list)):
+        where = f"poses[{i}]"
+        raw = _object(raw, where)
+        key = (_integer(_get(raw, "frame", where), f"{where}.frame"), _get(raw, "component", where, str))
+        if key in poses:
+            raise _Malformed(f"'{where}' repeats the pose of frame {key[0]}, {key[1]}")
+        match = _get(raw, "match", where)
+        poses[key] = PoseRecord(
+            pose=_array(_get(raw, "pose", where), f"{where}.pose", (6,)),
+            match=None if match is None else _match_from_dict(_object(match, f"{where}.match"), f"{where}.match"),
+        )
+    return Project(
+        views=views,
+        sequences=sequences,
+        frames=frames,
+        models=models,
+        records=records,
+        poses=poses,
+        settings=_get(document, "settings", "", dict),
+    )
+
+
+def _spline_from_dict(raw: dict, where: str) -> SplineRecord:
+    t_range = _array(_get(raw, "t_range", where), f"{where}.t_range", (2,))
+    return SplineRecord(
+        knots=_array(_get(raw, "knots", where), f"{where}.knots", (None,)),
+        coefficients=_array(_get(raw, "coefficients", where), f"{where}.coefficients", (None, None)),
+        degree=_integer(_get(raw, "degree", where), f"{where}.degree"),
+        t_range=(float(t_range[0]), float(t_range[1])),
+    )
+
+
+def _match_from_dict(raw: dict, where: str) -> MatchRecord:
+    return MatchRecord(
+        objective_mm=_number(_get(raw, "objective_mm", where), f"{where}.objective_mm"),
+        per_view_mean_mm=[float(v) for v in _array(_get(raw, "per_view_mean_mm", where), f"{where}.per_view_mean_mm", (None,))],
+        calls=_integer(_get(raw, "calls", where), f"{where}.calls"),
+        seconds=_number(_get(raw, "seconds", where), f"{where}.seconds"),
+        converged=_get(raw, "converged", where, bool),
+        method=_get(raw, "method", where, str),
+        settings=_get(raw, "settings", where, dict),
+    )
+
+
+def _absolute(text: str, base: Path) -> Path:
+    p = Path(text)
+    return p if p.is_absolute() else Path(os.path.normpath(base / p))
+
+
+# -- field checks ---------------------------------------------------------------------------------
+_MISSING = object()
+_TYPE_NAMES = {list: "a list", dict: "an object", str: "a text", bool: "true or false"}
+
+
+def _get(container: dict, key: str, where: str, kind=None):
+    name = f"{where}.{key}" if where else key
+    value = container.get(key, _MISSING)
+    if value is _MISSING:
+        raise _Malformed(f"missing field '{name}'")
+    if kind is not None and not isinstance(value, kind):
+        raise _Malformed(f"field '{name}' must be {_TYPE_NAMES.get(kind, kind.__name__)}")
+    return value
+
+
+def _object(value, where: str) -> dict:
+    if not isinstance(value, dict):
+        raise _Malformed(f"'{where}' must be an object")
+    return value
+
+
+def _string(value, where: str) -> str:
+    if not isinstance(value, str):
+        raise _Malformed(f"'{where}' must hold texts")
+    return value
+
+
+def _integer(value, where: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise _Malformed(f"'{where}' must be a whole number")
+    return value
+
+
+def _number(value, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise _Malformed(f"'{where}' must be a finite number")
+    return float(value)
+
+
+def _array(value, where: str, shape: tuple) -> np.ndarray:
+    try:
+        array = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise _Malformed(f"'{where}' must be a regular array of numbers") from None
+    if array.size == 0 and len(shape) == 2 and shape[1] is not None:
+        array = array.reshape(0, shape[1])  # an empty point list
+    if array.ndim != len(shape) or any(s is not None and s != n for s, n in zip(shape, array.shape)):
+        wanted = "x".join("N" if s is None else str(s) for s in shape)
+        raise _Malformed(f"'{where}' must be a {wanted} array, got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise _Malformed(f"'{where}' contains NaN or infinite numbers")
+    return array

@@ -1,0 +1,95 @@
+"""Mesh loading: formats, triangulation, duplicate points, and the bad-input messages."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import pyvista as pv
+
+from fluorogui.io.errors import InputError
+from fluorogui.io.meshes import load_mesh
+
+DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
+
+
+def error_of(path):
+    with pytest.raises(InputError) as info:
+        load_mesh(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: ") and "\n" not in message
+    return message
+
+
+@pytest.mark.parametrize("suffix", [".stl", ".ply", ".obj", ".vtk", ".vtp"])
+def test_formats(tmp_path, suffix):
+    sphere = pv.Sphere(radius=20.0, theta_resolution=12, phi_resolution=12)
+    path = tmp_path / f"ball{suffix}"
+    sphere.save(path)
+    vertices, faces = load_mesh(path)
+    assert vertices.dtype == np.float64 and vertices.shape[1] == 3
+    assert faces.dtype == np.int64 and faces.shape == (sphere.n_cells, 3)
+    assert faces.min() >= 0 and faces.max() < len(vertices)
+    np.testing.assert_allclose(np.linalg.norm(vertices, axis=1), 20.0, rtol=1e-5)
+
+
+def test_quads_triangulated_and_duplicates_merged(tmp_path):
+    cube = pv.Cube(x_length=30, y_length=20, z_length=10)  # 6 quads, 24 points (split normals)
+    path = tmp_path / "cube.stl"  # STL stores every triangle's corners separately
+    cube.save(path)
+    vertices, faces = load_mesh(path)
+    assert vertices.shape == (8, 3)
+    assert faces.shape == (12, 3)
+    path = tmp_path / "cube.vtp"
+    cube.save(path)
+    vertices, faces = load_mesh(path)
+    assert vertices.shape == (8, 3) and faces.shape == (12, 3)
+
+
+def test_real_stl():
+    path = DATA / "biplane-tka" / "models" / "femoral_component.stl"
+    if not path.exists():
+        pytest.skip("shared data not available")
+    vertices, faces = load_mesh(path)
+    assert len(faces) > 1000
+    diagonal = np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0))
+    assert 50 < diagonal < 200
+
+
+def test_missing_unsupported_empty(tmp_path):
+    assert error_of(tmp_path / "none.stl").endswith("file not found")
+    (tmp_path / "model.3ds").write_bytes(b"x")
+    assert "unsupported mesh type '.3ds'" in error_of(tmp_path / "model.3ds")
+    (tmp_path / "empty.stl").write_bytes(b"")
+    assert error_of(tmp_path / "empty.stl").endswith("file is empty")
+
+
+def test_corrupt_file(tmp_path):
+    (tmp_path / "junk.ply").write_bytes(b"\x00\x01 this is no mesh " * 20)
+    assert "unreadable mesh file" in error_of(tmp_path / "junk.ply")
+    (tmp_path / "junk.stl").write_bytes(b"solid x\nfacet garbage\n" * 5)
+    message = error_of(tmp_path / "junk.stl")
+    assert "unreadable" in message or "no faces" in message
+
+
+def test_no_faces(tmp_path):
+    cloud = pv.PolyData(np.random.default_rng(0).uniform(0, 50, (30, 3)))
+    cloud.save(tmp_path / "cloud.vtp")
+    assert error_of(tmp_path / "cloud.vtp").endswith("mesh has no faces")
+    line = pv.Line((0, 0, 0), (50, 0, 0))
+    line.save(tmp_path / "line.vtp")
+    assert error_of(tmp_path / "line.vtp").endswith("mesh has no faces")
+
+
+def test_nan_coordinates(tmp_path):
+    (tmp_path / "nan.stl").write_text(
+        "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 10 0 0\nvertex nan 10 0\n"
+        "endloop\nendfacet\nendsolid t\n"
+    )
+    assert "NaN or infinite vertex coordinates" in error_of(tmp_path / "nan.stl")
+
+
+@pytest.mark.parametrize("radius", [0.1, 2000.0])
+def test_implausible_size(tmp_path, radius):
+    pv.Sphere(radius=radius).save(tmp_path / "ball.stl")
+    assert "is the mesh in mm?" in error_of(tmp_path / "ball.stl")

@@ -1,0 +1,54 @@
+"""fluorogui.core and fluorogui.io must import with Qt and the GUI package unavailable."""
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+SCRIPT = textwrap.dedent(
+    """
+    import importlib
+    import pkgutil
+    import sys
+
+    BLOCKED = ("PySide6", "pyvistaqt", "superqt", "fluorogui.gui")
+
+    class BlockQt:
+        def find_spec(self, name, path=None, target=None):
+            if any(name == b or name.startswith(b + ".") for b in BLOCKED):
+                raise ImportError(f"blocked import of {name}")
+            return None
+
+    sys.meta_path.insert(0, BlockQt())
+    try:
+        import PySide6  # noqa: F401  (the blocker itself must work)
+        sys.exit("the import blocker let PySide6 through")
+    except ImportError:
+        pass
+    imported, failed = [], []
+    for package_name in ("fluorogui.core", "fluorogui.io"):
+        package = importlib.import_module(package_name)
+        for info in pkgutil.walk_packages(package.__path__, package_name + "."):
+            try:
+                importlib.import_module(info.name)
+                imported.append(info.name)
+            except Exception as exc:
+                failed.append(f"{info.name}: {type(exc).__name__}: {exc}")
+    leaked = [m for m in sys.modules if any(m == b or m.startswith(b + ".") for b in BLOCKED)]
+    print("\\n".join(imported))
+    if failed or leaked:
+        sys.exit("\\n".join(failed + [f"leaked: {m}" for m in leaked]))
+    """
+)
+
+
+def test_core_and_io_import_without_qt():
+    result = subprocess.run(
+        [sys.executable, "-c", SCRIPT], cwd=REPO, capture_output=True, text=True, timeout=120
+    )
+    assert result.returncode == 0, f"modules that fail to import with Qt blocked:\n{result.stderr}"
+    imported = result.stdout.split()
+    assert "fluorogui.io.project" in imported and "fluorogui.core.session" in imported
