@@ -1,0 +1,70 @@
+"""The matcher on exact outlines of a procedural femoral component (known answers)."""
+import numpy as np
+import pytest
+
+from fluorogui.core.matching import MatchProblem, MatchSettings, match
+from fluorogui.core.mesh import prepare_mesh
+from fluorogui.core.phantoms import femoral_component_mesh, tibial_component_mesh
+from fluorogui.core.pose import pose_difference, rotation_matrix
+from fluorogui.core.silhouette import mesh_silhouette
+from fluorogui.core.spline import OutlineSpline
+from fluorogui.core.validation import dual_orthogonal_views, perturbed_starts
+
+TRUTH = np.array([2.0, 3.0, -4.0, 10.0, 20.0, -30.0])
+
+
+def _problem(mesh_fn=femoral_component_mesh, truth=TRUTH):
+    mesh = prepare_mesh(*mesh_fn())
+    views = dual_orthogonal_views()
+    R = rotation_matrix(*truth[3:])
+    splines = [OutlineSpline.fit(mesh_silhouette(mesh, R, truth[:3], v).points_px) for v in views]
+    return MatchProblem(mesh, views, splines)
+
+
+@pytest.mark.parametrize("mesh_fn", [femoral_component_mesh, tibial_component_mesh])
+def test_fast_recovers_the_pose_from_perturbed_starts(mesh_fn):
+    problem = _problem(mesh_fn)
+    starts = perturbed_starts(TRUTH, 4, np.random.default_rng(7))
+    for start in starts:
+        res = match(problem, start, MatchSettings(method="fast"))
+        err = pose_difference(res.pose, TRUTH)
+        assert res.converged, res.message
+        assert np.all(np.abs(err[:3]) < 0.01) and np.all(np.abs(err[3:]) < 0.01), err
+        assert res.objective_mm < 0.01 and len(res.per_view_mean_mm) == 2
+        assert res.method == "fast" and res.calls > 1 and res.seconds > 0
+
+
+def test_paper_method_improves_on_the_start_and_reports_its_record():
+    problem = _problem()
+    start = TRUTH + np.array([3.0, -2.0, 2.0, 3.0, -2.0, 2.0])
+    calls = []
+    res = match(problem, start, MatchSettings(method="paper", model_points=3500, outline_points=50, max_calls=300),
+                progress=lambda n, value, pose: calls.append((n, value)))
+    start_error = np.abs(pose_difference(start, TRUTH))
+    assert np.all(np.abs(pose_difference(res.pose, TRUTH))[:3] < start_error[:3])
+    assert res.calls <= 300 and res.method == "paper"
+    assert calls[0][0] == 1 and calls[-1][0] == res.calls
+    assert res.objective_mm < calls[0][1]
+    if not res.converged:
+        assert res.message
+
+
+def test_cancel_stops_at_once_and_is_reported():
+    problem = _problem()
+    seen = []
+    res = match(problem, TRUTH + 5.0, MatchSettings(method="fast"), progress=lambda *a: seen.append(a),
+                cancel=lambda: len(seen) >= 1)
+    assert res.cancelled and not res.converged and res.calls <= 3
+
+
+def test_unknown_method_is_refused():
+    with pytest.raises(ValueError, match="unknown method"):
+        match(_problem(), TRUTH, MatchSettings(method="nope"))
+
+
+def test_result_dict_has_the_cli_contract_fields():
+    res = match(_problem(), TRUTH + 1.0, MatchSettings())
+    d = res.to_dict()
+    for key in ("pose", "objective_mm", "per_view_mean_mm", "calls", "seconds", "converged", "method", "settings"):
+        assert key in d
+    assert len(d["pose"]) == 6
