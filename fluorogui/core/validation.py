@@ -19,13 +19,12 @@ from typing import Callable
 
 import numpy as np
 
-from .edges import component_outline
 from .geometry import View
 from .matching import MatchProblem, MatchResult, MatchSettings, match
 from .mesh import PreparedMesh, prepare_mesh
-from .pose import pose_difference, rotation_matrix, transform_points
+from .pipeline import splines_from_images
+from .pose import pose_difference, transform_points
 from .render import render_fluoro
-from .silhouette import mesh_silhouette
 from .spline import OutlineSpline
 
 DOF_LABELS = ("dx", "dy", "dz", "dalpha", "dbeta", "dgamma")
@@ -118,14 +117,9 @@ class CaseResult:
 
 
 def outlines_from_images(images, views, mesh: PreparedMesh, nominal_pose) -> list[OutlineSpline]:
-    """The normal image path: Canny + sub-pixel edges, the contour that fits the projection
-    of ``nominal_pose`` (standing in for the user's review), a periodic spline."""
-    R = rotation_matrix(*nominal_pose[3:])
-    splines = []
-    for image, view in zip(images, views):
-        predicted = mesh_silhouette(mesh, R, np.asarray(nominal_pose[:3]), view).resample(spacing_px=2.0).points_px
-        splines.append(OutlineSpline.fit(component_outline(image, predicted)))
-    return splines
+    """The normal image path (Canny, sub-pixel edges, periodic spline), the outline chosen
+    along the projection of ``nominal_pose`` (standing in for the user's review)."""
+    return splines_from_images(images, views, mesh, nominal_pose)
 
 
 def run_starts(problem: MatchProblem, truth, starts, settings: MatchSettings,

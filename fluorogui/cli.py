@@ -1,0 +1,425 @@
+"""Headless command line over the engine: match, validate, bench. Never imports Qt.
+
+Every failure ends in one line on stderr and a non-zero exit (2 for bad input, 1 for
+an internal error), never a traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from fluorogui import __version__
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, not usage + message
+        raise _UsageError(f"{self.prog}: {message}")
+
+
+class _UsageError(Exception):
+    pass
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="fluorogui", description="Pose of knee-implant components from biplane fluoroscopy.")
+    p.add_argument("--version", action="version", version=f"fluorogui {__version__}")
+    sub = p.add_subparsers(dest="command", parser_class=_Parser)
+
+    m = sub.add_parser("match", help="match one component in one image pair")
+    m.add_argument("--camera", action="append", required=True, metavar="CAM", help="calibration file (twice)")
+    m.add_argument("--image", action="append", required=True, metavar="IMG", help="image file (twice)")
+    m.add_argument("--model", required=True, metavar="MESH", help="component mesh in mm (STL/PLY/OBJ/VTK)")
+    m.add_argument("--start", nargs=6, type=float, required=True, metavar=("X", "Y", "Z", "ALPHA", "BETA", "GAMMA"))
+    m.add_argument("--outline", action="append", metavar="CSV", help="ordered outline points u,v (twice)")
+    _add_match_options(m)
+    m.add_argument("--json", action="store_true", help="print one JSON object")
+    m.set_defaults(func=cmd_match)
+
+    v = sub.add_parser("validate", help="the paper's validation protocols")
+    vs = v.add_subparsers(dest="protocol", parser_class=_Parser, required=True)
+    vi = vs.add_parser("idealized", help="Tables 1/2: rendered images of a model at flexion poses")
+    vi.add_argument("--model", action="append", required=True, metavar="MESH")
+    vi.add_argument("--flexion", nargs="+", type=float, default=[30.0, 45.0, 60.0, 90.0])
+    vi.add_argument("--density", nargs="+", type=int, default=[15000], help="point-model sizes (paper method)")
+    _add_validation_options(vi)
+    vi.set_defaults(func=cmd_validate_idealized)
+    vp = vs.add_parser("spheres", help="Table 3: eight stacked 12.70 mm spheres")
+    _add_validation_options(vp)
+    vp.set_defaults(func=cmd_validate_spheres)
+    vr = vs.add_parser("repeatability", help="Table 4: perturbed starts of a given pose on real images")
+    vr.add_argument("--camera", action="append", required=True, metavar="CAM")
+    vr.add_argument("--image", action="append", metavar="IMG")
+    vr.add_argument("--model", required=True, metavar="MESH")
+    vr.add_argument("--pose", nargs=6, type=float, metavar=("X", "Y", "Z", "ALPHA", "BETA", "GAMMA"))
+    vr.add_argument("--outline", action="append", metavar="CSV")
+    vr.add_argument("--reference", metavar="CSV", help="poses per frame: frame,component,x,y,z,alpha,beta,gamma")
+    vr.add_argument("--pairs", metavar="CSV", help="with --reference: frame,cam1,cam2 image pairs")
+    vr.add_argument("--component", help="with --reference: the component of --model")
+    vr.add_argument("--frames", type=int, default=0, help="with --reference: first N frames (0 = all)")
+    _add_validation_options(vr)
+    vr.set_defaults(func=cmd_validate_repeatability)
+
+    b = sub.add_parser("bench", help="time matches of both methods on the real implant meshes")
+    b.add_argument("--model", action="append", metavar="MESH", help="default: the meshes in ../shared/data")
+    b.add_argument("--method", nargs="+", choices=["fast", "paper"], default=["fast", "paper"])
+    b.add_argument("--starts", type=int, default=10)
+    b.add_argument("--points", type=int, default=15000)
+    b.add_argument("--outline-points", type=int, default=60)
+    b.add_argument("--seed", type=int, default=0)
+    b.add_argument("--json", action="store_true")
+    b.set_defaults(func=cmd_bench)
+    return p
+
+
+def _add_match_options(p):
+    p.add_argument("--points", type=int, default=15000, help="point-model size (paper method)")
+    p.add_argument("--outline-points", type=int, default=None, help="outline points per view (paper default 60)")
+    p.add_argument("--method", choices=["fast", "paper"], default="fast")
+    p.add_argument("--starts", type=int, default=1, help="independent starts; the best match is kept")
+
+
+def _add_validation_options(p):
+    p.add_argument("--method", nargs="+", choices=["fast", "paper"], default=["fast"])
+    p.add_argument("--starts", type=int, default=10, help="perturbed starts per case")
+    p.add_argument("--outline-points", type=int, default=None)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", metavar="DIR", help="write results.json and results.csv here")
+    p.add_argument("--json", action="store_true", help="print the results as JSON")
+
+
+# -- helpers --------------------------------------------------------------------------------
+def _load_views(paths):
+    from fluorogui.io.calibration import load_view
+
+    if len(paths) != 2:
+        raise _UsageError(f"fluorogui: give exactly two --camera files (got {len(paths)})")
+    return [load_view(p, name=f"view {k + 1}") for k, p in enumerate(paths)]
+
+
+def _load_images(paths, views):
+    from fluorogui.io.calibration import check_image_size
+    from fluorogui.io.images import read_image
+
+    if len(paths or []) != 2:
+        raise _UsageError(f"fluorogui: give exactly two --image files (got {len(paths or [])})")
+    images = []
+    for p, v in zip(paths, views):
+        image = read_image(p)
+        check_image_size(v, image.shape, p)
+        images.append(image)
+    return images
+
+
+def _load_model(path):
+    from fluorogui.core.mesh import MeshError, check_plausible_mm, prepare_mesh
+    from fluorogui.io.errors import InputError
+    from fluorogui.io.meshes import load_mesh
+
+    vertices, faces = load_mesh(path)
+    try:
+        check_plausible_mm(vertices)
+        return prepare_mesh(vertices, faces)
+    except MeshError as exc:
+        raise InputError(path, str(exc)) from None
+
+
+def _start_pose(values, what="--start"):
+    from fluorogui.core.pose import as_pose
+
+    try:
+        return as_pose(values)
+    except ValueError as exc:
+        raise _UsageError(f"fluorogui: {what}: {exc}") from None
+
+
+def _splines(outline_paths, images, image_paths, views, mesh, pose):
+    """Splines from given outline files, or segmented from the images near the pose."""
+    from fluorogui.core.edges import component_outline
+    from fluorogui.core.pipeline import predicted_outline
+    from fluorogui.core.spline import OutlineError, OutlineSpline
+    from fluorogui.io.errors import InputError
+    from fluorogui.io.outlines import read_outline_csv
+
+    if outline_paths and len(outline_paths) != 2:
+        raise _UsageError(f"fluorogui: give two --outline files or none (got {len(outline_paths)})")
+    splines = []
+    for k, view in enumerate(views):
+        if outline_paths:
+            source, points = outline_paths[k], read_outline_csv(outline_paths[k])
+        else:
+            source = image_paths[k]
+            try:
+                points = component_outline(images[k], predicted_outline(mesh, pose, view))
+            except ValueError as exc:
+                raise InputError(source, f"no outline of the component found near the start pose ({exc})") from None
+        try:
+            splines.append(OutlineSpline.fit(points))
+        except (OutlineError, ValueError) as exc:
+            raise InputError(source, str(exc)) from None
+    return splines
+
+
+def _settings(args, method=None):
+    from fluorogui.core.matching import MatchSettings
+
+    method = method or args.method
+    outline_points = args.outline_points
+    if method == "paper" and outline_points is None:
+        outline_points = 60
+    return MatchSettings(method=method, model_points=getattr(args, "points", 15000),
+                         outline_points=outline_points, starts=max(1, getattr(args, "starts", 1)))
+
+
+def _write_outputs(out_dir, payload: dict, rows: list[dict]):
+    from fluorogui.io.errors import atomic_write_text
+
+    if not out_dir:
+        return
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(out / "results.json", json.dumps(payload, indent=2))
+    if rows:
+        keys = list(rows[0].keys())
+        lines = [",".join(keys)] + [",".join(str(r[k]) for k in keys) for r in rows]
+        atomic_write_text(out / "results.csv", "\n".join(lines) + "\n")
+    print(f"wrote {out / 'results.json'} and {out / 'results.csv'}")
+
+
+def _fmt_dof(summary, k):
+    return f"{summary.mean[k]:+.3f}±{summary.sd[k]:.3f} [{summary.rmse[k]:.3f}]"
+
+
+def _print_table(title, rows):
+    """rows: (label, Summary)."""
+    from fluorogui.core.validation import DOF_LABELS
+
+    print(title)
+    head = f"{'case':<22}" + "".join(f"{d + (' (mm)' if k < 3 else ' (deg)'):>24}" for k, d in enumerate(DOF_LABELS))
+    print(head + f"{'conv':>7}{'s/match':>9}{'calls':>7}")
+    for label, s in rows:
+        print(f"{label:<22}" + "".join(f"{_fmt_dof(s, k):>24}" for k in range(6))
+              + f"{s.n_converged:>4}/{s.n_runs:<2}{s.median_seconds:>9.3f}{s.median_calls:>7.0f}")
+    print()
+
+
+def _case_row(model, method, case):
+    s = case.summary
+    row = {"model": model, "method": method, "case": case.label, "n_runs": s.n_runs, "n_converged": s.n_converged,
+           "median_seconds": round(s.median_seconds, 4), "median_calls": s.median_calls}
+    from fluorogui.core.validation import DOF_LABELS
+
+    for k, d in enumerate(DOF_LABELS):
+        row[f"{d}_mean"], row[f"{d}_sd"], row[f"{d}_rmse"] = (round(float(x), 5) for x in (s.mean[k], s.sd[k], s.rmse[k]))
+    return row
+
+
+# -- commands ---------------------------------------------------------------------------------
+def cmd_match(args) -> int:
+    from fluorogui.core.matching import MatchProblem, match
+    from fluorogui.core.pipeline import match_images
+
+    views = _load_views(args.camera)
+    images = _load_images(args.image, views)
+    mesh = _load_model(args.model)
+    start = _start_pose(args.start)
+    if args.outline:
+        problem = MatchProblem(mesh, views, _splines(args.outline, images, args.image, views, mesh, start))
+        result = match(problem, start, _settings(args))
+    else:
+        # segment along the start pose, match, segment again along the result, match again
+        _splines(None, images, args.image, views, mesh, start)  # clear message if nothing is found
+        result, _ = match_images(images, views, mesh, start, _settings(args))
+    if args.json:
+        d = result.to_dict()
+        print(json.dumps({k: d[k] for k in ("pose", "objective_mm", "per_view_mean_mm", "calls", "seconds",
+                                              "converged", "method")} | {"message": d["message"]}))
+    else:
+        labels = ("x", "y", "z", "alpha", "beta", "gamma")
+        print("pose: " + "  ".join(f"{l}={v:.4f}" for l, v in zip(labels, result.pose)))
+        print(f"objective {result.objective_mm:.4f} mm (per view {', '.join(f'{v:.4f}' for v in result.per_view_mean_mm)}), "
+              f"{result.calls} calls, {result.seconds:.3f} s, {'converged' if result.converged else 'NOT converged: ' + result.message}")
+    return 0 if result.converged else 3
+
+
+def cmd_validate_idealized(args) -> int:
+    from fluorogui.core.validation import idealized_case
+
+    payload, rows = {"protocol": "idealized", "cases": []}, []
+    for model_path in args.model:
+        mesh = _load_model(model_path)
+        for method in args.method:
+            table = []
+            densities = args.density if method == "paper" else [None]
+            for density in densities:
+                for flexion in args.flexion:
+                    settings = _settings(args, method)
+                    if density:
+                        settings.model_points = density
+                    label = f"{flexion:g} deg" + (f", {density} pts" if density else "")
+                    case = idealized_case(mesh.vertices, mesh.faces, flexion, settings, args.starts, args.seed, label=label)
+                    table.append((label, case.summary))
+                    payload["cases"].append({"model": model_path, "method": method, **case.to_dict()})
+                    rows.append(_case_row(model_path, method, case))
+            _print_table(f"{Path(model_path).name} — method {method}: error mean±SD [RMSE]", table)
+    _write_outputs(args.out, payload, rows)
+    if args.json:
+        print(json.dumps(payload))
+    return 0
+
+
+def cmd_validate_spheres(args) -> int:
+    from fluorogui.core.phantoms import sphere_mesh
+    from fluorogui.core.validation import SPHERE_DIAMETER, spheres_case
+
+    vertices, faces = sphere_mesh(SPHERE_DIAMETER)
+    payload, rows = {"protocol": "spheres", "methods": {}}, []
+    for method in args.method:
+        settings = _settings(args, method)
+        settings.model_points = 2500
+        if method == "paper" and args.outline_points is None:
+            settings.outline_points = 60
+        out = spheres_case(vertices, faces, settings, args.starts, args.seed)
+        payload["methods"][method] = out
+        print(f"spheres — method {method} (separation, mm; true {SPHERE_DIAMETER:.2f})")
+        for name, m, s, r in zip(out["pairs"], out["pair_mean_mm"], out["pair_sd_mm"], out["pair_rmse_mm"]):
+            print(f"  {name:<8} {m:8.3f} ± {s:.3f} [{r:.3f}]")
+            rows.append({"method": method, "pair": name, "mean_mm": round(m, 5), "sd_mm": round(s, 5), "rmse_mm": round(r, 5)})
+        print(f"  mean {out['mean_mm']:.4f} (error {out['mean_error_mm']:+.4f}), SD {out['sd_mm']:.4f}, RMSE {out['rmse_mm']:.4f}; "
+              f"{out['converged']}/{out['runs']} convergent, median {out['median_seconds']:.3f} s/match\n")
+    _write_outputs(args.out, payload, rows)
+    if args.json:
+        print(json.dumps(payload))
+    return 0
+
+
+def cmd_validate_repeatability(args) -> int:
+    from fluorogui.core.matching import MatchProblem
+    from fluorogui.core.validation import repeatability_case
+
+    views = _load_views(args.camera)
+    mesh = _load_model(args.model)
+    cases = []  # (label, image paths, pose)
+    if args.reference:
+        cases = _reference_cases(args)
+    else:
+        if args.pose is None:
+            raise _UsageError("fluorogui: give --pose (or --reference with --pairs)")
+        cases = [("given pose", args.image, _start_pose(args.pose, "--pose"))]
+    payload, rows = {"protocol": "repeatability", "cases": []}, []
+    for method in args.method:
+        table = []
+        for label, image_paths, pose in cases:
+            images = _load_images(image_paths, views)
+            splines = _splines(args.outline if not args.reference else None, images, image_paths, views, mesh, pose)
+            case = repeatability_case(MatchProblem(mesh, views, splines), pose, _settings(args, method), args.starts,
+                                      args.seed, label=label)
+            resid = case.extra["per_view_mean_mm"]
+            table.append((f"{label} ({resid[0]:.2f}/{resid[1]:.2f})", case.summary))
+            payload["cases"].append({"method": method, **case.to_dict()})
+            rows.append(_case_row(args.model, method, case) | {"view1_mean_mm": round(resid[0], 4),
+                                                                  "view2_mean_mm": round(resid[1], 4)})
+        _print_table(f"{Path(args.model).name} — method {method}: spread about the mean pose, mean±SD [RMSE] "
+                     "(label: mean outline residual per view, mm)", table)
+        if len(table) > 1:
+            sds = np.array([s.sd for _, s in table])
+            print(f"worst SD over cases: translation {sds[:, :3].max():.3f} mm, rotation {sds[:, 3:].max():.3f} deg\n")
+    _write_outputs(args.out, payload, rows)
+    if args.json:
+        print(json.dumps(payload))
+    return 0
+
+
+def _reference_cases(args):
+    import csv
+
+    from fluorogui.io.errors import InputError
+
+    if not args.pairs or not args.component:
+        raise _UsageError("fluorogui: --reference needs --pairs and --component")
+    base = Path(args.pairs).resolve().parent
+    try:
+        with open(args.pairs, newline="") as fh:
+            pairs = {row["frame"]: (str(base / row["cam1"]), str(base / row["cam2"])) for row in csv.DictReader(fh)}
+        with open(args.reference, newline="") as fh:
+            refs = [r for r in csv.DictReader(fh) if r["component"] == args.component]
+    except (OSError, KeyError) as exc:
+        raise InputError(args.reference, f"cannot read reference poses or pairs: {exc}") from None
+    cases = []
+    for r in refs:
+        if r["frame"] not in pairs:
+            raise InputError(args.reference, f"frame {r['frame']} is not in {args.pairs}")
+        pose = _start_pose([r[k] for k in ("x", "y", "z", "alpha", "beta", "gamma")], f"{args.reference} frame {r['frame']}")
+        cases.append((f"frame {r['frame']}", list(pairs[r["frame"]]), pose))
+    return cases[: args.frames] if args.frames else cases
+
+
+def _default_bench_models():
+    data = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+    found = sorted(data.glob("*/models/*.stl")) + sorted(data.glob("single-plane-tka/*.stl"))
+    return [str(p) for p in found]
+
+
+def cmd_bench(args) -> int:
+    from fluorogui.core.matching import MatchSettings
+    from fluorogui.core.validation import idealized_case
+
+    models = args.model or _default_bench_models()
+    if not models:
+        raise _UsageError("fluorogui: no meshes given and none found in ../shared/data; use --model")
+    print(f"bench: {args.starts} starts within ±20 mm / ±20 deg per model, {args.points} model points (paper), "
+          f"{args.outline_points} outline points, rendered images at 45 deg flexion\n")
+    print(f"{'model':<28}{'method':<8}{'median s':>10}{'min s':>9}{'max s':>9}{'ms/call':>9}{'calls':>7}{'conv':>6}")
+    payload = []
+    for model_path in models:
+        mesh = _load_model(model_path)
+        for method in args.method:
+            settings = MatchSettings(method=method, model_points=args.points, outline_points=args.outline_points)
+            case = idealized_case(mesh.vertices, mesh.faces, 45.0, settings, args.starts, args.seed)
+            secs = np.array([r.seconds for r in case.results])
+            calls = np.array([r.calls for r in case.results])
+            per_call = 1000.0 * secs / np.maximum(calls, 1)
+            conv = sum(r.converged for r in case.results)
+            print(f"{Path(model_path).name:<28}{method:<8}{np.median(secs):>10.3f}{secs.min():>9.3f}{secs.max():>9.3f}"
+                  f"{np.median(per_call):>9.2f}{np.median(calls):>7.0f}{conv:>4}/{len(secs)}")
+            payload.append({"model": model_path, "method": method, "median_s": float(np.median(secs)),
+                            "min_s": float(secs.min()), "max_s": float(secs.max()),
+                            "median_ms_per_call": float(np.median(per_call)), "median_calls": float(np.median(calls)),
+                            "converged": int(conv), "runs": len(secs),
+                            "max_abs_error": np.abs(case.errors).max(0).tolist()})
+    if args.json:
+        print(json.dumps(payload))
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+        if not getattr(args, "command", None):
+            build_parser().print_help()
+            return 0
+        return args.func(args)
+    except _UsageError as exc:
+        print(str(exc), file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("fluorogui: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001 - the CLI never shows a traceback
+        from fluorogui.core.geometry import GeometryError
+        from fluorogui.core.mesh import MeshError
+        from fluorogui.io.errors import InputError
+
+        if isinstance(exc, (InputError, GeometryError, MeshError, ValueError)):
+            print(f"fluorogui: error: {exc}", file=sys.stderr)
+            return 2
+        print(f"fluorogui: internal error: {type(exc).__name__}: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
