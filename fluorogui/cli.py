@@ -164,7 +164,9 @@ def _splines(outline_paths, images, image_paths, views, mesh, pose):
     return splines
 
 
-def _settings(args, method=None):
+def _settings(args, method=None, multistart: bool = True):
+    """Match settings from the options; validations pass ``multistart=False`` because their
+    --starts counts perturbed starts, each one match."""
     from fluorogui.core.matching import MatchSettings
 
     method = method or args.method
@@ -172,7 +174,8 @@ def _settings(args, method=None):
     if method == "paper" and outline_points is None:
         outline_points = 60
     return MatchSettings(method=method, model_points=getattr(args, "points", 15000),
-                         outline_points=outline_points, starts=max(1, getattr(args, "starts", 1)))
+                         outline_points=outline_points,
+                         starts=max(1, getattr(args, "starts", 1)) if multistart else 1)
 
 
 def _write_outputs(out_dir, payload: dict, rows: list[dict]):
@@ -257,7 +260,7 @@ def cmd_validate_idealized(args) -> int:
             densities = args.density if method == "paper" else [None]
             for density in densities:
                 for flexion in args.flexion:
-                    settings = _settings(args, method)
+                    settings = _settings(args, method, multistart=False)
                     if density:
                         settings.model_points = density
                     label = f"{flexion:g} deg" + (f", {density} pts" if density else "")
@@ -279,7 +282,7 @@ def cmd_validate_spheres(args) -> int:
     vertices, faces = sphere_mesh(SPHERE_DIAMETER)
     payload, rows = {"protocol": "spheres", "methods": {}}, []
     for method in args.method:
-        settings = _settings(args, method)
+        settings = _settings(args, method, multistart=False)
         settings.model_points = 2500
         if method == "paper" and args.outline_points is None:
             settings.outline_points = 60
@@ -316,7 +319,7 @@ def cmd_validate_repeatability(args) -> int:
         for label, image_paths, pose in cases:
             images = _load_images(image_paths, views)
             splines = _splines(args.outline if not args.reference else None, images, image_paths, views, mesh, pose)
-            case = repeatability_case(MatchProblem(mesh, views, splines), pose, _settings(args, method), args.starts,
+            case = repeatability_case(MatchProblem(mesh, views, splines), pose, _settings(args, method, multistart=False), args.starts,
                                       args.seed, label=label)
             resid = case.extra["per_view_mean_mm"]
             table.append((f"{label} ({resid[0]:.2f}/{resid[1]:.2f})", case.summary))
