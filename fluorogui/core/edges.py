@@ -26,17 +26,22 @@ def smoothed_gradients(image: np.ndarray, sigma: float = 1.0):
     return img, gx, gy
 
 
-def canny_edges(image: np.ndarray, sigma: float = 1.0, high: float = 0.3, low: float = 0.4) -> np.ndarray:
-    """Canny edge mask. ``high`` is a fraction of the 99.9th percentile gradient (edges of a
-    component cover well over 0.1 % of an image, noise does not reach it), ``low``
-    a fraction of ``high``."""
+def canny_edges(image: np.ndarray, sigma: float = 1.0, high: float = 0.3, low: float = 0.4,
+                roi: tuple[int, int, int, int] | None = None) -> np.ndarray:
+    """Canny edge mask. ``high`` is a fraction of the 99.9th percentile gradient, taken in
+    ``roi`` (u0, v0, u1, v1) when given — around the component its edges are well over
+    0.1 % of the pixels, so noise does not reach that level — and ``low`` a fraction of
+    ``high``."""
     img, gx, gy = smoothed_gradients(image, sigma)
     lo_v, hi_v = float(np.min(img)), float(np.max(img))
     scale = 255.0 / max(hi_v - lo_v, 1e-6)
     dx = np.round(gx * 8.0 * scale * 4).astype(np.int16)  # cv2.Canny wants 16-bit derivatives
     dy = np.round(gy * 8.0 * scale * 4).astype(np.int16)
     mag = np.hypot(dx.astype(np.float32), dy.astype(np.float32))
-    top = float(np.percentile(mag, 99.9)) or float(mag.max()) or 1.0
+    region = mag if roi is None else mag[max(roi[1], 0):roi[3], max(roi[0], 0):roi[2]]
+    if region.size == 0:
+        region = mag
+    top = float(np.percentile(region, 99.9)) or float(region.max()) or 1.0
     return cv2.Canny(dx, dy, low * high * top, high * top, L2gradient=True) > 0
 
 
@@ -151,7 +156,9 @@ def component_outline(image: np.ndarray, predicted_px: np.ndarray, sigma: float 
     if len(predicted) < 4:
         raise ValueError("the predicted outline has fewer than 4 points")
     _, gx, gy = smoothed_gradients(image, sigma)
-    edges = canny_edges(image, sigma)
+    margin = search_px + tolerance_px
+    lo, hi = predicted.min(0) - margin, predicted.max(0) + margin
+    edges = canny_edges(image, sigma, roi=(int(lo[0]), int(lo[1]), int(np.ceil(hi[0])), int(np.ceil(hi[1]))))
     if not edges.any():
         raise ValueError("the image has no edges")
     shifted = predicted + best_shift(edges, predicted, search_px)

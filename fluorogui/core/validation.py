@@ -156,8 +156,8 @@ def sphere_centres(n: int = 8, diameter: float = SPHERE_DIAMETER) -> np.ndarray:
     """Centres of ``n`` touching spheres zig-zagging upwards in a vertical plane."""
     step_x, step_z = diameter * np.cos(np.radians(60.0)), diameter * np.sin(np.radians(60.0))
     k = np.arange(n)
-    x = (k % 2) * step_x * 2.0 - step_x
-    return np.column_stack([x, 0.3 * x, k * step_z - (n - 1) * step_z / 2.0])
+    x = (k % 2) * step_x - step_x / 2.0
+    return np.column_stack([x, np.zeros(n), k * step_z - (n - 1) * step_z / 2.0])
 
 
 def spheres_case(sphere_vertices, sphere_faces, settings: MatchSettings, n_starts: int = 10,

@@ -1,0 +1,1 @@
+"""Desktop application: PySide6 widgets, the pyvista scene and workers. Presentation only."""
