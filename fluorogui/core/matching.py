@@ -223,8 +223,11 @@ class _FastEvaluation:
         self.per_view_mm: list[float] = []
         self.r, self.J, self.w = [], [], []
         for view, spline, g in zip(problem.views, problem.splines, image_samples):
-            sil = mesh_silhouette(mesh, R, t, view)
-            fwd = sil.resample(n=settings.outline_points) if settings.outline_points else sil.resample(spacing_px=settings.spacing_px)
+            if settings.outline_points:
+                sil = mesh_silhouette(mesh, R, t, view, spacing_px=1.0)
+                fwd = sil.resample(n=settings.outline_points)
+            else:
+                sil = fwd = mesh_silhouette(mesh, R, t, view, spacing_px=settings.spacing_px)
             # model outline points to the image spline: signed distance along the spline normal
             X = fwd.model_points @ R.T + t
             uv, Jp = view.project_jacobian(X)
@@ -273,7 +276,7 @@ def _initial_translation(problem: MatchProblem, R, c, image_samples, iterations:
     for _ in range(iterations):
         A, b = [], []
         for view, g in zip(problem.views, image_samples):
-            sil = mesh_silhouette(mesh, R, c - R @ mesh.centroid, view)
+            sil = mesh_silhouette(mesh, R, c - R @ mesh.centroid, view, spacing_px=2.0)
             shift = _polygon_centroid(g) - _polygon_centroid(sil.points_px)
             _, Jc = view.project_jacobian(c[None, :])
             A.append(Jc[0])

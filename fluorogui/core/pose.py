@@ -93,3 +93,13 @@ def pose_difference(estimate, truth) -> np.ndarray:
     d = np.asarray(estimate, dtype=float) - np.asarray(truth, dtype=float)
     d[3:] = (d[3:] + 180.0) % 360.0 - 180.0
     return d
+
+
+def pose_error(estimate, truth) -> np.ndarray:
+    """Error of a matched pose as the paper reports it, between body-fixed frames: the
+    translation difference (mm) and the Euler angles (deg, this convention) of the rotation
+    carrying the true frame onto the matched one, ``R_truth^T R_estimate``. Unlike
+    differences of Euler angles it stays meaningful near gimbal lock (gamma ~ +/-90 deg)."""
+    estimate, truth = np.asarray(estimate, dtype=float), np.asarray(truth, dtype=float)
+    delta = rotation_matrix(*truth[3:]).T @ rotation_matrix(*estimate[3:])
+    return np.r_[estimate[:3] - truth[:3], angles_from_matrix(delta)]

@@ -59,11 +59,14 @@ def silhouette_edges(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, source: n
     return mesh.edges[on]
 
 
-def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View, scale: float = 2.0) -> Silhouette:
+def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View, scale: float = 2.0,
+                    spacing_px: float | None = None) -> Silhouette:
     """Outer silhouette outline of ``mesh`` at pose (R, t) in ``view``.
 
     ``scale`` is the drawing resolution in samples per pixel; it only decides which
     silhouette edges form the outer boundary, the points themselves are exact.
+    ``spacing_px`` keeps about one outline point per that many pixels (default: all,
+    about ``1 / scale`` px apart), which is what makes it cheap enough for the matcher.
     """
     edges = silhouette_edges(mesh, R, t, view.source)
     if len(edges) == 0:
@@ -90,16 +93,17 @@ def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View
     cv2.polylines(canvas, fixed, False, 255, 1, cv2.LINE_8, _SHIFT)
     contours, _ = cv2.findContours(canvas, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     outer = max(contours, key=lambda c: cv2.contourArea(c) + len(c))[:, 0, :].astype(float)
-    # contour points lie on drawn pixels; drop the duplicate return path of thin spurs
     pts = outer / scale + origin
+    if spacing_px:
+        pts = pts[:: max(1, int(round(spacing_px * scale)))]
 
     # snap each contour point onto the nearest projected silhouette edge
     seg_len = np.linalg.norm(P1 - P0, axis=1)
-    n_sub = np.clip(np.ceil(seg_len / 0.75).astype(int), 1, 200)
+    n_sub = np.clip(np.ceil(seg_len / 2.0).astype(int), 1, 400)
     seg_id = np.repeat(np.arange(len(segs)), n_sub + 1)
     frac = np.concatenate([np.linspace(0, 1, k + 1) for k in n_sub]) if len(n_sub) < 64 else _fractions(n_sub)
     samples = P0[seg_id] + frac[:, None] * (P1 - P0)[seg_id]
-    _, nearest = cKDTree(samples).query(pts, k=min(6, len(samples)))
+    _, nearest = cKDTree(samples).query(pts, k=min(8, len(samples)))
     nearest = np.atleast_2d(nearest)
     cand = seg_id[nearest]  # (K, k)
     a, b = P0[cand], P1[cand]

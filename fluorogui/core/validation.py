@@ -23,7 +23,7 @@ from .geometry import View
 from .matching import MatchProblem, MatchResult, MatchSettings, match
 from .mesh import PreparedMesh, prepare_mesh
 from .pipeline import splines_from_images
-from .pose import pose_difference, transform_points
+from .pose import pose_error, transform_points
 from .render import render_fluoro
 from .spline import OutlineSpline
 
@@ -128,7 +128,7 @@ def run_starts(problem: MatchProblem, truth, starts, settings: MatchSettings,
     for k, s in enumerate(starts):
         res = match(problem, s, settings, cancel=cancel)
         results.append(res)
-        errors.append(pose_difference(res.pose, truth))
+        errors.append(pose_error(res.pose, truth))
         if progress is not None:
             progress(k + 1, len(starts))
         if res.cancelled:
