@@ -68,9 +68,9 @@ def test_pose_error_is_the_body_fixed_rotation_even_at_gimbal_lock():
     from fluorogui.core.pose import pose_error, rotvec_matrix
 
     truth = np.array([1.0, 2.0, 3.0, 20.0, 30.0, 89.9])
-    R = rotation_matrix(*truth[3:]) @ rotvec_matrix(np.radians([0.01, 0.0, 0.0]))
+    R = rotation_matrix(*truth[3:]) @ rotvec_matrix(np.radians([0.0, 0.01, 0.0]))
     est = np.r_[truth[:3] + [0.1, 0.0, 0.0], angles_from_matrix(R)]
     err = pose_error(est, truth)
-    assert np.allclose(err, [0.1, 0, 0, 0.01, 0, 0], atol=1e-6)
+    assert np.allclose(err, [0.1, 0, 0, 0, 0.01, 0], atol=1e-6)
     # plain Euler differences blow up near gamma = 90 deg
     assert np.abs(pose_difference(est, truth)[3:]).max() > 0.05
