@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# Set up if needed, then run the test suite (under Xvfb, Qt offscreen by default).
+# Usage: bash packaging/test.sh [pytest args]
+set -euo pipefail
+REPO_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+bash "$REPO_ROOT/packaging/setup.sh"
+cd "$REPO_ROOT"
+export QT_QPA_PLATFORM="${QT_QPA_PLATFORM:-offscreen}"
+
+cmd=("$REPO_ROOT/.venv/bin/python" -m pytest -q "$@")
+if command -v xvfb-run >/dev/null 2>&1; then
+  cmd=(xvfb-run -a -s "-screen 0 1920x1080x24" "${cmd[@]}")
+else
+  echo "test: xvfb-run not found; tests that need a real display will fail or skip" >&2
+fi
+
+status=0
+"${cmd[@]}" || status=$?
+if [ "$status" -eq 5 ]; then
+  echo "test: ERROR: pytest collected no tests" >&2
+fi
+exit "$status"
