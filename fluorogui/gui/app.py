@@ -4,7 +4,6 @@ The real GUI (demo project, outline editing, 3D scene, matching) replaces this l
 """
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -22,24 +21,11 @@ from PySide6.QtWidgets import (
 )
 
 from fluorogui import __version__
+from fluorogui.io.errors import InputError
+from fluorogui.io.project import load_project
 
 PROJECT_FILE_FILTER = "fluorogui projects (*.fluoro);;All files (*)"
 PLACEHOLDER_GREY = QColor(128, 128, 128)
-
-
-class ProjectOpenError(Exception):
-    """A project file that cannot be read."""
-
-
-def read_project_file(path: str | Path) -> dict:
-    """Read a project file (placeholder: any JSON object) or raise ProjectOpenError."""
-    try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise ProjectOpenError(str(exc)) from exc
-    if not isinstance(data, dict):
-        raise ProjectOpenError("not a fluorogui project (expected a JSON object)")
-    return data
 
 
 class ImagePanel(QLabel):
@@ -111,9 +97,9 @@ class MainWindow(QMainWindow):
     def open_project(self, path: str | Path) -> bool:
         """Open a project file; on failure warn the user and keep the current state."""
         try:
-            project = read_project_file(path)
-        except ProjectOpenError as exc:
-            QMessageBox.warning(self, "Cannot open project", f"Cannot open {path}:\n{exc}")
+            project = load_project(path)
+        except InputError as exc:
+            QMessageBox.warning(self, "Cannot open project", str(exc))
             self.statusBar().showMessage(f"Could not open {path}")
             return False
         self.project_path = Path(path)
