@@ -32,9 +32,10 @@ from scipy.spatial import cKDTree
 
 from .geometry import View
 from .mesh import PreparedMesh, sample_surface
-from .outline import equally_spaced, grid_outline, point_spacing_px
+from .outline import grid_outline, point_spacing_px
 from .pose import angles_from_matrix, as_pose, rotation_matrix, rotvec_matrix
 from .silhouette import mesh_silhouette
+from .spline import resample_closed_polyline
 
 ProgressCallback = Callable[[int, float, np.ndarray], None]
 
@@ -135,9 +136,9 @@ def paper_view_distances(problem: MatchProblem, pose: np.ndarray, settings: Matc
         cell = 2.0 * point_spacing_px(len(cloud), problem.mesh.area, px_per_mm)
         outline = grid_outline(uv, cell)
         if settings.outline_spacing_mm:
-            pts = equally_spaced(outline, spacing=settings.outline_spacing_mm / view.mm_per_px())
+            pts = resample_closed_polyline(outline, spacing=settings.outline_spacing_mm / view.mm_per_px())
         else:
-            pts = equally_spaced(outline, n=settings.outline_points or 60)
+            pts = resample_closed_polyline(outline, n=settings.outline_points or 60)
         d = spline.closest_secant(pts)[0] if hasattr(spline, "closest_secant") else spline.closest(pts)[0]
         out.append(np.asarray(d) * view.mm_per_px())
     return out

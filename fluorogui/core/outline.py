@@ -57,18 +57,3 @@ def grid_outline(points_px: np.ndarray, cell_px: float) -> np.ndarray:
     # back into contour order
     seq = np.argsort(first[chosen_slot], kind="stable")
     return pts[chosen[seq]]
-
-
-def equally_spaced(polyline: np.ndarray, n: int | None = None, spacing: float | None = None) -> np.ndarray:
-    """Points equally spaced along a closed polyline, by count or by spacing."""
-    p = np.asarray(polyline, dtype=float)
-    closed = np.vstack([p, p[:1]])
-    seg = np.linalg.norm(np.diff(closed, axis=0), axis=1)
-    s = np.r_[0.0, np.cumsum(seg)]
-    total = s[-1]
-    if total <= 0:
-        return p[:1].copy()
-    if n is None:
-        n = max(4, int(round(total / spacing)))
-    targets = np.arange(n) * total / n
-    return np.column_stack([np.interp(targets, s, closed[:, 0]), np.interp(targets, s, closed[:, 1])])

@@ -3,7 +3,8 @@ import pytest
 
 from fluorogui.core.geometry import View
 from fluorogui.core.mesh import MeshError, prepare_mesh, sample_surface
-from fluorogui.core.outline import equally_spaced, grid_outline
+from fluorogui.core.outline import grid_outline
+from fluorogui.core.spline import resample_closed_polyline
 from fluorogui.core.phantoms import femoral_component_mesh, sphere_mesh
 from fluorogui.core.pose import rotation_matrix
 from fluorogui.core.silhouette import mesh_silhouette
@@ -51,7 +52,7 @@ def test_grid_outline_of_a_disc_lies_just_inside_it():
     # ordered around the disc: angles change monotonically (one way) apart from the wrap
     ang = np.unwrap(np.arctan2(outline[:, 1] - 300, outline[:, 0] - 300))
     assert abs(ang[-1] - ang[0]) > 1.9 * np.pi
-    spaced = equally_spaced(outline, n=60)
+    spaced = resample_closed_polyline(outline, n=60)
     steps = np.linalg.norm(np.diff(spaced, axis=0), axis=1)
     assert len(spaced) == 60 and steps.std() < 0.05 * steps.mean()
 
