@@ -22,7 +22,7 @@ from PySide6.QtWidgets import (
 
 from fluorogui import __version__
 from fluorogui.io.errors import InputError
-from fluorogui.io.project import load_project
+from fluorogui.io.project import Project, load_project
 
 PROJECT_FILE_FILTER = "fluorogui projects (*.fluoro);;All files (*)"
 PLACEHOLDER_GREY = QColor(128, 128, 128)
@@ -66,7 +66,7 @@ class MainWindow(QMainWindow):
         super().__init__(parent)
         self.setWindowTitle("fluorogui")
         self.project_path: Path | None = None
-        self.project: dict | None = None
+        self.project: Project | None = None
 
         self.image_panels = [ImagePanel("View 1"), ImagePanel("View 2")]
         central = QWidget()

@@ -19,3 +19,25 @@ def test_module_entry_reports_bad_usage_in_one_line():
                           text=True, timeout=60)
     assert proc.returncode == 2
     assert len(proc.stderr.strip().splitlines()) == 1 and "required" in proc.stderr
+
+
+def test_python_dash_m_version():
+    proc = subprocess.run([sys.executable, "-m", "fluorogui", "--version"], capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == f"fluorogui {__version__}"
+
+
+def test_console_script_matches_python_dash_m():
+    import shutil
+    from pathlib import Path
+
+    script = Path(sys.executable).with_name("fluorogui")
+    if not script.exists():
+        script = shutil.which("fluorogui")
+    if script is None:
+        import pytest
+        pytest.skip("fluorogui console script is not installed")
+    proc = subprocess.run([str(script), "--version"], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == f"fluorogui {__version__}"
