@@ -1,0 +1,140 @@
+"""Canny edge chains, sub-pixel edge localisation and outline selection (fluorogui.core.edges)."""
+import cv2
+import numpy as np
+import pytest
+
+from fluorogui.core.edges import (
+    EdgeError,
+    canny_edges,
+    component_outline,
+    edge_contours,
+    outline_from_mask,
+    select_outline,
+)
+from fluorogui.core.geometry import View
+from fluorogui.core.render import render_fluoro
+from fluorogui.core.spline import OutlineSpline, validate_outline
+
+VIEW = View.looking_at([0, 0, -1000], [0, 0, 0], [0, -1, 0], 1000.0, (256, 256), 0.25)  # z=0 at 0.25 mm/px
+
+
+def flat_polygon(xy_mm):
+    """Triangle fan of a polygon in the plane z = 0 and its exact outline in pixels."""
+    n = len(xy_mm)
+    vertices = np.vstack([np.column_stack([xy_mm, np.zeros(n)]), [[*xy_mm.mean(axis=0), 0.0]]])
+    faces = np.array([[n, i, (i + 1) % n] for i in range(n)])
+    return (vertices, faces), VIEW.project(vertices[:n])
+
+
+def disc(radius_mm=15.0, centre=(0.3, -0.2)):
+    th = np.linspace(0, 2 * np.pi, 1440, endpoint=False)
+    return flat_polygon(np.asarray(centre) + radius_mm * np.column_stack([np.cos(th), np.sin(th)]))
+
+
+def rotated_square(half_mm=14.0, angle_deg=30.0, centre=(0.2, 0.35)):
+    a = np.radians(angle_deg)
+    rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=float) * half_mm
+    return flat_polygon(np.asarray(centre) + corners @ rot.T)
+
+
+def signed_distance(points, polygon_px):
+    """Distance of points to a polygon, positive outside."""
+    contour = polygon_px.astype(np.float32).reshape(-1, 1, 2)
+    return np.array([-cv2.pointPolygonTest(contour, (float(u), float(v)), True) for u, v in points])
+
+
+@pytest.mark.parametrize("shape", ["disc", "square"])
+def test_subpixel_edges_are_unbiased(shape):
+    rng = np.random.default_rng(11)
+    means, rms = [], []
+    for angle in (0.0, 17.0, 30.0, 41.0):
+        mesh, truth = disc(centre=rng.uniform(-0.5, 0.5, 2)) if shape == "disc" else rotated_square(angle_deg=angle)
+        image = render_fluoro(VIEW, [mesh], rng)  # shaded background, blur 0.7 px, noise 0.02
+        points = np.vstack(edge_contours(image, sigma=1.0))
+        if shape == "square":  # corners are rounded by any blur: judge the straight sides
+            points = points[np.min(np.linalg.norm(points[:, None] - truth[None], axis=2), axis=1) > 4.0]
+        d = signed_distance(points, truth)
+        assert np.abs(d).max() < 0.5
+        means.append(d.mean())
+        rms.append(np.sqrt(np.mean(d**2)))
+    assert abs(np.mean(means)) < 0.05 and max(abs(m) for m in means) < 0.05
+    assert max(rms) < 0.15
+
+
+def test_edge_contours_visit_each_pixel_once():
+    mesh, _ = disc()
+    image = render_fluoro(VIEW, [mesh], np.random.default_rng(0), noise_sd=0.0, background="flat")
+    contours = edge_contours(image, subpixel=False)
+    pixels = np.vstack(contours).astype(int)
+    assert len(np.unique(pixels, axis=0)) == len(pixels)
+    assert len(pixels) == canny_edges(image).sum()
+    longest = max(contours, key=len)
+    steps = np.abs(np.diff(longest, axis=0)).max(axis=1)
+    assert steps.max() <= 1  # ordered: consecutive pixels are neighbours
+
+
+def test_canny_thresholds_are_fractions():
+    mesh, _ = disc()
+    image = render_fluoro(VIEW, [mesh], np.random.default_rng(0))
+    assert canny_edges(image, 0.1, 0.3).sum() > 300
+    assert not canny_edges(image, 0.1, 0.3).all()
+    with pytest.raises(ValueError):
+        canny_edges(image, 0.5, 0.2)
+
+
+def test_component_outline_of_a_disc():
+    mesh, truth = disc()
+    image = render_fluoro(VIEW, [mesh], np.random.default_rng(5))
+    predicted = truth[::20] + np.array([4.0, -3.0])  # a rough prediction, a few pixels off
+    outline = component_outline(image, predicted)
+    validate_outline(outline)
+    spline = OutlineSpline.fit(outline)
+    d = signed_distance(spline.sample(400), truth)
+    assert abs(d.mean()) < 0.05 and np.sqrt(np.mean(d**2)) < 0.1
+    assert abs(spline.length_px - 2 * np.pi * 60.0) < 1.0
+
+
+def circle_px(radius, centre=(128.0, 128.0), n=400, start=0.0, stop=2 * np.pi):
+    th = np.linspace(start, stop, n, endpoint=stop - start < 2 * np.pi - 1e-9)
+    return np.asarray(centre) + radius * np.column_stack([np.cos(th), np.sin(th)])
+
+
+def test_select_outline_picks_the_predicted_contour():
+    rng = np.random.default_rng(2)
+    target = circle_px(60.0) + rng.normal(0, 0.05, (400, 2))
+    distractors = [
+        circle_px(40.0),  # inner edge
+        circle_px(60.0, centre=(160.0, 128.0)),  # same shape, elsewhere
+        np.column_stack([np.linspace(0, 255, 300), np.full(300, 70.0)]),  # long straight edge
+        circle_px(62.0, start=0.0, stop=1.0, n=30),  # short piece next to the target
+    ]
+    predicted = circle_px(58.0, centre=(130.0, 127.0), n=50)
+    chosen = select_outline(distractors[:2] + [target] + distractors[2:], predicted)
+    assert chosen is target
+
+
+def test_select_outline_merges_pieces_in_order():
+    truth = circle_px(60.0, n=1200)
+    arcs = [truth[i:i + 250] for i in (0, 300, 600, 900)]  # four pieces with gaps
+    shuffled = [arcs[2], arcs[0][::-1], arcs[3], arcs[1][::-1], circle_px(20.0)]
+    merged = select_outline(shuffled, circle_px(58.0, n=80), merge=True)
+    validate_outline(merged)
+    spline = OutlineSpline.fit(merged)
+    d, _, _, _ = spline.closest(truth)
+    assert np.median(d) < 0.01 and d.max() < 2.0  # gaps bridged smoothly
+    with pytest.raises(EdgeError):
+        select_outline([circle_px(20.0)], circle_px(80.0), merge=True)
+
+
+def test_outline_from_mask():
+    mask = np.zeros((50, 60), dtype=bool)
+    mask[10:20, 5:25] = True
+    mask[30:32, 40:42] = True  # smaller region, ignored
+    pts = outline_from_mask(mask)
+    assert pts.min(axis=0).tolist() == [5, 10] and pts.max(axis=0).tolist() == [24, 19]
+    edges = outline_from_mask(mask, offset_px=0.5)
+    side = edges[(edges[:, 1] > 12) & (edges[:, 1] < 17)]
+    assert set(np.round(side[:, 0], 6)) == {4.5, 24.5}
+    with pytest.raises(EdgeError):
+        outline_from_mask(np.zeros((5, 5), dtype=bool))
