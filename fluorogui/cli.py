@@ -235,8 +235,8 @@ def cmd_match(args) -> int:
         result = match(problem, start, _settings(args))
     else:
         # segment along the start pose, match, segment again along the result, match again
-        _splines(None, images, args.image, views, mesh, start)  # clear message if nothing is found
-        result, _ = match_images(images, views, mesh, start, _settings(args))
+        first = _splines(None, images, args.image, views, mesh, start)  # names the image if nothing is found
+        result, _ = match_images(images, views, mesh, start, _settings(args), splines=first)
     if args.json:
         d = result.to_dict()
         print(json.dumps({k: d[k] for k in ("pose", "objective_mm", "per_view_mean_mm", "calls", "seconds",

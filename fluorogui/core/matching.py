@@ -146,7 +146,7 @@ def paper_view_distances(problem: MatchProblem, pose: np.ndarray, settings: Matc
 
 def _match_paper(problem, start, settings, progress, cancel) -> MatchResult:
     centroid = problem.mesh.centroid
-    R0, c0 = _to_state(start, centroid)
+    _, c0 = _to_state(start, centroid)
     x0 = np.array([*c0, *start[3:]])
     calls = [0]
     best = [np.inf, x0.copy(), None]
@@ -302,8 +302,8 @@ def _polygon_centroid(p: np.ndarray) -> np.ndarray:
 def _match_fast(problem, start, settings, progress, cancel) -> MatchResult:
     mesh = problem.mesh
     R, c = _to_state(start, mesh.centroid)
-    n_img = settings.outline_points or None
-    image_samples = [s.sample(n_img or max(16, int(s.length_px / settings.spacing_px))) for s in problem.splines]
+    image_samples = [s.sample(settings.outline_points or max(16, int(s.length_px / settings.spacing_px)))
+                     for s in problem.splines]
     c = _initial_translation(problem, R, c, image_samples)
     calls = 0
     history: list[float] = []

@@ -37,15 +37,18 @@ def splines_from_images(images, views, mesh, pose) -> list[OutlineSpline]:
 
 
 def match_images(images, views, mesh: PreparedMesh, start, settings: MatchSettings | None = None,
-                 passes: int = 2, progress=None, cancel=None) -> tuple[MatchResult, list[OutlineSpline]]:
+                 passes: int = 2, progress=None, cancel=None,
+                 splines: list[OutlineSpline] | None = None) -> tuple[MatchResult, list[OutlineSpline]]:
     """Segment along the start pose and match; then ``passes - 1`` times segment along the
-    result and match again from it. Returns the last result and its splines."""
+    result and match again from it. ``splines``, when given, serve as the first pass's
+    outlines. Returns the last result and its splines."""
     settings = settings or MatchSettings()
     pose = np.asarray(start, dtype=float)
     total_calls, total_seconds = 0, 0.0
-    result, splines = None, []
-    for _ in range(max(1, passes)):
-        splines = splines_from_images(images, views, mesh, pose)
+    result = None
+    for k in range(max(1, passes)):
+        if k > 0 or splines is None:
+            splines = splines_from_images(images, views, mesh, pose)
         result = match(MatchProblem(mesh, views, splines), pose, settings, progress, cancel)
         total_calls += result.calls
         total_seconds += result.seconds

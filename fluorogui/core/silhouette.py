@@ -101,7 +101,7 @@ def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View
     seg_len = np.linalg.norm(P1 - P0, axis=1)
     n_sub = np.clip(np.ceil(seg_len / 2.0).astype(int), 1, 400)
     seg_id = np.repeat(np.arange(len(segs)), n_sub + 1)
-    frac = np.concatenate([np.linspace(0, 1, k + 1) for k in n_sub]) if len(n_sub) < 64 else _fractions(n_sub)
+    frac = _fractions(n_sub)
     samples = P0[seg_id] + frac[:, None] * (P1 - P0)[seg_id]
     _, nearest = cKDTree(samples).query(pts, k=min(8, len(samples)))
     nearest = np.atleast_2d(nearest)

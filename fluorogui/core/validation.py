@@ -23,7 +23,7 @@ from .geometry import View
 from .matching import MatchProblem, MatchResult, MatchSettings, match
 from .mesh import PreparedMesh, prepare_mesh
 from .pipeline import splines_from_images
-from .pose import pose_error, transform_points
+from .pose import angles_from_matrix, pose_error, rotvec_matrix, transform_points
 from .render import render_fluoro
 from .spline import OutlineSpline
 
@@ -66,8 +66,6 @@ def flexion_pose(vertices, flexion_deg: float) -> np.ndarray:
     ml = longest_axis(vertices)
     axes = np.eye(3)
     # rotate about the ML axis by the flexion, then small fixed tilts about the others
-    from .pose import angles_from_matrix, rotvec_matrix
-
     R = rotvec_matrix(np.radians(flexion_deg) * axes[ml])
     R = rotvec_matrix(np.radians(3.0) * axes[(ml + 1) % 3]) @ rotvec_matrix(np.radians(5.0) * axes[(ml + 2) % 3]) @ R
     centroid = np.asarray(vertices, dtype=float).mean(0)
