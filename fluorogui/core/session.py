@@ -88,18 +88,21 @@ class MatchRecord:
 
 @dataclass(eq=False)
 class PoseRecord:
-    """A component's pose in one frame (x, y, z mm; alpha, beta, gamma deg) and its match."""
+    """A component's pose in one frame (x, y, z mm; alpha, beta, gamma deg), its match and
+    whether the user has accepted it."""
 
     pose: np.ndarray
     match: MatchRecord | None = None
+    reviewed: bool = False
 
     def __post_init__(self):
         self.pose = np.asarray(self.pose, dtype=float).reshape(6)
+        self.reviewed = bool(self.reviewed)
 
     def __eq__(self, other) -> bool:
         if not isinstance(other, PoseRecord):
             return NotImplemented
-        return _same_array(self.pose, other.pose) and self.match == other.match
+        return _same_array(self.pose, other.pose) and self.match == other.match and self.reviewed == other.reviewed
 
 
 @dataclass(eq=False)

@@ -12,7 +12,7 @@ Layout (schema 2, the current one)::
                   "spline": {"knots": [...], "coefficients": 2xn, "degree": 3,
                              "t_range": [t0, t1]} or null, "reviewed": true}],
      "poses": [{"frame": 0, "component": "femur", "pose": [x, y, z, a, b, g],
-                "match": {"objective_mm": ..., ...} or null}],
+                "match": {"objective_mm": ..., ...} or null, "reviewed": false}],  # reviewed: optional
      "settings": {...}}
 
 Arrays are nested lists of numbers; file paths are stored relative to the project file's
@@ -178,6 +178,7 @@ def project_to_document(project: Project, base: Path) -> dict:
                 "component": component,
                 "pose": record.pose.tolist(),
                 "match": None if record.match is None else _match_to_dict(record.match),
+                "reviewed": bool(record.reviewed),
             }
             for (frame, component), record in sorted(project.poses.items(), key=_sort_key)
         ],
@@ -279,6 +280,7 @@ def project_from_document(document: dict, base: Path) -> Project:
         poses[key] = PoseRecord(
             pose=_array(_get(raw, "pose", where), f"{where}.pose", (6,)),
             match=None if match is None else _match_from_dict(_object(match, f"{where}.match"), f"{where}.match"),
+            reviewed=_optional_bool(raw, "reviewed", where),
         )
     return Project(
         views=views,
@@ -289,6 +291,11 @@ def project_from_document(document: dict, base: Path) -> Project:
         poses=poses,
         settings=_get(document, "settings", "", dict),
     )
+
+
+def _optional_bool(container: dict, key: str, where: str) -> bool:
+    """A flag added within schema 2 (older files lack it: False)."""
+    return bool(_get(container, key, where, bool)) if key in container else False
 
 
 def _spline_from_dict(raw: dict, where: str) -> SplineRecord:

@@ -1,0 +1,106 @@
+"""The pose editor: six spin boxes (x, y, z in mm; alpha, beta, gamma in degrees) with step sizes.
+
+It shows one component's pose and emits ``pose_edited`` when the user changes a value (typing,
+arrows, wheel or a keyboard nudge); ``set_pose`` from the program never emits.
+"""
+from __future__ import annotations
+
+import numpy as np
+from PySide6.QtCore import Signal
+from PySide6.QtWidgets import QComboBox, QDoubleSpinBox, QFormLayout, QGridLayout, QLabel, QVBoxLayout, QWidget
+
+AXES = ("x", "y", "z", "alpha", "beta", "gamma")
+AXIS_LABELS = ("x (mm)", "y (mm)", "z (mm)", "α flexion (°)", "β rotation (°)", "γ varus (°)")
+AXIS_TIPS = (
+    "Translation along the calibration's x axis",
+    "Translation along the calibration's y axis",
+    "Translation along the calibration's z axis",
+    "Rotation about the model's x axis (applied first, Y-Z-X order)",
+    "Rotation about the y axis (applied last)",
+    "Rotation about the z axis",
+)
+TRANSLATION_STEPS = (0.1, 0.5, 1.0, 5.0, 10.0)
+ROTATION_STEPS = (0.1, 0.5, 1.0, 5.0, 10.0)
+
+
+class PoseEditor(QWidget):
+    """Six spin boxes bound to one component's pose."""
+
+    pose_edited = Signal(object)  # np.ndarray (6,)
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.title = QLabel("No model")
+        self.title.setObjectName("poseTitle")
+        font = self.title.font()
+        font.setBold(True)
+        self.title.setFont(font)
+        self.spins: list[QDoubleSpinBox] = []
+        grid = QGridLayout()
+        grid.setHorizontalSpacing(8)
+        for i, (label, tip) in enumerate(zip(AXIS_LABELS, AXIS_TIPS)):
+            spin = QDoubleSpinBox()
+            spin.setObjectName(f"pose_{AXES[i]}")
+            spin.setDecimals(3)
+            spin.setRange(-5000.0, 5000.0) if i < 3 else spin.setRange(-360.0, 360.0)
+            spin.setKeyboardTracking(False)
+            spin.setAccelerated(True)
+            spin.setToolTip(tip)
+            spin.setAccessibleName(label)
+            spin.valueChanged.connect(self._user_changed)
+            name = QLabel(label)
+            name.setBuddy(spin)
+            grid.addWidget(name, i, 0)
+            grid.addWidget(spin, i, 1)
+            self.spins.append(spin)
+        self.translation_step = QComboBox()
+        self.rotation_step = QComboBox()
+        for combo, steps, unit in ((self.translation_step, TRANSLATION_STEPS, "mm"),
+                                   (self.rotation_step, ROTATION_STEPS, "°")):
+            for s in steps:
+                combo.addItem(f"{s:g} {unit}", s)
+            combo.setCurrentIndex(2)
+            combo.currentIndexChanged.connect(self._apply_steps)
+        steps_form = QFormLayout()
+        steps_form.addRow("Move step", self.translation_step)
+        steps_form.addRow("Turn step", self.rotation_step)
+        hint = QLabel("Nudge: Ctrl+arrows / Ctrl+PgUp/PgDn move, add Shift to turn")
+        hint.setWordWrap(True)
+        hint.setObjectName("hint")
+        layout = QVBoxLayout(self)
+        layout.addWidget(self.title)
+        layout.addLayout(grid)
+        layout.addLayout(steps_form)
+        layout.addWidget(hint)
+        layout.addStretch(1)
+        self._updating = False
+        self._apply_steps()
+
+    def _apply_steps(self) -> None:
+        for i, spin in enumerate(self.spins):
+            spin.setSingleStep(self.translation_step.currentData() if i < 3 else self.rotation_step.currentData())
+
+    def set_component(self, name: str | None) -> None:
+        self.title.setText(f"Pose of the {name} component" if name else "No model")
+        self.setEnabled(bool(name))
+
+    def set_pose(self, pose) -> None:
+        pose = np.asarray(pose, dtype=float)
+        self._updating = True
+        try:
+            for spin, value in zip(self.spins, pose):
+                spin.setValue(float(value))
+        finally:
+            self._updating = False
+
+    def pose(self) -> np.ndarray:
+        return np.array([spin.value() for spin in self.spins])
+
+    def nudge(self, axis: int, direction: int) -> None:
+        """Step one variable by the current step size (keyboard nudges)."""
+        spin = self.spins[axis]
+        spin.setValue(spin.value() + direction * spin.singleStep())
+
+    def _user_changed(self, _value: float) -> None:
+        if not self._updating:
+            self.pose_edited.emit(self.pose())

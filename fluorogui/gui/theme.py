@@ -1,0 +1,75 @@
+"""Look and feel: the Fusion style with a light or dark palette (following the system by
+default), a small style sheet, and icons from ``resources/icons``."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QColor, QGuiApplication, QIcon, QPalette
+from PySide6.QtWidgets import QApplication
+
+ICON_DIR = Path(__file__).resolve().parents[2] / "resources" / "icons"
+THEMES = ("system", "light", "dark")
+
+STYLE = """
+QLabel#hint { color: palette(mid); font-size: 8.5pt; }
+QLabel#poseTitle { padding: 2px 0 4px 0; }
+QPushButton#matchButton { font-weight: bold; }
+QDockWidget::title { padding: 4px 6px; font-weight: bold; }
+QToolBar { spacing: 2px; }
+"""
+
+
+def icon(name: str) -> QIcon:
+    """A toolbar icon by name (an empty icon if the file is missing)."""
+    path = ICON_DIR / f"{name}.svg"
+    return QIcon(str(path)) if path.exists() else QIcon()
+
+
+def system_prefers_dark() -> bool:
+    hints = QGuiApplication.styleHints()
+    scheme = getattr(hints, "colorScheme", None)
+    return bool(scheme and scheme() == Qt.ColorScheme.Dark)
+
+
+def dark_palette() -> QPalette:
+    p = QPalette()
+    window, base, text = QColor(37, 40, 46), QColor(27, 29, 34), QColor(222, 226, 232)
+    roles = {
+        QPalette.ColorRole.Window: window,
+        QPalette.ColorRole.WindowText: text,
+        QPalette.ColorRole.Base: base,
+        QPalette.ColorRole.AlternateBase: QColor(44, 48, 55),
+        QPalette.ColorRole.ToolTipBase: QColor(55, 60, 68),
+        QPalette.ColorRole.ToolTipText: text,
+        QPalette.ColorRole.Text: text,
+        QPalette.ColorRole.Button: QColor(50, 54, 62),
+        QPalette.ColorRole.ButtonText: text,
+        QPalette.ColorRole.BrightText: QColor(255, 90, 90),
+        QPalette.ColorRole.Highlight: QColor(70, 130, 210),
+        QPalette.ColorRole.HighlightedText: QColor(255, 255, 255),
+        QPalette.ColorRole.Link: QColor(110, 160, 230),
+        QPalette.ColorRole.Mid: QColor(120, 126, 136),
+        QPalette.ColorRole.PlaceholderText: QColor(130, 136, 146),
+    }
+    for role, colour in roles.items():
+        p.setColor(role, colour)
+    for role in (QPalette.ColorRole.Text, QPalette.ColorRole.ButtonText, QPalette.ColorRole.WindowText):
+        p.setColor(QPalette.ColorGroup.Disabled, role, QColor(110, 114, 122))
+    return p
+
+
+def light_palette() -> QPalette:
+    p = QApplication.style().standardPalette()
+    p.setColor(QPalette.ColorRole.Highlight, QColor(45, 110, 200))
+    p.setColor(QPalette.ColorRole.Mid, QColor(130, 134, 140))
+    return p
+
+
+def apply_theme(app: QApplication, theme: str = "system") -> str:
+    """Apply a theme ("system", "light" or "dark"); returns the one in effect."""
+    app.setStyle("Fusion")
+    dark = system_prefers_dark() if theme == "system" else theme == "dark"
+    app.setPalette(dark_palette() if dark else light_palette())
+    app.setStyleSheet(STYLE)
+    return "dark" if dark else "light"
