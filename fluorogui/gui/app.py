@@ -1,122 +1,50 @@
-"""Placeholder desktop app: a main window with two image panels and a File menu.
-
-The real GUI (demo project, outline editing, 3D scene, matching) replaces this later.
-"""
+"""Start the desktop app: QApplication, theme, main window, then a project, a recovered
+session or the built-in demo."""
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 
-from PySide6.QtCore import Qt, QTimer
-from PySide6.QtGui import QAction, QColor, QKeySequence, QPainter, QPixmap
-from PySide6.QtWidgets import (
-    QApplication,
-    QFileDialog,
-    QHBoxLayout,
-    QLabel,
-    QMainWindow,
-    QMessageBox,
-    QSizePolicy,
-    QWidget,
-)
+from PySide6.QtCore import QSettings, QTimer
+from PySide6.QtWidgets import QApplication
 
 from fluorogui import __version__
-from fluorogui.io.errors import InputError
-from fluorogui.io.project import Project, load_project
+from fluorogui.gui import theme
+from fluorogui.gui.main_window import MainWindow
 
-PROJECT_FILE_FILTER = "fluorogui projects (*.fluoro);;All files (*)"
-PLACEHOLDER_GREY = QColor(128, 128, 128)
-
-
-class ImagePanel(QLabel):
-    """One fluoroscopic view: for now a grey image with the view's title on it."""
-
-    def __init__(self, title: str, parent: QWidget | None = None) -> None:
-        super().__init__(parent)
-        self.title = title
-        self.setObjectName(title.replace(" ", "_").lower())
-        self.setAccessibleName(title)
-        self.setAlignment(Qt.AlignmentFlag.AlignCenter)
-        self.setMinimumSize(320, 320)
-        self.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Ignored)
-        self._redraw()
-
-    def _redraw(self) -> None:
-        size = self.size()
-        pixmap = QPixmap(max(size.width(), 1), max(size.height(), 1))
-        pixmap.fill(PLACEHOLDER_GREY)
-        painter = QPainter(pixmap)
-        painter.setPen(Qt.GlobalColor.white)
-        font = painter.font()
-        font.setPointSize(18)
-        painter.setFont(font)
-        painter.drawText(pixmap.rect(), Qt.AlignmentFlag.AlignCenter, self.title)
-        painter.end()
-        self.setPixmap(pixmap)
-
-    def resizeEvent(self, event) -> None:  # noqa: N802 (Qt override)
-        super().resizeEvent(event)
-        self._redraw()
+__all__ = ["MainWindow", "run_app", "make_application"]
 
 
-class MainWindow(QMainWindow):
-    """Top-level window: two image panels side by side, File menu, status bar."""
-
-    def __init__(self, parent: QWidget | None = None) -> None:
-        super().__init__(parent)
-        self.setWindowTitle("fluorogui")
-        self.project_path: Path | None = None
-        self.project: Project | None = None
-
-        self.image_panels = [ImagePanel("View 1"), ImagePanel("View 2")]
-        central = QWidget()
-        layout = QHBoxLayout(central)
-        for panel in self.image_panels:
-            layout.addWidget(panel)
-        self.setCentralWidget(central)
-
-        file_menu = self.menuBar().addMenu("&File")
-        self.open_action = QAction("&Open…", self)
-        self.open_action.setShortcut(QKeySequence.StandardKey.Open)
-        self.open_action.triggered.connect(self.choose_and_open_project)
-        file_menu.addAction(self.open_action)
-        file_menu.addSeparator()
-        self.quit_action = QAction("&Quit", self)
-        self.quit_action.setShortcut(QKeySequence("Ctrl+Q"))
-        self.quit_action.triggered.connect(self.close)
-        file_menu.addAction(self.quit_action)
-
-        self.statusBar().showMessage(f"fluorogui {__version__}: no project open")
-        self.resize(1200, 700)
-
-    def choose_and_open_project(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(self, "Open project", "", PROJECT_FILE_FILTER)
-        if path:
-            self.open_project(path)
-
-    def open_project(self, path: str | Path) -> bool:
-        """Open a project file; on failure warn the user and keep the current state."""
-        try:
-            project = load_project(path)
-        except InputError as exc:
-            QMessageBox.warning(self, "Cannot open project", str(exc))
-            self.statusBar().showMessage(f"Could not open {path}")
-            return False
-        self.project_path = Path(path)
-        self.project = project
-        self.setWindowTitle(f"{self.project_path.name} — fluorogui")
-        self.statusBar().showMessage(f"Opened {path}")
-        return True
+def make_application() -> QApplication:
+    app = QApplication.instance() or QApplication(sys.argv[:1])
+    app.setApplicationName("fluorogui")
+    app.setOrganizationName("fluorogui")
+    app.setApplicationVersion(__version__)
+    app.setDesktopFileName("fluorogui")
+    app.setWindowIcon(theme.icon("app"))
+    theme.apply_theme(app, str(QSettings("fluorogui", "fluorogui").value("theme", "system")))
+    return app
 
 
 def run_app(path: str | Path | None = None) -> int:
-    """Start the desktop app, optionally opening a project file; return the exit code."""
-    app = QApplication.instance() or QApplication(sys.argv[:1])
-    app.setApplicationName("fluorogui")
-    app.setApplicationVersion(__version__)
-    app.setDesktopFileName("fluorogui")
+    """Start the desktop app, optionally opening a project file; return the exit code.
+
+    Without a file, an autosaved session left by a crash is offered first; otherwise the
+    demo session opens so a new user can try the whole loop at once."""
+    t0 = time.perf_counter()
+    app = make_application()
     window = MainWindow()
     window.show()
-    if path is not None:
-        QTimer.singleShot(0, lambda: window.open_project(path))
+
+    def first_session():
+        if path is not None:
+            window.open_project(path, ask=False)
+        elif not window.offer_recovery():
+            window.open_demo(ask=False)
+        window.fit_images()
+        window.statusBar().showMessage(
+            window.statusBar().currentMessage() or f"Ready in {time.perf_counter() - t0:.1f} s", 10000)
+
+    QTimer.singleShot(0, first_session)
     return app.exec()

@@ -24,6 +24,9 @@ from fluorogui.io.images import read_image
 OVERLAY_SPACING_PX = 3.0
 #: a batch stops (tracking lost) when a frame's mean outline distance exceeds this (mm)
 LOST_TRACK_MM = 1.5
+#: automatic outlines are re-segmented until a pass moves the pose less than this (mm, deg)
+SETTLED = 0.02
+MAX_PASSES = 8
 
 
 @dataclass
@@ -64,12 +67,11 @@ class BatchOutcome:
     reason: str = ""
 
 
-def _outline_points(spline: OutlineSpline, spacing_px: float = 1.5) -> np.ndarray:
-    return spline.sample(max(8, int(spline.length_px / spacing_px)))
-
-
 def _segment_and_match(images, views, mesh, start, settings, splines, passes, progress, cancel):
-    """Match from ``start``; without ``splines``, segment along the pose and repeat."""
+    """Match from ``start``. Without ``splines``, segment the outlines along the pose and
+    match, again and again (at least twice, at most ``passes`` times) until a pass moves
+    the pose by less than ``SETTLED``: a start several mm / degrees off leaves parts of the
+    true edge outside the first segmentation band, and each pass brings more of it in."""
     pose = np.asarray(start, dtype=float)
     outlines = None
     calls, seconds, result = 0, 0.0, None
@@ -80,17 +82,17 @@ def _segment_and_match(images, views, mesh, start, settings, splines, passes, pr
         result = match(MatchProblem(mesh, views, splines), pose, settings, progress, cancel)
         calls += result.calls
         seconds += result.seconds
+        moved = np.abs(result.pose - pose)
         pose = result.pose
-        if result.cancelled:
+        if result.cancelled or (k >= 1 and moved.max() < SETTLED):
             break
     result.calls, result.seconds = calls, seconds
-    outlines_px = None if outlines is None else [_outline_points(s) for s in splines]
-    return result, outlines_px
+    return result, outlines
 
 
 def match_task(component: str, frame: int, images: Sequence[np.ndarray], views: Sequence[View],
                mesh: PreparedMesh, start, settings: MatchSettings, splines: list[OutlineSpline] | None,
-               passes: int = 2):
+               passes: int = MAX_PASSES):
     """One component in one frame; live updates carry the model outline for the overlays."""
 
     def task(reporter) -> MatchOutcome:
@@ -129,7 +131,7 @@ def batch_task(component: str, frames: Sequence[int], image_paths: Sequence[Sequ
             given = reviewed_outlines.get(frame)
             splines = [OutlineSpline.fit(o) for o in given] if given else None
             try:
-                result, outlines = _segment_and_match(images, views, mesh, pose, settings, splines, 2, None,
+                result, outlines = _segment_and_match(images, views, mesh, pose, settings, splines, MAX_PASSES, None,
                                                       reporter.cancelled)
             except ValueError as exc:  # no usable edges along the predicted outline
                 return BatchOutcome(component, done, frame, f"frame {frame}: {exc}")

@@ -1,0 +1,1160 @@
+"""One fluoroscopic view: the image, its Canny edges, the components' outlines and the
+projected model outlines, with the tools that review and edit an outline.
+
+Scene coordinates are pixel coordinates (u, v) = (column, row) with the origin at the
+centre of the top-left pixel (the image item is offset by -0.5, -0.5), so a point of an
+outline is drawn at its own (u, v). The geometry of every edit lives in
+``fluorogui.core.outline_edit``; this widget turns mouse gestures into those calls and
+every outline or edge edit into a QUndoCommand on ``undo_stack``.
+
+A command carries the outline *key* it was made for (e.g. a frame and view) and applies
+itself through ``outline_sink(key, component, points)``, so undoing after the panel has
+moved on to another frame changes the right outline. Without a sink the panel simply
+shows the outline again (``set_outline``).
+"""
+from __future__ import annotations
+
+import enum
+import functools
+import sys
+from collections.abc import Callable
+
+import numpy as np
+from PySide6.QtCore import QPointF, QRectF, Qt, Signal
+from PySide6.QtGui import (
+    QBrush,
+    QColor,
+    QFont,
+    QFontMetrics,
+    QImage,
+    QPainter,
+    QPainterPath,
+    QPen,
+    QPixmap,
+    QPolygonF,
+    QUndoCommand,
+    QUndoStack,
+)
+from PySide6.QtWidgets import (
+    QFrame,
+    QGraphicsEllipseItem,
+    QGraphicsItem,
+    QGraphicsPathItem,
+    QGraphicsPixmapItem,
+    QGraphicsScene,
+    QGraphicsView,
+)
+
+from fluorogui.core import outline_edit as oe
+from fluorogui.core.edges import DEFAULT_HIGH, DEFAULT_LOW, canny_edges
+from fluorogui.core.edges import edge_contours as find_edge_contours
+from fluorogui.core.spline import OutlineSpline
+
+
+class Tool(enum.Enum):
+    """What a left click / drag does in the image."""
+
+    NAVIGATE = "Navigate"
+    PICK_CONTOUR = "Pick contour"
+    MOVE = "Move point"
+    INSERT = "Insert point"
+    DELETE = "Delete point"
+    ERASE = "Erase"
+    LASSO = "Lasso delete"
+    CLOSE_GAP = "Close gap"
+    PLACE = "Place"
+
+
+BACKGROUND = QColor(18, 19, 23)
+DEFAULT_COLOURS = {"femoral": QColor(70, 155, 255), "tibial": QColor(70, 215, 115)}
+EXTRA_COLOURS = (QColor(255, 160, 60), QColor(200, 120, 255), QColor(60, 210, 220), QColor(240, 90, 120))
+EDGE_RGBA = (255, 190, 0, 170)  # Canny edges: amber, semi-transparent
+MODEL_COLOUR = QColor(255, 95, 205)  # projected model outline when no distances are given
+HIGHLIGHT = QColor(255, 255, 255)
+PLACE_COLOUR = QColor(255, 235, 60)
+
+#: distance (px) -> colour stops of the projected model outline: green, yellow, red
+DISTANCE_STOPS = (1.0, 3.0, 5.0)
+_STOP_RGB = np.array([[40, 205, 70], [245, 220, 40], [235, 50, 40]], dtype=float)
+
+PICK_TOLERANCE_PX = 10.0  # screen pixels within which a click hits a point or contour
+MIN_SCALE, MAX_SCALE = 0.02, 64.0
+
+
+def distance_colours(distances) -> np.ndarray:
+    """RGB (N, 3) uint8 for model outline distances (px): green up to 1 px, yellow at 3 px,
+    red from 5 px; distances are quantised to 0.25 px so there are few distinct colours."""
+    d = np.round(np.nan_to_num(np.asarray(distances, dtype=float), nan=np.inf, posinf=1e9) * 4.0) / 4.0
+    return np.column_stack([np.interp(d, DISTANCE_STOPS, _STOP_RGB[:, c]) for c in range(3)]).round().astype(np.uint8)
+
+
+def _guarded(handler):
+    """Event handler wrapper: an error abandons the gesture and goes to sys.excepthook
+    instead of unwinding through Qt's event dispatch (which is not exception-safe)."""
+
+    @functools.wraps(handler)
+    def wrapper(self, event):
+        try:
+            handler(self, event)
+        except Exception:  # noqa: BLE001 (reported, not hidden)
+            self._drag = None
+            event.accept()
+            sys.excepthook(*sys.exc_info())
+
+    return wrapper
+
+
+def _polygon(points: np.ndarray) -> QPolygonF:
+    return QPolygonF([QPointF(u, v) for u, v in np.asarray(points, dtype=float).tolist()])
+
+
+def _cosmetic_pen(colour: QColor, width: float, style=Qt.PenStyle.SolidLine) -> QPen:
+    pen = QPen(colour, width, style, Qt.PenCapStyle.RoundCap, Qt.PenJoinStyle.RoundJoin)
+    pen.setCosmetic(True)
+    return pen
+
+
+# -- scene items ------------------------------------------------------------------------------------
+class _DotsItem(QGraphicsItem):
+    """Round markers a fixed number of screen pixels wide at any zoom (cosmetic pens),
+    optionally with a dark halo, one colour or one colour per point."""
+
+    def __init__(self, size_px: float, colour: QColor, halo: bool = True, min_gap_px: float = 0.0):
+        super().__init__()
+        self._size = float(size_px)
+        self._min_gap = float(min_gap_px)  # hide the markers when they would be closer than this
+        self._spacing = np.inf
+        self._colour = QColor(colour)
+        self._halo = halo
+        self._points = np.zeros((0, 2))
+        self._rgb: np.ndarray | None = None
+        self._groups: list[tuple[QColor, QPolygonF]] = []
+        self._all = QPolygonF()
+        self._rect = QRectF()
+        self._margin = self._size
+        self.setAcceptedMouseButtons(Qt.MouseButton.NoButton)
+
+    def set_points(self, points, rgb: np.ndarray | None = None) -> None:
+        self.prepareGeometryChange()
+        pts = np.zeros((0, 2)) if points is None else np.asarray(points, dtype=float).reshape(-1, 2)
+        self._points = pts
+        self._rgb = None if rgb is None else np.asarray(rgb, dtype=np.uint8).reshape(-1, 3)
+        if len(pts) == 0:
+            self._rect, self._all, self._groups = QRectF(), QPolygonF(), []
+        else:
+            lo, hi = pts.min(axis=0), pts.max(axis=0)
+            self._rect = QRectF(lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1])
+            self._all = _polygon(pts)
+            self._spacing = oe.outline_spacing(pts) if len(pts) > 1 else np.inf
+            self._regroup()
+        self.update()
+
+    def _regroup(self) -> None:
+        if self._rgb is None or len(self._rgb) != len(self._points):
+            self._groups = [(self._colour, self._all)]
+            return
+        colours, inverse = np.unique(self._rgb, axis=0, return_inverse=True)
+        inverse = inverse.reshape(-1)
+        self._groups = [(QColor(*map(int, c)), _polygon(self._points[inverse == g])) for g, c in enumerate(colours)]
+
+    def colours(self) -> list[QColor]:
+        """The colour of each point."""
+        if self._rgb is None or len(self._rgb) != len(self._points):
+            return [QColor(self._colour) for _ in range(len(self._points))]
+        return [QColor(*map(int, c)) for c in self._rgb]
+
+    def set_style(self, size_px: float | None = None, colour: QColor | None = None, halo: bool | None = None) -> None:
+        if size_px is not None:
+            self._size = float(size_px)
+        if colour is not None:
+            self._colour = QColor(colour)
+            if self._rgb is None and len(self._points):
+                self._groups = [(self._colour, self._all)]
+        if halo is not None:
+            self._halo = halo
+        self.update()
+
+    def set_pixel_scale(self, scale: float) -> None:
+        """Screen pixels per scene pixel: sets the bounding margin that holds a marker."""
+        margin = (self._size / 2.0 + 3.0) / max(scale, 1e-6)
+        if abs(margin - self._margin) > 1e-9:
+            self.prepareGeometryChange()
+            self._margin = margin
+
+    def boundingRect(self) -> QRectF:  # noqa: N802 (Qt override)
+        if self._rect.isNull() and not len(self._points):
+            return QRectF()
+        m = self._margin
+        return self._rect.adjusted(-m, -m, m, m)
+
+    def markers_shown(self, scale: float) -> bool:
+        """Whether the markers are drawn at ``scale`` screen pixels per image pixel (dense
+        markers are left out until zoomed in, so the line under them stays readable)."""
+        return bool(len(self._points)) and self._spacing * scale >= self._min_gap
+
+    def paint(self, painter: QPainter, option, widget=None) -> None:
+        if not self.markers_shown(painter.worldTransform().m11()):
+            return
+        painter.setRenderHint(QPainter.RenderHint.Antialiasing, True)
+        if self._halo:
+            painter.setPen(_cosmetic_pen(QColor(0, 0, 0, 200), self._size + 2.5))
+            painter.drawPoints(self._all)
+        for colour, polygon in self._groups:
+            painter.setPen(_cosmetic_pen(colour, self._size))
+            painter.drawPoints(polygon)
+
+
+class _CrossItem(QGraphicsItem):
+    """A cross a fixed number of screen pixels big (the placed point)."""
+
+    def __init__(self, size_px: float = 9.0):
+        super().__init__()
+        self._size = size_px
+        self.setFlag(QGraphicsItem.GraphicsItemFlag.ItemIgnoresTransformations, True)
+        self.setAcceptedMouseButtons(Qt.MouseButton.NoButton)
+
+    def boundingRect(self) -> QRectF:  # noqa: N802 (Qt override)
+        s = self._size + 3
+        return QRectF(-s, -s, 2 * s, 2 * s)
+
+    def paint(self, painter: QPainter, option, widget=None) -> None:
+        painter.setRenderHint(QPainter.RenderHint.Antialiasing, True)
+        s = self._size
+        for colour, width in ((QColor(0, 0, 0, 210), 4.0), (PLACE_COLOUR, 2.0)):
+            painter.setPen(QPen(colour, width, Qt.PenStyle.SolidLine, Qt.PenCapStyle.RoundCap))
+            painter.drawLine(QPointF(-s, 0), QPointF(s, 0))
+            painter.drawLine(QPointF(0, -s), QPointF(0, s))
+        painter.setPen(QPen(PLACE_COLOUR, 1.5))
+        painter.setBrush(Qt.BrushStyle.NoBrush)
+        painter.drawEllipse(QPointF(0, 0), s * 0.45, s * 0.45)
+
+
+class _Component:
+    """The items and state of one component's outline and projected model outline."""
+
+    def __init__(self, scene: QGraphicsScene, colour: QColor):
+        self.colour = QColor(colour)
+        self.key = None
+        self.points: np.ndarray | None = None
+        self.spline_ok = False
+        self.model_points: np.ndarray | None = None
+        self.model_distances: np.ndarray | None = None
+        self.spline = QGraphicsPathItem()
+        self.spline.setZValue(4)
+        self.dots = _DotsItem(5.0, colour, min_gap_px=6.0)
+        self.dots.setZValue(5)
+        self.model_line = QGraphicsPathItem()
+        self.model_line.setZValue(2)
+        self.model_dots = _DotsItem(5.0, MODEL_COLOUR, halo=True)
+        self.model_dots.setZValue(6)
+        for item in (self.spline, self.dots, self.model_line, self.model_dots):
+            item.setAcceptedMouseButtons(Qt.MouseButton.NoButton)
+            scene.addItem(item)
+
+
+class _EditCommand(QUndoCommand):
+    """An undoable edit made of (redo, undo) steps; undo runs them in reverse."""
+
+    def __init__(self, text: str, steps: list[tuple[Callable[[], None], Callable[[], None]]]):
+        super().__init__(text)
+        self._steps = steps
+
+    def redo(self) -> None:
+        for do, _ in self._steps:
+            do()
+
+    def undo(self) -> None:
+        for _, undo in reversed(self._steps):
+            undo()
+
+
+class _AnonymousImage:
+    """Key of an image set without a key (its erased-edge mask lives until the next one)."""
+
+
+# -- the panel ------------------------------------------------------------------------------------------
+class ImagePanel(QGraphicsView):
+    """Zoomable image view of one fluoroscope with edges, outlines and outline tools."""
+
+    window_level_changed = Signal(float, float)
+    cursor_moved = Signal(float, float, float)
+    point_clicked = Signal(int, float, float)
+    outline_edited = Signal(object, str)
+    tool_changed = Signal(object)
+
+    def __init__(self, view_index: int, undo_stack: QUndoStack | None = None, parent=None):
+        super().__init__(parent)
+        self.view_index = int(view_index)
+        self.title = f"View {self.view_index + 1}"
+        self.undo_stack = undo_stack if undo_stack is not None else QUndoStack(self)
+        #: called by commands as outline_sink(key, component, points or None); None: show it here
+        self.outline_sink: Callable[[object, str, np.ndarray | None], None] | None = None
+        self.pick_tolerance_px = PICK_TOLERANCE_PX
+
+        self._scene = QGraphicsScene(self)
+        self.setScene(self._scene)
+        self.setBackgroundBrush(BACKGROUND)
+        self.setFrameShape(QFrame.Shape.NoFrame)
+        self.setRenderHints(QPainter.RenderHint.Antialiasing | QPainter.RenderHint.SmoothPixmapTransform)
+        self.setViewportUpdateMode(QGraphicsView.ViewportUpdateMode.FullViewportUpdate)
+        self.setTransformationAnchor(QGraphicsView.ViewportAnchor.NoAnchor)
+        self.setResizeAnchor(QGraphicsView.ViewportAnchor.AnchorViewCenter)
+        self.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        self.setVerticalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        self.setMouseTracking(True)
+        self.viewport().setMouseTracking(True)
+        self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
+        self.setMinimumSize(200, 200)
+        self.setAccessibleName(self.title)
+
+        # image and window / level
+        self._image: np.ndarray | None = None
+        self._image_key = None
+        self._index: np.ndarray | None = None  # image quantised to LUT indices
+        self._index_values: np.ndarray | None = None  # the image value of each index
+        self._window, self._level = 1.0, 0.5
+        self._image_item = QGraphicsPixmapItem()
+        self._image_item.setOffset(-0.5, -0.5)
+        self._image_item.setZValue(0)
+        self._image_item.setShapeMode(QGraphicsPixmapItem.ShapeMode.BoundingRectShape)
+        self._scene.addItem(self._image_item)
+
+        # edges
+        self._edges_visible = False
+        self._thresholds = (DEFAULT_LOW, DEFAULT_HIGH)
+        self._canny: np.ndarray | None = None
+        self._contours: list[np.ndarray] | None = None
+        self._erased: dict[object, np.ndarray] = {}
+        self._edge_item = QGraphicsPixmapItem()
+        self._edge_item.setOffset(-0.5, -0.5)
+        self._edge_item.setZValue(1)
+        self._edge_item.setVisible(False)
+        self._scene.addItem(self._edge_item)
+
+        # outlines
+        self._components: dict[str, _Component] = {}
+        self._active: str | None = None
+        self._selected: int | None = None
+        self._gap_first: int | None = None
+        self._highlight = _DotsItem(12.0, HIGHLIGHT, halo=True)
+        self._highlight.setZValue(4.5)
+        self._scene.addItem(self._highlight)
+
+        # tool feedback
+        self._tool = Tool.NAVIGATE
+        self._brush_radius = 6.0
+        self._brush = QGraphicsEllipseItem()
+        self._brush.setPen(_cosmetic_pen(QColor(255, 255, 255, 220), 1.2, Qt.PenStyle.DashLine))
+        self._brush.setBrush(QColor(255, 255, 255, 30))
+        self._brush.setZValue(11)
+        self._brush.setVisible(False)
+        self._scene.addItem(self._brush)
+        self._lasso_item = QGraphicsPathItem()
+        self._lasso_item.setPen(_cosmetic_pen(QColor(255, 255, 255, 230), 1.2, Qt.PenStyle.DashLine))
+        self._lasso_item.setBrush(QColor(255, 80, 80, 45))
+        self._lasso_item.setZValue(10)
+        self._scene.addItem(self._lasso_item)
+        self._place = _CrossItem()
+        self._place.setZValue(12)
+        self._place.setVisible(False)
+        self._scene.addItem(self._place)
+
+        self._drag: dict | None = None
+        self._cursor_scene: QPointF | None = None
+        self._fitted = True
+        self._image_rect = QRectF(-0.5, -0.5, 512, 512)
+        self._scene.setSceneRect(self._image_rect.adjusted(-1024, -1024, 1024, 1024))
+        self._update_cursor_shape()
+
+    def set_title(self, title: str) -> None:
+        """The label drawn in the top-left corner (default "View <view_index + 1>")."""
+        self.title = str(title)
+        self.setAccessibleName(self.title)
+        self.viewport().update()
+
+    # -- image ---------------------------------------------------------------------------------------
+    def set_image(self, image: np.ndarray | None, key=None) -> None:
+        """Show a 2-D image of any dtype (None clears it), windowed automatically from its
+        1st and 99.5th percentiles. ``key`` (hashable) names the image so its erased-edge
+        mask is kept while other images are shown."""
+        self._cancel_interaction()
+        self._canny = None
+        self._contours = None
+        if image is None:
+            self._image = self._index = self._index_values = None
+            self._image_key = None
+            self._image_item.setPixmap(QPixmap())
+            self._edge_item.setPixmap(QPixmap())
+            self.viewport().update()
+            return
+        arr = np.asarray(image)
+        if arr.ndim != 2 or arr.size == 0:
+            raise ValueError(f"an image must be a non-empty 2-D array, got shape {arr.shape}")
+        old_shape = None if self._image is None else self._image.shape
+        self._image = arr
+        if key is None:
+            for stale in [k for k in self._erased if isinstance(k, _AnonymousImage)]:
+                del self._erased[stale]
+            key = _AnonymousImage()
+        self._image_key = key
+        self._quantise(arr)
+        finite = arr[np.isfinite(arr)] if arr.dtype.kind == "f" else arr
+        lo, hi = (np.percentile(finite, [1.0, 99.5]) if finite.size else (0.0, 1.0))
+        if not hi > lo:
+            lo, hi = float(np.min(finite)) if finite.size else 0.0, (float(np.max(finite)) if finite.size else 1.0)
+            if not hi > lo:
+                hi = lo + 1.0
+        h, w = arr.shape
+        self._image_rect = QRectF(-0.5, -0.5, w, h)
+        self._scene.setSceneRect(self._image_rect.adjusted(-2 * w, -2 * h, 2 * w, 2 * h))
+        self._window, self._level = float(hi - lo), float(lo + hi) / 2.0
+        self._render_image()
+        self.window_level_changed.emit(self._window, self._level)
+        self._refresh_edges()
+        if old_shape != arr.shape:
+            self.fit()
+
+    def image(self) -> np.ndarray | None:
+        return self._image
+
+    def image_key(self):
+        return self._image_key
+
+    def _quantise(self, arr: np.ndarray) -> None:
+        """Map the image to indices of a value table once, so that window / level is a LUT."""
+        if arr.dtype == np.uint8:
+            self._index, self._index_values = arr, np.arange(256, dtype=float)
+            return
+        if arr.dtype.kind in "iu" and arr.dtype.itemsize <= 2:
+            lo = int(arr.min())
+            self._index = (arr.astype(np.int32) - lo).astype(np.uint16)
+            self._index_values = lo + np.arange(int(arr.max()) - lo + 1, dtype=float)
+            return
+        data = np.asarray(arr, dtype=np.float64)
+        finite = np.isfinite(data)
+        lo = float(data[finite].min()) if finite.any() else 0.0
+        hi = float(data[finite].max()) if finite.any() else 1.0
+        span = hi - lo if hi > lo else 1.0
+        scaled = np.where(finite, (data - lo) * (65535.0 / span), 0.0)
+        self._index = np.clip(np.rint(scaled), 0, 65535).astype(np.uint16)
+        self._index_values = lo + np.arange(65536, dtype=float) * (span / 65535.0)
+
+    def _render_image(self) -> None:
+        if self._index is None:
+            return
+        low = self._level - self._window / 2.0
+        lut = np.clip((self._index_values - low) * (255.0 / self._window) + 0.5, 0, 255).astype(np.uint8)
+        grey = np.ascontiguousarray(lut[self._index])
+        h, w = grey.shape
+        qimage = QImage(grey.data, w, h, w, QImage.Format.Format_Grayscale8)
+        self._image_item.setPixmap(QPixmap.fromImage(qimage))  # copies the pixels
+        self.viewport().update()
+
+    def displayed_image(self) -> QImage:
+        """The windowed 8-bit image as shown."""
+        return self._image_item.pixmap().toImage()
+
+    def set_window_level(self, window: float, level: float) -> None:
+        window = max(float(window), 1e-12)
+        level = float(level)
+        if (window, level) == (self._window, self._level):
+            return
+        self._window, self._level = window, level
+        self._render_image()
+        self.window_level_changed.emit(window, level)
+
+    def window_level(self) -> tuple[float, float]:
+        return self._window, self._level
+
+    def value_at(self, u: float, v: float) -> float:
+        """Image value at the pixel holding (u, v), NaN outside the image."""
+        if self._image is None:
+            return float("nan")
+        col, row = int(np.floor(u + 0.5)), int(np.floor(v + 0.5))
+        h, w = self._image.shape
+        if 0 <= row < h and 0 <= col < w:
+            return float(self._image[row, col])
+        return float("nan")
+
+    # -- view transform --------------------------------------------------------------------------------
+    def scale_factor(self) -> float:
+        """Screen pixels per image pixel."""
+        return float(self.transform().m11())
+
+    def fit(self) -> None:
+        """Show the whole image."""
+        self.fitInView(self._image_rect, Qt.AspectRatioMode.KeepAspectRatio)
+        self._fitted = True
+        self._after_transform()
+
+    def zoom_at(self, factor: float, viewport_pos: QPointF | None = None) -> None:
+        """Zoom by ``factor`` keeping the scene point under ``viewport_pos`` (default: the
+        viewport centre) where it is."""
+        if viewport_pos is None:
+            viewport_pos = QPointF(self.viewport().rect().center())
+        viewport_pos = QPointF(viewport_pos)
+        scale = self.scale_factor()
+        factor = float(np.clip(scale * factor, MIN_SCALE, MAX_SCALE) / scale)
+        if factor == 1.0:
+            return
+        anchor = self._to_scene(viewport_pos)
+        self.scale(factor, factor)
+        moved = self.viewportTransform().map(anchor) - viewport_pos
+        self.horizontalScrollBar().setValue(self.horizontalScrollBar().value() + round(moved.x()))
+        self.verticalScrollBar().setValue(self.verticalScrollBar().value() + round(moved.y()))
+        self._fitted = False
+        self._after_transform()
+
+    def _pan(self, dx: float, dy: float) -> None:
+        self.horizontalScrollBar().setValue(self.horizontalScrollBar().value() - round(dx))
+        self.verticalScrollBar().setValue(self.verticalScrollBar().value() - round(dy))
+        self._fitted = False
+
+    def _after_transform(self) -> None:
+        scale = self.scale_factor()
+        for comp in self._components.values():
+            comp.dots.set_pixel_scale(scale)
+            comp.model_dots.set_pixel_scale(scale)
+        self._highlight.set_pixel_scale(scale)
+        mode = Qt.TransformationMode.SmoothTransformation if scale < 1.0 else Qt.TransformationMode.FastTransformation
+        self._image_item.setTransformationMode(mode)
+        self._edge_item.setTransformationMode(mode)
+        self.viewport().update()
+
+    def _to_scene(self, pos) -> QPointF:
+        """Scene point (u, v) under a viewport position, at sub-pixel precision."""
+        inverse, _ = self.viewportTransform().inverted()
+        return inverse.map(QPointF(pos))
+
+    def _tolerance(self) -> float:
+        """The click tolerance in image pixels."""
+        return self.pick_tolerance_px / max(self.scale_factor(), 1e-6)
+
+    # -- edges -------------------------------------------------------------------------------------------
+    def set_edges_visible(self, visible: bool) -> None:
+        self._edges_visible = bool(visible)
+        self._refresh_edges()
+
+    def edges_visible(self) -> bool:
+        return self._edges_visible
+
+    def set_canny_thresholds(self, low: float, high: float) -> None:
+        """Canny thresholds as fractions of the reference gradient (see core.edges)."""
+        if not 0 < low <= high:
+            raise ValueError("Canny thresholds must satisfy 0 < low <= high")
+        if (float(low), float(high)) == self._thresholds:
+            return
+        self._thresholds = (float(low), float(high))
+        self._canny = None
+        self._contours = None
+        self._refresh_edges()
+
+    def canny_thresholds(self) -> tuple[float, float]:
+        return self._thresholds
+
+    def _canny_mask(self) -> np.ndarray | None:
+        if self._image is None:
+            return None
+        if self._canny is None:
+            self._canny = canny_edges(np.asarray(self._image, dtype=np.float32), *self._thresholds)
+        return self._canny
+
+    def erased_mask(self, key=None) -> np.ndarray | None:
+        """The erased-edge mask (True where edges were erased) of the image ``key`` (default:
+        the current one); a copy, None when nothing was erased there."""
+        key = self._image_key if key is None else key
+        mask = self._erased.get(key)
+        return None if mask is None else mask.copy()
+
+    def _erased_for(self, key, shape) -> np.ndarray:
+        mask = self._erased.get(key)
+        if mask is None or mask.shape != tuple(shape):
+            mask = self._erased[key] = np.zeros(shape, dtype=bool)
+        return mask
+
+    def edge_mask(self) -> np.ndarray | None:
+        """The edges as shown: Canny edges minus erased pixels (None without an image)."""
+        canny = self._canny_mask()
+        if canny is None:
+            return None
+        erased = self._erased.get(self._image_key)
+        return canny & ~erased if erased is not None and erased.shape == canny.shape else canny.copy()
+
+    def _refresh_edges(self, erased_override: np.ndarray | None = None) -> None:
+        if not self._edges_visible or self._image is None:
+            self._edge_item.setVisible(False)
+            self.viewport().update()
+            return
+        edges = self._canny_mask()
+        if erased_override is not None:
+            edges = edges & ~erased_override
+        else:
+            edges = self.edge_mask()
+        h, w = edges.shape
+        rgba = np.zeros((h, w, 4), dtype=np.uint8)
+        rgba[edges] = EDGE_RGBA
+        qimage = QImage(rgba.data, w, h, 4 * w, QImage.Format.Format_RGBA8888)
+        self._edge_item.setPixmap(QPixmap.fromImage(qimage))
+        self._edge_item.setVisible(True)
+        self.viewport().update()
+
+    def edge_contours(self) -> list[np.ndarray]:
+        """Sub-pixel edge contours of the image at the current thresholds, cut where edges
+        were erased (what PICK_CONTOUR chooses from)."""
+        if self._image is None:
+            return []
+        if self._contours is None:
+            self._contours = find_edge_contours(np.asarray(self._image, dtype=np.float32), *self._thresholds)
+        erased = self._erased.get(self._image_key)
+        if erased is None or not erased.any():
+            return [c for c in self._contours if len(c) >= 3]
+        pieces = []
+        for contour in self._contours:
+            pieces.extend(p for p in oe.split_at_mask(contour, erased) if len(p) >= 3)
+        return pieces
+
+    # -- components and outlines ---------------------------------------------------------------------------
+    def _component(self, component: str) -> _Component:
+        comp = self._components.get(component)
+        if comp is None:
+            colour = DEFAULT_COLOURS.get(component)
+            if colour is None:
+                colour = EXTRA_COLOURS[sum(c not in DEFAULT_COLOURS for c in self._components) % len(EXTRA_COLOURS)]
+            comp = self._components[component] = _Component(self._scene, colour)
+            comp.dots.set_pixel_scale(self.scale_factor())
+            comp.model_dots.set_pixel_scale(self.scale_factor())
+            self._style_component(component)
+        return comp
+
+    def components(self) -> list[str]:
+        return list(self._components)
+
+    def set_component_colour(self, component: str, colour: QColor) -> None:
+        comp = self._component(component)
+        comp.colour = QColor(colour)
+        self._style_component(component)
+
+    def component_colour(self, component: str) -> QColor:
+        return QColor(self._component(component).colour)
+
+    def set_active_component(self, component: str | None) -> None:
+        """The component whose outline the tools edit (None: no editing)."""
+        self._cancel_interaction()
+        self._selected = None
+        self._active = component
+        if component is not None:
+            self._component(component)
+        for name in self._components:
+            self._style_component(name)
+        self._update_highlight()
+        self.viewport().update()
+
+    def active_component(self) -> str | None:
+        return self._active
+
+    def _style_component(self, component: str) -> None:
+        comp = self._components[component]
+        active = component == self._active
+        line = QColor(comp.colour)
+        if not active:
+            line.setAlpha(170)
+        comp.spline.setPen(_cosmetic_pen(line, 2.2 if active else 1.5))
+        comp.dots.set_style(size_px=5.0 if active else 3.0, colour=comp.colour, halo=active)
+        comp.model_line.setPen(_cosmetic_pen(QColor(255, 255, 255, 80), 1.0))
+        comp.model_dots.set_style(colour=MODEL_COLOUR)
+
+    def set_outline(self, component: str, points: np.ndarray | None, key=None) -> None:
+        """Show a component's outline (closed, (K, 2) of (u, v); None or empty clears it)
+        with its spline; ``key`` names the outline (it is handed back to ``outline_sink``)."""
+        comp = self._component(component)
+        comp.key = key
+        if self._active is None:
+            self._active = component
+            self._style_component(component)
+        if self._drag is not None and self._drag.get("component") == component:
+            self._cancel_interaction()
+        self._display_outline(component, points)
+        if component == self._active:
+            n = 0 if comp.points is None else len(comp.points)
+            if self._selected is not None and self._selected >= n:
+                self._selected = None
+            if self._gap_first is not None and self._gap_first >= n:
+                self._gap_first = None
+            self._update_highlight()
+
+    def outline(self, component: str) -> np.ndarray | None:
+        """The outline shown for a component (a copy), None if there is none."""
+        comp = self._components.get(component)
+        return None if comp is None or comp.points is None else comp.points.copy()
+
+    def outline_key(self, component: str):
+        comp = self._components.get(component)
+        return None if comp is None else comp.key
+
+    def spline_ok(self, component: str) -> bool:
+        """Whether the shown outline has a valid spline (else its polyline is drawn)."""
+        comp = self._components.get(component)
+        return bool(comp is not None and comp.spline_ok)
+
+    def _display_outline(self, component: str, points) -> None:
+        """Draw an outline (points and spline) without touching its key."""
+        comp = self._component(component)
+        pts = None if points is None else oe.as_points(points)
+        if pts is not None and len(pts) == 0:
+            pts = None
+        comp.points = pts
+        comp.dots.set_points(pts)
+        path = QPainterPath()
+        comp.spline_ok = False
+        if pts is not None and len(pts) >= 2:
+            curve = pts
+            if len(pts) >= 4:
+                try:
+                    spline = OutlineSpline.fit(pts)
+                    curve = spline.sample(int(np.clip(spline.length_px, 64, 8000)))
+                    comp.spline_ok = True
+                except Exception:  # an unusable outline is shown as its polyline
+                    curve = pts
+            path.addPolygon(_polygon(curve))
+            path.closeSubpath()
+        comp.spline.setPath(path)
+        self._style_component(component)
+        self.viewport().update()
+
+    # -- projected model outline -------------------------------------------------------------------------
+    def set_model_outline(self, component: str, points_px: np.ndarray | None,
+                          distances_px: np.ndarray | None = None) -> None:
+        """Show the projected model outline points of a component, coloured by their
+        distance (px) to the image outline when given. Cheap: only updates existing items."""
+        comp = self._component(component)
+        pts = None if points_px is None else oe.as_points(points_px)
+        if pts is not None and len(pts) == 0:
+            pts = None
+        rgb = None
+        if pts is not None and distances_px is not None:
+            d = np.asarray(distances_px, dtype=float).reshape(-1)
+            if len(d) != len(pts):
+                raise ValueError("one distance per model outline point is needed")
+            rgb = distance_colours(d)
+            comp.model_distances = d.copy()
+        else:
+            comp.model_distances = None
+        comp.model_points = pts
+        comp.model_dots.set_points(pts, rgb)
+        path = QPainterPath()
+        if pts is not None and len(pts) >= 2:
+            path.addPolygon(_polygon(pts))
+            path.closeSubpath()
+        comp.model_line.setPath(path)
+        self.viewport().update()
+
+    def model_outline(self, component: str) -> np.ndarray | None:
+        comp = self._components.get(component)
+        return None if comp is None or comp.model_points is None else comp.model_points.copy()
+
+    def model_outline_colours(self, component: str) -> list[QColor]:
+        """The colour of each projected model outline point as drawn."""
+        comp = self._components.get(component)
+        return [] if comp is None else comp.model_dots.colours()
+
+    # -- place marker ----------------------------------------------------------------------------------------
+    def set_place_marker(self, u: float, v: float) -> None:
+        self._place.setPos(QPointF(float(u), float(v)))
+        self._place.setVisible(True)
+
+    def clear_place_marker(self) -> None:
+        self._place.setVisible(False)
+
+    def place_marker(self) -> tuple[float, float] | None:
+        return (self._place.pos().x(), self._place.pos().y()) if self._place.isVisible() else None
+
+    # -- tools -----------------------------------------------------------------------------------------------
+    def set_tool(self, tool: Tool) -> None:
+        tool = Tool(tool)
+        if tool == self._tool:
+            return
+        self._cancel_interaction()
+        self._tool = tool
+        self._brush.setVisible(False)
+        self._update_cursor_shape()
+        self.viewport().update()
+        self.tool_changed.emit(tool)
+
+    def tool(self) -> Tool:
+        return self._tool
+
+    def set_brush_radius(self, radius_px: float) -> None:
+        """Radius (image pixels) of the ERASE brush."""
+        self._brush_radius = max(float(radius_px), 0.5)
+        if self._cursor_scene is not None:
+            self._update_brush(self._cursor_scene)
+        self.viewport().update()
+
+    def brush_radius(self) -> float:
+        return self._brush_radius
+
+    def selected_point(self) -> int | None:
+        return self._selected
+
+    def _update_cursor_shape(self) -> None:
+        shape = Qt.CursorShape.OpenHandCursor if self._tool == Tool.NAVIGATE else Qt.CursorShape.CrossCursor
+        self.viewport().setCursor(shape)
+
+    def _update_brush(self, scene: QPointF) -> None:
+        r = self._brush_radius
+        self._brush.setRect(QRectF(scene.x() - r, scene.y() - r, 2 * r, 2 * r))
+        self._brush.setVisible(self._tool == Tool.ERASE)
+
+    def _update_highlight(self) -> None:
+        comp = self._components.get(self._active) if self._active is not None else None
+        marked = [i for i in (self._selected, self._gap_first) if i is not None]
+        if comp is None or comp.points is None or not marked:
+            self._highlight.set_points(None)
+        else:
+            self._highlight.set_points(comp.points[[i for i in marked if i < len(comp.points)]])
+
+    def _active_points(self) -> np.ndarray | None:
+        if self._active is None or self._active not in self._components:
+            return None
+        return self._components[self._active].points
+
+    def _nearest_within(self, scene: QPointF) -> int | None:
+        pts = self._active_points()
+        if pts is None or len(pts) == 0:
+            return None
+        i, d = oe.nearest_point(pts, (scene.x(), scene.y()))
+        return i if d <= self._tolerance() else None
+
+    # -- commands ------------------------------------------------------------------------------------------------
+    def _apply_outline(self, key, component: str, points: np.ndarray | None) -> None:
+        points = None if points is None else points.copy()
+        if self.outline_sink is None:
+            self.set_outline(component, points, key)
+        else:
+            self.outline_sink(key, component, points)
+        self.outline_edited.emit(key, component)
+
+    def _outline_steps(self, component: str, before, after):
+        key = self._components[component].key
+        before = None if before is None or len(before) == 0 else oe.as_points(before)
+        after = None if after is None or len(after) == 0 else oe.as_points(after)
+        return [(lambda: self._apply_outline(key, component, after), lambda: self._apply_outline(key, component, before))]
+
+    def _push_outline_edit(self, text: str, before, after) -> None:
+        component = self._active
+        self.undo_stack.push(_EditCommand(text, self._outline_steps(component, before, after)))
+
+    def _set_erased_pixels(self, key, shape, flat: np.ndarray, value: bool) -> None:
+        mask = self._erased_for(key, shape)
+        mask.flat[flat] = value
+        if key == self._image_key:
+            self._refresh_edges()
+
+    # -- mouse ------------------------------------------------------------------------------------------------------
+    @_guarded
+    def mousePressEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        pos = event.position()
+        scene = self._to_scene(pos)
+        button = event.button()
+        self.setFocus(Qt.FocusReason.MouseFocusReason)
+        if self._drag is not None:
+            event.accept()
+            return
+        if button == Qt.MouseButton.MiddleButton or (button == Qt.MouseButton.LeftButton and self._tool == Tool.NAVIGATE):
+            self._drag = {"kind": "pan", "last": QPointF(pos)}
+            self.viewport().setCursor(Qt.CursorShape.ClosedHandCursor)
+        elif button == Qt.MouseButton.RightButton:
+            self._drag = {"kind": "window", "start": QPointF(pos), "window": self._window, "level": self._level}
+        elif button == Qt.MouseButton.LeftButton:
+            self._press_tool(scene, event.modifiers())
+        else:
+            super().mousePressEvent(event)
+            return
+        event.accept()
+
+    @_guarded
+    def mouseMoveEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        pos = event.position()
+        scene = self._to_scene(pos)
+        self._cursor_scene = scene
+        self.cursor_moved.emit(scene.x(), scene.y(), self.value_at(scene.x(), scene.y()))
+        if self._tool == Tool.ERASE:
+            self._update_brush(scene)
+        drag = self._drag
+        if drag is None:
+            event.accept()
+            return
+        kind = drag["kind"]
+        if kind == "pan":
+            delta = QPointF(pos) - drag["last"]
+            drag["last"] = QPointF(pos)
+            self._pan(delta.x(), delta.y())
+        elif kind == "window":
+            delta = QPointF(pos) - drag["start"]
+            window = drag["window"] * float(2.0 ** (delta.x() / 150.0))
+            level = drag["level"] + delta.y() * drag["window"] / 300.0
+            self.set_window_level(window, level)
+        elif kind == "move":
+            drag["moved"] = True
+            current = oe.move_point(drag["before"], drag["index"], (scene.x(), scene.y()))
+            self._display_outline(drag["component"], current)
+            self._update_highlight()
+        elif kind == "erase":
+            self._erase_to(drag, scene)
+        elif kind == "lasso":
+            drag["path"].append((scene.x(), scene.y()))
+            self._draw_lasso(drag["path"])
+        event.accept()
+
+    @_guarded
+    def mouseReleaseEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        drag = self._drag
+        if drag is None:
+            event.accept()
+            return
+        scene = self._to_scene(event.position())
+        self._drag = None
+        kind = drag["kind"]
+        if kind == "pan":
+            self._update_cursor_shape()
+        elif kind == "move":
+            if drag.get("moved"):
+                after = oe.move_point(drag["before"], drag["index"], (scene.x(), scene.y()))
+                self._display_outline(drag["component"], after)
+                self._push_outline_edit("Move point", drag["before"], after)
+        elif kind == "erase":
+            self._erase_to(drag, scene)
+            self._finish_erase(drag)
+        elif kind == "lasso":
+            self._lasso_item.setPath(QPainterPath())
+            pts = self._active_points()
+            inside = oe.points_in_polygon(pts, drag["path"]) if pts is not None else np.zeros(0, bool)
+            n = int(inside.sum())
+            if n:
+                self._selected = None
+                self._push_outline_edit(f"Delete {n} point{'s' if n != 1 else ''}", pts, oe.delete_points(pts, inside))
+        event.accept()
+
+    @_guarded
+    def wheelEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        delta = event.angleDelta().y() or event.angleDelta().x()
+        if delta:
+            self.zoom_at(2.0 ** (delta / 480.0), event.position())
+        event.accept()
+
+    def leaveEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        self._brush.setVisible(False)
+        super().leaveEvent(event)
+
+    def resizeEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        super().resizeEvent(event)
+        if self._fitted:
+            self.fit()
+
+    def _press_tool(self, scene: QPointF, modifiers) -> None:
+        p = (scene.x(), scene.y())
+        tool = self._tool
+        if tool == Tool.PLACE:
+            self.set_place_marker(*p)
+            self.point_clicked.emit(self.view_index, float(p[0]), float(p[1]))
+            return
+        if self._active is None:
+            return
+        pts = self._active_points()
+        if tool == Tool.PICK_CONTOUR:
+            self._pick(p, join=bool(modifiers & Qt.KeyboardModifier.ShiftModifier))
+        elif tool == Tool.MOVE:
+            i = self._nearest_within(scene)
+            self._selected = i
+            self._update_highlight()
+            if i is not None:
+                self._drag = {"kind": "move", "component": self._active, "index": i, "before": pts.copy(), "moved": False}
+        elif tool == Tool.INSERT:
+            base = np.zeros((0, 2)) if pts is None else pts
+            after = oe.insert_point(base, p)
+            self._push_outline_edit("Insert point", pts, after)
+            self._selected = oe.nearest_segment(base, p)[0] + 1 if len(base) >= 2 else len(base)
+            self._update_highlight()
+        elif tool == Tool.DELETE:
+            i = self._nearest_within(scene)
+            if i is not None:
+                self._delete_index(i)
+        elif tool == Tool.ERASE:
+            shape = None if self._image is None else self._image.shape
+            self._drag = {
+                "kind": "erase", "component": self._active, "before": None if pts is None else pts.copy(),
+                "removed": np.zeros(0 if pts is None else len(pts), dtype=bool), "last": p, "image_key": self._image_key,
+                "erased_before": None if shape is None else self._erased_for(self._image_key, shape).copy(),
+            }
+            if shape is not None:
+                self._drag["erased"] = self._drag["erased_before"].copy()
+            self._erase_to(self._drag, scene)
+        elif tool == Tool.LASSO:
+            self._drag = {"kind": "lasso", "path": [p]}
+            self._draw_lasso([p])
+        elif tool == Tool.CLOSE_GAP:
+            i = self._nearest_within(scene)
+            if i is None:
+                return
+            if self._gap_first is None or self._gap_first == i:
+                self._gap_first = i
+            else:
+                try:
+                    after = oe.close_gap(pts, self._gap_first, i)
+                except ValueError:
+                    after = None
+                self._gap_first = None
+                self._selected = None
+                if after is not None:
+                    self._push_outline_edit("Close gap", pts, after)
+            self._update_highlight()
+
+    def _pick(self, p, join: bool) -> None:
+        contours = self.edge_contours()
+        index = oe.pick_contour(contours, p, self._tolerance())
+        if index is None:
+            return
+        contour = contours[index]
+        pts = self._active_points()
+        self._selected = None
+        self._gap_first = None
+        if join and pts is not None and len(pts):
+            self._push_outline_edit("Join contour", pts, oe.join_contours(pts, contour))
+        else:
+            self._push_outline_edit("Pick contour", pts, contour)
+
+    def _delete_index(self, i: int) -> None:
+        pts = self._active_points()
+        self._selected = None
+        self._gap_first = None
+        self._push_outline_edit("Delete point", pts, oe.delete_points(pts, [i]))
+        self._update_highlight()
+
+    def _erase_to(self, drag: dict, scene: QPointF) -> None:
+        """Extend a brush stroke to ``scene`` and show the result live."""
+        p = (scene.x(), scene.y())
+        segment = [drag["last"], p]
+        drag["last"] = p
+        if drag["before"] is not None:
+            drag["removed"] |= oe.points_near_path(drag["before"], segment, self._brush_radius)
+            self._display_outline(drag["component"], oe.delete_points(drag["before"], drag["removed"]))
+        if "erased" in drag:
+            drag["erased"] |= oe.stroke_pixels(drag["erased"].shape, segment, self._brush_radius)
+            self._refresh_edges(erased_override=drag["erased"])
+
+    def _finish_erase(self, drag: dict) -> None:
+        steps = []
+        parts = []
+        if "erased" in drag:
+            flat = np.flatnonzero(drag["erased"] & ~drag["erased_before"])
+            canny = self._canny_mask()
+            if flat.size:
+                key, shape = drag["image_key"], drag["erased"].shape
+                steps.append((lambda: self._set_erased_pixels(key, shape, flat, True),
+                              lambda: self._set_erased_pixels(key, shape, flat, False)))
+                if canny is not None and canny.flat[flat].any():
+                    parts.append("edges")
+        n = int(drag["removed"].sum())
+        if n:
+            after = oe.delete_points(drag["before"], drag["removed"])
+            steps.extend(self._outline_steps(drag["component"], drag["before"], after))
+            parts.append(f"{n} point{'s' if n != 1 else ''}")
+        if not steps:
+            self._refresh_edges()
+            return
+        self._selected = None
+        self._gap_first = None
+        text = "Erase " + (" and ".join(parts) if parts else "edges")
+        self.undo_stack.push(_EditCommand(text, steps))
+
+    def _draw_lasso(self, path) -> None:
+        qpath = QPainterPath()
+        qpath.addPolygon(_polygon(np.asarray(path, dtype=float)))
+        qpath.closeSubpath()
+        self._lasso_item.setPath(qpath)
+
+    def _cancel_interaction(self) -> None:
+        """Abandon a drag in progress (restoring what it showed), a lasso or a half-made gap."""
+        drag, self._drag = self._drag, None
+        if drag is not None:
+            if drag["kind"] in ("move", "erase") and drag.get("before") is not None:
+                self._display_outline(drag["component"], drag["before"])
+            if drag["kind"] == "erase":
+                self._refresh_edges()
+            if drag["kind"] == "pan":
+                self._update_cursor_shape()
+        self._lasso_item.setPath(QPainterPath())
+        self._gap_first = None
+        self._update_highlight()
+
+    # -- keyboard ------------------------------------------------------------------------------------------------
+    @_guarded
+    def keyPressEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        key = event.key()
+        if key == Qt.Key.Key_F and not event.modifiers() & ~Qt.KeyboardModifier.KeypadModifier:
+            self.fit()
+        elif key in (Qt.Key.Key_Delete, Qt.Key.Key_Backspace):
+            i = self._selected
+            if i is None and self._cursor_scene is not None:
+                i = self._nearest_within(self._cursor_scene)
+            pts = self._active_points()
+            if i is not None and pts is not None and i < len(pts):
+                self._delete_index(i)
+        elif key == Qt.Key.Key_Escape:
+            self._cancel_interaction()
+            self._selected = None
+            self._update_highlight()
+        else:
+            super().keyPressEvent(event)
+            return
+        event.accept()
+
+    # -- overlay text ------------------------------------------------------------------------------------------
+    def drawForeground(self, painter: QPainter, rect: QRectF) -> None:  # noqa: N802 (Qt override)
+        painter.save()
+        painter.resetTransform()
+        painter.setRenderHint(QPainter.RenderHint.Antialiasing, True)
+        font = QFont(self.font())
+        font.setPointSizeF(max(font.pointSizeF(), 9.0))
+        font.setBold(True)
+        self._label(painter, font, QPointF(8, 8), [(None, self.title)])
+        font.setBold(False)
+        legend = [(self._components[n].colour, n + ("  ✎" if n == self._active else "")
+                   + ("  (no spline)" if self._components[n].points is not None and not self._components[n].spline_ok
+                      else ""))
+                  for n in self._components if self._components[n].points is not None
+                  or self._components[n].model_points is not None or n == self._active]
+        if legend:
+            fm = QFontMetrics(font)
+            width = max(fm.horizontalAdvance(text) for _, text in legend) + 30
+            self._label(painter, font, QPointF(self.viewport().width() - width - 8, 8), legend)
+        if self._tool != Tool.NAVIGATE:
+            text = self._tool.value + (f"  (brush {self._brush_radius:g} px)" if self._tool == Tool.ERASE else "")
+            fm = QFontMetrics(font)
+            self._label(painter, font, QPointF(8, self.viewport().height() - fm.height() - 16), [(None, text)])
+        painter.restore()
+
+    @staticmethod
+    def _label(painter: QPainter, font: QFont, corner: QPointF, lines) -> None:
+        """A rounded, translucent box with lines of text (optionally a colour swatch each)."""
+        fm = QFontMetrics(font)
+        swatch = any(colour is not None for colour, _ in lines)
+        pad, gap = 6, 2
+        width = max(fm.horizontalAdvance(text) for _, text in lines) + 2 * pad + (18 if swatch else 0)
+        height = len(lines) * fm.height() + (len(lines) - 1) * gap + 2 * pad
+        box = QRectF(corner.x(), corner.y(), width, height)
+        painter.setPen(Qt.PenStyle.NoPen)
+        painter.setBrush(QColor(0, 0, 0, 150))
+        painter.drawRoundedRect(box, 5, 5)
+        painter.setFont(font)
+        y = box.top() + pad
+        for colour, text in lines:
+            x = box.left() + pad
+            if colour is not None:
+                painter.setPen(Qt.PenStyle.NoPen)
+                painter.setBrush(QBrush(colour))
+                painter.drawRoundedRect(QRectF(x, y + fm.height() / 2 - 5, 12, 10), 2, 2)
+                x += 18
+            painter.setPen(QColor(235, 235, 235))
+            painter.drawText(QPointF(x, y + fm.ascent()), text)
+            y += fm.height() + gap

@@ -1,0 +1,340 @@
+"""The "Import session" dialog: pick calibrations, images and models, get a Project.
+
+A thin front end of ``fluorogui.io.importer``: every check happens in ``import_session``
+when the user presses OK. A bad file keeps the dialog open with the problem shown in red
+under the form (and the field at fault outlined); on success ``self.project`` holds the
+new Project and the dialog closes accepted. "From folder…" fills every field from a
+folder laid out like ``data/biplane-tka``. ``fill(**paths)`` sets fields from code (tests,
+drag and drop); paths can also be dropped on a field, or a whole folder on the dialog.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QAction, QGuiApplication
+from PySide6.QtWidgets import (
+    QDialog,
+    QDialogButtonBox,
+    QFileDialog,
+    QFormLayout,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QMenu,
+    QPushButton,
+    QToolButton,
+    QVBoxLayout,
+    QWidget,
+)
+
+from fluorogui.core.session import Project
+from fluorogui.io.errors import InputError
+from fluorogui.io.images import IMAGE_SUFFIXES, VIDEO_SUFFIXES
+from fluorogui.io.importer import CALIBRATION_SUFFIXES, detect_biplane_folder, import_session
+from fluorogui.io.meshes import MESH_SUFFIXES
+
+#: Separator of several image files in one field.
+FILE_SEPARATOR = "; "
+ERROR_STYLE = "color: #c62828;"
+BAD_FIELD_STYLE = "QLineEdit { border: 1px solid #c62828; }"
+
+
+def _filter(title: str, suffixes) -> str:
+    return f"{title} ({' '.join('*' + s for s in suffixes)});;All files (*)"
+
+
+CALIBRATION_FILTER = _filter("Calibrations", CALIBRATION_SUFFIXES)
+IMAGE_FILTER = _filter("Images", IMAGE_SUFFIXES)
+VIDEO_FILTER = _filter("Videos", VIDEO_SUFFIXES)
+CSV_FILTER = _filter("Pairs CSV", (".csv",))
+MESH_FILTER = _filter("Surface models", MESH_SUFFIXES)
+
+# key, label, kind, tooltip
+_VIEW_FIELDS = [
+    ("calibration{k}", "Calibration:", "calibration",
+     "Projection geometry of view {k}: MayaCam 2.0 / 1.0, JointTrack JT_INTCALIB or fluorogui JSON."),
+    ("images{k}", "Images:", "images",
+     "Images of view {k}: a folder (files in name order), several image files, or one video.\n"
+     "Not needed when a pairs CSV is given."),
+]
+_OTHER_FIELDS = [
+    ("pairs_csv", "Pairs CSV:", "csv",
+     "Optional. Lines 'frame,cam1,cam2' with image paths relative to the CSV;\n"
+     "it decides the frames and which images go together."),
+    ("femoral", "Femoral component:", "mesh", "Surface model of the femoral component (STL, PLY, OBJ, VTK; in mm)."),
+    ("tibial", "Tibial component:", "mesh", "Surface model of the tibial component (STL, PLY, OBJ, VTK; in mm)."),
+]
+FIELD_KEYS = ("calibration1", "images1", "calibration2", "images2", "pairs_csv", "femoral", "tibial")
+REQUIRED_LABELS = {
+    "calibration1": "the calibration of view 1",
+    "calibration2": "the calibration of view 2",
+    "images1": "the images of view 1",
+    "images2": "the images of view 2",
+    "femoral": "the femoral component model",
+    "tibial": "the tibial component model",
+}
+
+
+class _PathEdit(QLineEdit):
+    """A line edit that takes dropped files or folders (several are joined)."""
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setAcceptDrops(True)
+        self.setClearButtonEnabled(True)
+
+    def dragEnterEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        if event.mimeData().hasUrls():
+            event.acceptProposedAction()
+        else:
+            super().dragEnterEvent(event)
+
+    def dropEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        paths = [u.toLocalFile() for u in event.mimeData().urls() if u.isLocalFile()]
+        if paths:
+            self.setText(FILE_SEPARATOR.join(paths))
+            event.acceptProposedAction()
+        else:
+            super().dropEvent(event)
+
+
+class ImportDialog(QDialog):
+    """Collects the files of a biplane session and imports them into ``self.project``."""
+
+    def __init__(self, parent: QWidget | None = None, start_dir: str | Path | None = None) -> None:
+        super().__init__(parent)
+        self.setWindowTitle("Import session")
+        self.setAcceptDrops(True)
+        self.project: Project | None = None
+        self.fields: dict[str, QLineEdit] = {}
+        self._start_dir = str(start_dir or Path.home())
+
+        intro = QLabel("Choose the calibration and images of both views and the two implant models, "
+                       "or fill everything from a folder laid out like cam1/, cam2/, calibration/, models/.")
+        intro.setWordWrap(True)
+        self.from_folder_button = QPushButton("From folder…")
+        self.from_folder_button.setToolTip(
+            "Fill every field from one folder holding calibration/, cam1/, cam2/, models/ and pairs.csv")
+        self.from_folder_button.clicked.connect(self.choose_folder)
+        top = QHBoxLayout()
+        top.addWidget(intro, 1)
+        top.addWidget(self.from_folder_button, 0, Qt.AlignmentFlag.AlignTop)
+
+        form = QFormLayout()
+        form.setFieldGrowthPolicy(QFormLayout.FieldGrowthPolicy.AllNonFixedFieldsGrow)
+        form.setLabelAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+        for k in (1, 2):
+            form.addRow(self._heading(f"View {k}"))
+            for key, label, kind, tip in _VIEW_FIELDS:
+                self._add_field(form, key.format(k=k), label, kind, tip.format(k=k))
+        form.addRow(self._heading("Frames"))
+        self._add_field(form, *_OTHER_FIELDS[0])
+        form.addRow(self._heading("Implant models"))
+        for spec in _OTHER_FIELDS[1:]:
+            self._add_field(form, *spec)
+
+        self.error_label = QLabel()
+        self.error_label.setObjectName("import_error")
+        self.error_label.setStyleSheet(ERROR_STYLE)
+        self.error_label.setWordWrap(True)
+        self.error_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.error_label.hide()
+
+        self.buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel)
+        self.buttons.button(QDialogButtonBox.StandardButton.Ok).setText("Import")
+        self.buttons.accepted.connect(self.accept)
+        self.buttons.rejected.connect(self.reject)
+
+        layout = QVBoxLayout(self)
+        layout.addLayout(top)
+        layout.addLayout(form)
+        layout.addWidget(self.error_label)
+        layout.addStretch(1)
+        layout.addWidget(self.buttons)
+        self.resize(720, self.sizeHint().height())
+
+    # -- building --------------------------------------------------------------------------
+    @staticmethod
+    def _heading(text: str) -> QLabel:
+        label = QLabel(f"<b>{text}</b>")
+        label.setContentsMargins(0, 6, 0, 0)
+        return label
+
+    def _add_field(self, form: QFormLayout, key: str, label: str, kind: str, tooltip: str) -> None:
+        edit = _PathEdit()
+        edit.setObjectName(key)
+        edit.setToolTip(tooltip)
+        edit.setPlaceholderText({
+            "calibration": "calibration file",
+            "images": "folder, image files or a video",
+            "csv": "optional",
+            "mesh": "surface model file",
+        }[kind])
+        edit.textChanged.connect(lambda _text, e=edit: e.setStyleSheet(""))
+        button = QToolButton()
+        button.setText("Browse…")
+        button.setToolTip(f"Choose {label.rstrip(':').lower()}")
+        if kind == "images":
+            menu = QMenu(button)
+            for text, chooser in (("Folder…", self._choose_image_folder), ("Image files…", self._choose_image_files),
+                                  ("Video…", self._choose_video)):
+                action = QAction(text, menu)
+                action.triggered.connect(lambda _checked=False, c=chooser, e=edit: c(e))
+                menu.addAction(action)
+            button.setMenu(menu)
+            button.setPopupMode(QToolButton.ToolButtonPopupMode.InstantPopup)
+        else:
+            name_filter = {"calibration": CALIBRATION_FILTER, "csv": CSV_FILTER, "mesh": MESH_FILTER}[kind]
+            button.clicked.connect(lambda _checked=False, e=edit, f=name_filter, t=label: self._choose_file(e, t, f))
+        row = QHBoxLayout()
+        row.setContentsMargins(0, 0, 0, 0)
+        row.addWidget(edit, 1)
+        row.addWidget(button)
+        holder = QWidget()
+        holder.setLayout(row)
+        label_widget = QLabel(label)
+        label_widget.setBuddy(edit)
+        label_widget.setToolTip(tooltip)
+        form.addRow(label_widget, holder)
+        self.fields[key] = edit
+
+    # -- filling -------------------------------------------------------------------------------
+    def fill(self, **paths) -> None:
+        """Set fields by key (see ``FIELD_KEYS``): a path, or a list of paths for images."""
+        unknown = set(paths) - set(self.fields)
+        if unknown:
+            raise KeyError(f"unknown import fields: {', '.join(sorted(unknown))}")
+        for key, value in paths.items():
+            if value is None:
+                text = ""
+            elif isinstance(value, (list, tuple)):
+                text = FILE_SEPARATOR.join(str(v) for v in value)
+            else:
+                text = str(value)
+            self.fields[key].setText(text)
+
+    def fill_from_folder(self, folder) -> bool:
+        """Fill the fields from a biplane folder; show why not when it is not one."""
+        found = detect_biplane_folder(folder)
+        if found is None:
+            self._show_error(f"{folder}: not a biplane session folder (expected calibration/, cam1/ and cam2/)")
+            return False
+        values = {"pairs_csv": found["pairs_csv"]}
+        for k, (calibration, images) in enumerate(zip(found["calibrations"], found["image_sources"]), start=1):
+            values[f"calibration{k}"] = calibration
+            values[f"images{k}"] = images
+        for component in ("femoral", "tibial"):
+            values[component] = found["models"].get(component)
+        self.fill(**values)
+        self._start_dir = str(folder)
+        self.error_label.hide()
+        return True
+
+    def import_arguments(self) -> dict:
+        """The keyword arguments of ``import_session`` from the fields (ValueError if incomplete)."""
+        text = {key: edit.text().strip() for key, edit in self.fields.items()}
+        required = [k for k in REQUIRED_LABELS if not (text["pairs_csv"] and k.startswith("images"))]
+        missing = [REQUIRED_LABELS[k] for k in required if not text[k]]
+        if missing:
+            raise ValueError("Choose " + ", ".join(missing) + ".")
+        images = []
+        for k in (1, 2):
+            parts = [p.strip() for p in text[f"images{k}"].split(FILE_SEPARATOR.strip()) if p.strip()]
+            images.append(Path(parts[0]) if len(parts) == 1 else [Path(p) for p in parts])
+        return {
+            "calibrations": [Path(text["calibration1"]), Path(text["calibration2"])],
+            "image_sources": [] if text["pairs_csv"] else images,
+            "models": {"femoral": Path(text["femoral"]), "tibial": Path(text["tibial"])},
+            "pairs_csv": Path(text["pairs_csv"]) if text["pairs_csv"] else None,
+        }
+
+    # -- OK ----------------------------------------------------------------------------------
+    def accept(self) -> None:
+        """Import; on a bad file show the problem inline and stay open."""
+        try:
+            arguments = self.import_arguments()
+        except ValueError as exc:
+            self._show_error(str(exc))
+            return
+        QGuiApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
+        try:
+            project = import_session(**arguments)
+        except (InputError, ValueError) as exc:
+            self._show_error(str(exc), getattr(exc, "path", None))
+            return
+        finally:
+            QGuiApplication.restoreOverrideCursor()
+        self.project = project
+        self.error_label.hide()
+        super().accept()
+
+    def _show_error(self, message: str, path: str | None = None) -> None:
+        self.error_label.setText(message)
+        self.error_label.show()
+        if path:
+            for edit in self.fields.values():
+                if _mentions(edit.text(), path):
+                    edit.setStyleSheet(BAD_FIELD_STYLE)
+
+    # -- choosers ----------------------------------------------------------------------------
+    def choose_folder(self) -> None:
+        folder = QFileDialog.getExistingDirectory(self, "Session folder", self._start_dir)
+        if folder:
+            self.fill_from_folder(folder)
+
+    def _where(self, edit: QLineEdit) -> str:
+        first = edit.text().split(FILE_SEPARATOR.strip())[0].strip()
+        return str(Path(first).parent) if first else self._start_dir
+
+    def _remember(self, path: str) -> None:
+        self._start_dir = str(Path(path).parent)
+
+    def _choose_file(self, edit: QLineEdit, title: str, name_filter: str) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, title.rstrip(":"), self._where(edit), name_filter)
+        if path:
+            edit.setText(path)
+            self._remember(path)
+
+    def _choose_image_folder(self, edit: QLineEdit) -> None:
+        folder = QFileDialog.getExistingDirectory(self, "Image folder", self._where(edit))
+        if folder:
+            edit.setText(folder)
+            self._start_dir = folder
+
+    def _choose_image_files(self, edit: QLineEdit) -> None:
+        paths, _ = QFileDialog.getOpenFileNames(self, "Image files", self._where(edit), IMAGE_FILTER)
+        if paths:
+            edit.setText(FILE_SEPARATOR.join(paths))
+            self._remember(paths[0])
+
+    def _choose_video(self, edit: QLineEdit) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Video", self._where(edit), VIDEO_FILTER)
+        if path:
+            edit.setText(path)
+            self._remember(path)
+
+    # -- drop a whole folder on the dialog ---------------------------------------------------
+    def dragEnterEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        urls = event.mimeData().urls()
+        if len(urls) == 1 and urls[0].isLocalFile() and Path(urls[0].toLocalFile()).is_dir():
+            event.acceptProposedAction()
+
+    def dropEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        urls = event.mimeData().urls()
+        if len(urls) == 1 and urls[0].isLocalFile():
+            self.fill_from_folder(urls[0].toLocalFile())
+            event.acceptProposedAction()
+
+
+def _mentions(field_text: str, path: str) -> bool:
+    """Whether a field names ``path`` or a folder that contains it."""
+    target = Path(path).absolute()
+    for part in field_text.split(FILE_SEPARATOR.strip()):
+        part = part.strip()
+        if not part:
+            continue
+        named = Path(part).expanduser().absolute()
+        if named == target or named in target.parents:
+            return True
+    return False

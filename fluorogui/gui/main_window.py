@@ -1,0 +1,992 @@
+"""The main window: two image panels, the 3D fluoroscope, docks, menus and the session life cycle.
+
+Thin by design: every change to the project goes through ``SessionController`` (undoable,
+announced by signals); long work goes through ``TaskRunner`` with the tasks in ``jobs``.
+This module wires them to the widgets and keeps the views in step.
+"""
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+from PySide6.QtCore import QSettings, QStandardPaths, Qt, QTimer, Signal
+from PySide6.QtGui import QAction, QActionGroup, QColor, QKeySequence
+from PySide6.QtWidgets import (
+    QApplication,
+    QComboBox,
+    QDockWidget,
+    QFileDialog,
+    QLabel,
+    QMainWindow,
+    QMessageBox,
+    QSlider,
+    QSplitter,
+    QTreeWidget,
+    QTreeWidgetItem,
+    QWidget,
+)
+
+from fluorogui import __version__
+from fluorogui.core.pipeline import predicted_outline
+from fluorogui.core.spline import OutlineError
+from fluorogui.gui import jobs, theme
+from fluorogui.gui.controller import SessionController, match_record
+from fluorogui.gui.image_panel import ImagePanel, Tool
+from fluorogui.gui.matcher_panel import MatcherPanel
+from fluorogui.gui.pose_editor import PoseEditor
+from fluorogui.gui.timeline import Timeline
+from fluorogui.gui.worker import TaskRunner
+from fluorogui.io.errors import InputError
+
+PROJECT_FILTER = "fluorogui projects (*.fluoro);;All files (*)"
+MESH_SUFFIXES = {".stl", ".ply", ".obj", ".vtk", ".vtp"}
+IMAGE_SUFFIXES = {".tif", ".tiff", ".png", ".jpg", ".jpeg", ".dcm", ".avi", ".mp4"}
+MAX_RECENT = 8
+AUTOSAVE_MS = 3 * 60 * 1000
+COMPONENT_COLOURS = {"femoral": QColor(90, 170, 255), "tibial": QColor(110, 220, 120)}
+TOOLS = (
+    (Tool.NAVIGATE, "navigate", "Navigate", "N", "Pan and zoom (wheel zooms at the cursor, right-drag sets window/level)"),
+    (Tool.PICK_CONTOUR, "pick", "Pick contour", "P", "Click an edge contour to take it as the outline (Shift adds one)"),
+    (Tool.MOVE, "move", "Move point", "M", "Drag an outline point"),
+    (Tool.INSERT, "insert", "Insert point", "I", "Click to insert a point into the nearest segment"),
+    (Tool.DELETE, "delete", "Delete point", "D", "Click to delete the nearest point"),
+    (Tool.ERASE, "erase", "Erase", "E", "Brush away edges and outline points"),
+    (Tool.LASSO, "lasso", "Lasso delete", "L", "Draw around outline points to delete them"),
+    (Tool.CLOSE_GAP, "close_gap", "Close gap", "G", "Click two outline points to bridge the gap between them"),
+    (Tool.PLACE, "place", "Place model", "C", "Click the component in view 1 and view 2 to place the model there"),
+)
+ORIENTATION_PRESETS = (
+    ("Upright (all angles 0)", (0.0, 0.0, 0.0)),
+    ("Flexed 30°", (30.0, 0.0, 0.0)),
+    ("Flexed 60°", (60.0, 0.0, 0.0)),
+    ("Flexed 90°", (90.0, 0.0, 0.0)),
+    ("Turned 180° about y", (0.0, 180.0, 0.0)),
+)
+
+
+def app_data_dir() -> Path:
+    """Where recovery files and the generated demo live (FLUOROGUI_DATA_DIR overrides)."""
+    override = os.environ.get("FLUOROGUI_DATA_DIR")
+    base = Path(override) if override else Path(QStandardPaths.writableLocation(
+        QStandardPaths.StandardLocation.AppDataLocation) or Path.home() / ".fluorogui")
+    base.mkdir(parents=True, exist_ok=True)
+    return base
+
+
+class MainWindow(QMainWindow):
+    """The fluorogui main window."""
+
+    frame_shown = Signal(int)  # emitted after a frame's images and overlays are on screen
+
+    def __init__(self, settings: QSettings | None = None, with_3d: bool = True,
+                 parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.settings = settings or QSettings("fluorogui", "fluorogui")
+        self.controller = SessionController(self)
+        self.runner = TaskRunner(self)
+        self.place_clicks: dict[int, tuple[float, float]] = {}
+        self.last_error = ""
+        self._live_component: str | None = None
+        self.setWindowIcon(theme.icon("app"))
+        self.setAcceptDrops(True)
+        self.setDockNestingEnabled(True)
+
+        self.panels = [ImagePanel(i, self.controller.undo_stack) for i in range(2)]
+        splitter = QSplitter(Qt.Orientation.Horizontal)
+        for panel in self.panels:
+            panel.outline_sink = self.controller.outline_sink
+            panel.point_clicked.connect(self._place_click)
+            panel.cursor_moved.connect(self._show_cursor)
+            for name, colour in COMPONENT_COLOURS.items():
+                panel.set_component_colour(name, colour)
+            splitter.addWidget(panel)
+        self.setCentralWidget(splitter)
+
+        self.scene_widget = None
+        if with_3d:
+            from fluorogui.gui.scene3d import Scene3DWidget
+
+            self.scene_widget = Scene3DWidget(self)
+            self.scene_widget.pose_dragged.connect(
+                lambda name, pose: self.controller.set_pose(name, pose, text="Drag model", mergeable=True))
+        self.pose_editor = PoseEditor()
+        self.matcher = MatcherPanel()
+        self.timeline = Timeline()
+        self.tree = QTreeWidget()
+        self.tree.setHeaderHidden(True)
+        self.tree.itemActivated.connect(self._tree_activated)
+        self.tree.itemClicked.connect(self._tree_activated)
+        self._build_docks()
+        self._build_actions()
+        self._build_status_bar()
+        self._connect()
+        self.autosave_timer = QTimer(self)
+        self.autosave_timer.setInterval(int(self.settings.value("autosave_ms", AUTOSAVE_MS)))
+        self.autosave_timer.timeout.connect(self.autosave)
+        self.autosave_timer.start()
+        self._restore_layout()
+        self._refresh_title()
+        self._refresh_all()
+
+    # -- construction ----------------------------------------------------------------------
+    def _dock(self, title: str, widget: QWidget, area, name: str) -> QDockWidget:
+        dock = QDockWidget(title, self)
+        dock.setObjectName(name)
+        dock.setWidget(widget)
+        self.addDockWidget(area, dock)
+        return dock
+
+    def _build_docks(self) -> None:
+        right = Qt.DockWidgetArea.RightDockWidgetArea
+        if self.scene_widget is not None:
+            self.scene_dock = self._dock("3D scene", self.scene_widget, right, "sceneDock")
+        self.matcher_dock = self._dock("Matcher", self.matcher, right, "matcherDock")
+        self.pose_dock = self._dock("Pose", self.pose_editor, right, "poseDock")
+        self.session_dock = self._dock("Session", self.tree, right, "sessionDock")
+        self.tabifyDockWidget(self.matcher_dock, self.pose_dock)
+        self.tabifyDockWidget(self.pose_dock, self.session_dock)
+        self.matcher_dock.raise_()
+        self.timeline_dock = self._dock("Frames", self.timeline, Qt.DockWidgetArea.BottomDockWidgetArea,
+                                        "timelineDock")
+        self.timeline_dock.setFeatures(QDockWidget.DockWidgetFeature.DockWidgetMovable)
+
+    def _action(self, text: str, slot, shortcut=None, icon: str | None = None, tip: str = "") -> QAction:
+        action = QAction(text, self)
+        if shortcut is not None:
+            action.setShortcut(QKeySequence(shortcut))
+        if icon:
+            action.setIcon(theme.icon(icon))
+        if tip:
+            action.setToolTip(tip)
+            action.setStatusTip(tip)
+        action.triggered.connect(slot)
+        self.addAction(action)
+        return action
+
+    def _build_actions(self) -> None:
+        c = self.controller
+        menu = self.menuBar()
+        file_menu = menu.addMenu("&File")
+        self.open_action = self._action("&Open…", lambda: self.open_project(), QKeySequence.StandardKey.Open, "open")
+        self.import_action = self._action("&Import images and calibration…", self.import_session, "Ctrl+I")
+        self.demo_action = self._action("Open the &demo session", self.open_demo)
+        self.save_action = self._action("&Save", self.save, QKeySequence.StandardKey.Save, "save")
+        self.save_as_action = self._action("Save &as…", self.save_as, QKeySequence.StandardKey.SaveAs)
+        self.quit_action = self._action("&Quit", self.close, QKeySequence.StandardKey.Quit)
+        self.recent_menu = file_menu.addMenu("Open &recent")
+        for a in (self.open_action, self.import_action, self.demo_action):
+            file_menu.addAction(a)
+        file_menu.insertMenu(self.import_action, self.recent_menu)
+        file_menu.addSeparator()
+        file_menu.addAction(self.save_action)
+        file_menu.addAction(self.save_as_action)
+        file_menu.addSeparator()
+        file_menu.addAction(self.quit_action)
+
+        edit_menu = menu.addMenu("&Edit")
+        self.undo_action = c.undo_stack.createUndoAction(self, "&Undo")
+        self.undo_action.setShortcut(QKeySequence.StandardKey.Undo)
+        self.redo_action = c.undo_stack.createRedoAction(self, "&Redo")
+        self.redo_action.setShortcuts([QKeySequence("Ctrl+Shift+Z"), QKeySequence.StandardKey.Redo])
+        edit_menu.addAction(self.undo_action)
+        edit_menu.addAction(self.redo_action)
+        edit_menu.addSeparator()
+        self.tool_group = QActionGroup(self)
+        self.tool_actions: dict[Tool, QAction] = {}
+        for tool, icon_name, text, key, tip in TOOLS:
+            action = self._action(text, lambda _=False, t=tool: self.set_tool(t), key, icon_name, f"{tip} ({key})")
+            action.setCheckable(True)
+            self.tool_group.addAction(action)
+            edit_menu.addAction(action)
+            self.tool_actions[tool] = action
+        self.tool_actions[Tool.NAVIGATE].setChecked(True)
+        edit_menu.addSeparator()
+        self.clear_outline_action = self._action("Clear outline of the active component", self.clear_outlines)
+        edit_menu.addAction(self.clear_outline_action)
+
+        view_menu = menu.addMenu("&View")
+        self.fit_action = self._action("&Fit images", self.fit_images, "F", "fit", "Fit both images to their panels")
+        self.edges_action = self._action("Show &edges", self.toggle_edges, "Ctrl+E", "edges",
+                                         "Show Canny edges (thresholds on the toolbar)")
+        self.edges_action.setCheckable(True)
+        view_menu.addAction(self.fit_action)
+        view_menu.addAction(self.edges_action)
+        view_menu.addSeparator()
+        for dock in [d for d in self.findChildren(QDockWidget)]:
+            view_menu.addAction(dock.toggleViewAction())
+        view_menu.addSeparator()
+        theme_menu = view_menu.addMenu("&Theme")
+        self.theme_group = QActionGroup(self)
+        for name in theme.THEMES:
+            action = QAction(name.capitalize(), self, checkable=True)
+            action.triggered.connect(lambda _=False, n=name: self.set_theme(n))
+            self.theme_group.addAction(action)
+            theme_menu.addAction(action)
+            if name == self.settings.value("theme", "system"):
+                action.setChecked(True)
+
+        model_menu = menu.addMenu("&Model")
+        self.component_actions = QActionGroup(self)
+        self.component_menu = model_menu.addMenu("Active &component")
+        self.orient_menu = model_menu.addMenu("&Orientation preset")
+        for text, angles in ORIENTATION_PRESETS:
+            action = QAction(text, self)
+            action.triggered.connect(lambda _=False, a=angles: self._orient(a))
+            self.orient_menu.addAction(action)
+        model_menu.addAction(self.tool_actions[Tool.PLACE])
+        self.find_action = self._action("&Find implants automatically", self.find_implants, "Ctrl+F")
+        model_menu.addAction(self.find_action)
+        nudges = ((Qt.Key.Key_Left, 0, -1), (Qt.Key.Key_Right, 0, 1), (Qt.Key.Key_Down, 1, -1),
+                  (Qt.Key.Key_Up, 1, 1), (Qt.Key.Key_PageDown, 2, -1), (Qt.Key.Key_PageUp, 2, 1))
+        for key, axis, direction in nudges:
+            self._action(f"Move {'xyz'[axis]} {'+' if direction > 0 else '-'}",
+                         lambda _=False, a=axis, d=direction: self.pose_editor.nudge(a, d),
+                         QKeySequence(Qt.KeyboardModifier.ControlModifier | key))
+            self._action(f"Turn {('alpha', 'beta', 'gamma')[axis]} {'+' if direction > 0 else '-'}",
+                         lambda _=False, a=axis + 3, d=direction: self.pose_editor.nudge(a, d),
+                         QKeySequence(Qt.KeyboardModifier.ControlModifier | Qt.KeyboardModifier.ShiftModifier | key))
+
+        match_menu = menu.addMenu("M&atch")
+        self.run_action = self._action("&Match active component", self.run_match, "F5", "match")
+        self.cancel_action = self._action("&Cancel", self.runner.cancel, "Esc", "cancel")
+        self.cancel_action.setEnabled(False)
+        self.track_action = self._action("&Track following frames", self.track_frames, "Shift+F5")
+        self.accept_action = self._action("&Accept pose", self.accept_pose, "Ctrl+Return", "accept")
+        self.next_action = self._action("&Next frame", lambda: self.step_frame(1), "PgDown")
+        self.prev_action = self._action("&Previous frame", lambda: self.step_frame(-1), "PgUp")
+        for a in (self.run_action, self.cancel_action, self.track_action, self.accept_action, self.next_action,
+                  self.prev_action):
+            match_menu.addAction(a)
+
+        help_menu = menu.addMenu("&Help")
+        help_menu.addAction(self._action("&Keyboard shortcuts", self.show_shortcuts, "F1"))
+        help_menu.addAction(self._action("&About fluorogui", self.show_about))
+
+        bar = self.addToolBar("Main")
+        bar.setObjectName("mainToolbar")
+        bar.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonIconOnly)
+        for a in (self.open_action, self.save_action):
+            bar.addAction(a)
+        bar.addSeparator()
+        bar.addWidget(QLabel(" Component "))
+        self.component_combo = QComboBox()
+        self.component_combo.setToolTip("The component whose outline and pose you edit")
+        self.component_combo.currentTextChanged.connect(lambda t: t and self.controller.set_component(t))
+        bar.addWidget(self.component_combo)
+        bar.addSeparator()
+        for tool, *_ in TOOLS:
+            bar.addAction(self.tool_actions[tool])
+        bar.addSeparator()
+        bar.addAction(self.fit_action)
+        bar.addAction(self.edges_action)
+        self.low_slider, self.high_slider = QSlider(Qt.Orientation.Horizontal), QSlider(Qt.Orientation.Horizontal)
+        for slider, value, tip in ((self.low_slider, 10, "Canny low threshold (% of the strong-edge gradient)"),
+                                   (self.high_slider, 30, "Canny high threshold (% of the strong-edge gradient)")):
+            slider.setRange(1, 100)
+            slider.setValue(int(self.settings.value(f"canny/{'low' if slider is self.low_slider else 'high'}",
+                                                    value)))
+            slider.setFixedWidth(80)
+            slider.setToolTip(tip)
+            slider.valueChanged.connect(self._thresholds_changed)
+            bar.addWidget(slider)
+        bar.addSeparator()
+        for a in (self.run_action, self.cancel_action, self.accept_action):
+            bar.addAction(a)
+
+    def _build_status_bar(self) -> None:
+        self.cursor_label = QLabel("")
+        self.frame_label = QLabel("")
+        self.statusBar().addPermanentWidget(self.cursor_label)
+        self.statusBar().addPermanentWidget(self.frame_label)
+
+    def _connect(self) -> None:
+        c = self.controller
+        c.project_replaced.connect(self._project_replaced)
+        c.frame_changed.connect(lambda _i: self.show_frame())
+        c.component_changed.connect(self._component_changed)
+        c.pose_changed.connect(self._pose_changed)
+        c.outline_changed.connect(self._outline_changed)
+        c.dirty_changed.connect(lambda dirty: self.setWindowModified(dirty))
+        c.path_changed.connect(lambda _p: self._refresh_title())
+        self.pose_editor.pose_edited.connect(
+            lambda pose: c.set_pose(c.component, pose, text="Edit pose", mergeable=True))
+        self.timeline.frame_selected.connect(c.set_frame_index)
+        m = self.matcher
+        m.run_requested.connect(self.run_match)
+        m.cancel_requested.connect(self.runner.cancel)
+        m.track_requested.connect(self.track_frames)
+        m.accept_requested.connect(self.accept_pose)
+        m.place_requested.connect(self.find_implants)
+        r = self.runner
+        r.running_changed.connect(self._running_changed)
+        r.progress.connect(self._task_progress)
+        r.item.connect(self._task_item)
+        r.finished.connect(self._task_finished)
+        r.cancelled.connect(self._task_cancelled)
+        r.failed.connect(self._task_failed)
+
+    # -- settings and layout ---------------------------------------------------------------
+    def _restore_layout(self) -> None:
+        geometry = self.settings.value("window/geometry")
+        state = self.settings.value("window/state")
+        if geometry is not None:
+            self.restoreGeometry(geometry)
+        else:
+            self.resize(1280, 800)
+        if state is not None:
+            self.restoreState(state)
+        self._refresh_recent()
+
+    def _save_layout(self) -> None:
+        self.settings.setValue("window/geometry", self.saveGeometry())
+        self.settings.setValue("window/state", self.saveState())
+        self.settings.setValue("canny/low", self.low_slider.value())
+        self.settings.setValue("canny/high", self.high_slider.value())
+
+    def set_theme(self, name: str) -> None:
+        self.settings.setValue("theme", name)
+        app = QApplication.instance()
+        if app is not None:
+            theme.apply_theme(app, name)
+
+    def recent_files(self) -> list[str]:
+        value = self.settings.value("recent", [])
+        if isinstance(value, str):
+            value = [value]
+        return [v for v in (value or []) if v]
+
+    def _add_recent(self, path: Path) -> None:
+        items = [str(path)] + [p for p in self.recent_files() if p != str(path)]
+        self.settings.setValue("recent", items[:MAX_RECENT])
+        self._refresh_recent()
+
+    def _refresh_recent(self) -> None:
+        self.recent_menu.clear()
+        for p in self.recent_files():
+            action = self.recent_menu.addAction(Path(p).name)
+            action.setToolTip(p)
+            action.triggered.connect(lambda _=False, path=p: self.open_project(path))
+        self.recent_menu.setEnabled(bool(self.recent_files()))
+
+    # -- session life cycle ----------------------------------------------------------------
+    def _refresh_title(self) -> None:
+        path = self.controller.path
+        name = path.name if path else "untitled"
+        if self.controller.project.settings.get("demo"):
+            name += " (demo)"
+        self.setWindowTitle(f"{name}[*] — fluorogui")
+        self.setWindowModified(self.controller.dirty)
+
+    def _warn(self, title: str, message: str) -> None:
+        self.last_error = message
+        self.statusBar().showMessage(message, 10000)
+        QMessageBox.warning(self, title, message)
+
+    def maybe_save(self) -> bool:
+        """Ask about unsaved changes; False if the user cancelled."""
+        if not self.controller.dirty:
+            return True
+        answer = QMessageBox.question(
+            self, "Unsaved changes", "The session has unsaved changes. Save them first?",
+            QMessageBox.StandardButton.Save | QMessageBox.StandardButton.Discard | QMessageBox.StandardButton.Cancel,
+            QMessageBox.StandardButton.Save)
+        if answer == QMessageBox.StandardButton.Save:
+            return self.save()
+        return answer == QMessageBox.StandardButton.Discard
+
+    def open_project(self, path=None, ask: bool = True) -> bool:
+        """Open a project file (asks for one when ``path`` is None). A failure shows a
+        dialog naming the file and leaves the open project as it was."""
+        if self.runner.is_running():
+            self.statusBar().showMessage("Wait for the running task to end (or cancel it) first", 5000)
+            return False
+        if ask and not self.maybe_save():
+            return False
+        if path is None:
+            name, _ = QFileDialog.getOpenFileName(self, "Open project", str(self._last_dir()), PROJECT_FILTER)
+            if not name:
+                return False
+            path = name
+        try:
+            self.controller.open(path)
+        except InputError as exc:
+            self._warn("Cannot open project", str(exc))
+            return False
+        self._add_recent(Path(path).resolve())
+        self.settings.setValue("last_dir", str(Path(path).resolve().parent))
+        self.statusBar().showMessage(f"Opened {path}", 5000)
+        return True
+
+    def _last_dir(self) -> Path:
+        return Path(self.settings.value("last_dir", str(Path.home())))
+
+    def open_demo(self, ask: bool = True) -> bool:
+        """Open the built-in demo session (generated on first use)."""
+        from fluorogui.io.demo import demo_project_path
+
+        if ask and not self.maybe_save():
+            return False
+        QApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
+        self.statusBar().showMessage("Preparing the demo session…")
+        QApplication.processEvents()
+        try:
+            path = demo_project_path(app_data_dir() / "demo")
+        except (InputError, OSError) as exc:
+            QApplication.restoreOverrideCursor()
+            self._warn("Cannot build the demo", str(exc))
+            return False
+        QApplication.restoreOverrideCursor()
+        opened = self.open_project(path, ask=False)
+        if opened:
+            self.controller.project.settings["demo"] = True
+            self._refresh_title()
+            self.statusBar().showMessage(
+                "Demo session: press F5 to match the femoral component, then Ctrl+Return to accept", 15000)
+        return opened
+
+    def save(self) -> bool:
+        if self.controller.path is None or self.controller.project.settings.get("demo"):
+            return self.save_as()
+        return self._save_to(self.controller.path)
+
+    def save_as(self) -> bool:
+        start = str(self.controller.path or self._last_dir() / "session.fluoro")
+        name, _ = QFileDialog.getSaveFileName(self, "Save project as", start, PROJECT_FILTER)
+        if not name:
+            return False
+        if not name.endswith(".fluoro"):
+            name += ".fluoro"
+        self.controller.project.settings.pop("demo", None)
+        return self._save_to(Path(name))
+
+    def _save_to(self, path: Path) -> bool:
+        try:
+            self.controller.save(path)
+        except (InputError, OSError) as exc:
+            self._warn("Cannot save project", str(exc))
+            return False
+        self._add_recent(path.resolve())
+        self.recovery_path().unlink(missing_ok=True)
+        self._refresh_title()
+        self.statusBar().showMessage(f"Saved {path}", 5000)
+        return True
+
+    def import_session(self, paths: dict | None = None, folder: Path | None = None) -> bool:
+        """The import dialog (optionally pre-filled); the imported session replaces this one."""
+        from fluorogui.gui.import_dialog import ImportDialog
+
+        if not self.maybe_save():
+            return False
+        dialog = ImportDialog(self)
+        if folder is not None:
+            dialog.fill_from_folder(folder)
+        if paths:
+            dialog.fill(**paths)
+        if dialog.exec() != ImportDialog.DialogCode.Accepted or dialog.project is None:
+            return False
+        self.controller.set_project(dialog.project, None)
+        self.controller.undo_stack.resetClean()  # never saved: closing asks
+        self.statusBar().showMessage("Imported. Save the session to keep it (Ctrl+S)", 8000)
+        return True
+
+    # -- autosave and recovery -------------------------------------------------------------
+    def recovery_path(self) -> Path:
+        return app_data_dir() / "recovery" / "autosave.fluoro"
+
+    def autosave(self) -> bool:
+        """Write the session to the recovery file if it has unsaved changes."""
+        if not self.controller.dirty or not self.controller.project.views:
+            return False
+        from fluorogui.io.project import save_project
+
+        path = self.recovery_path()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            save_project(self.controller.project, path)
+            origin = str(self.controller.path) if self.controller.path else ""
+            path.with_suffix(".json").write_text(json.dumps({"origin": origin, "time": time.time()}))
+        except (InputError, OSError) as exc:
+            self.statusBar().showMessage(f"Autosave failed: {exc}", 10000)
+            return False
+        self.statusBar().showMessage("Autosaved for recovery", 3000)
+        return True
+
+    def offer_recovery(self) -> bool:
+        """After a crash: offer the autosaved session. True if it was recovered."""
+        path = self.recovery_path()
+        if not path.exists():
+            return False
+        info = {}
+        try:
+            info = json.loads(path.with_suffix(".json").read_text())
+        except (OSError, ValueError):
+            pass
+        origin = info.get("origin") or ""
+        answer = QMessageBox.question(
+            self, "Recover session",
+            "fluorogui did not close normally. Recover the autosaved session"
+            + (f" of {Path(origin).name}" if origin else "") + "?",
+            QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, QMessageBox.StandardButton.Yes)
+        if answer != QMessageBox.StandardButton.Yes:
+            path.unlink(missing_ok=True)
+            return False
+        try:
+            self.controller.open(path)
+        except InputError as exc:
+            self._warn("Cannot recover the session", str(exc))
+            return False
+        self.controller.path = Path(origin) if origin else None
+        self.controller.undo_stack.resetClean()
+        self._refresh_title()
+        self.statusBar().showMessage("Recovered; save to keep it", 8000)
+        return True
+
+    def closeEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        if not self.maybe_save():
+            event.ignore()
+            return
+        if self.runner.is_running():
+            self.runner.cancel()
+            self.runner.wait(5000)
+        self._save_layout()
+        self.recovery_path().unlink(missing_ok=True)
+        if self.scene_widget is not None:
+            self.scene_widget.close()
+        event.accept()
+
+    # -- drag and drop ---------------------------------------------------------------------
+    def dragEnterEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        if event.mimeData().hasUrls():
+            event.acceptProposedAction()
+
+    def dropEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        paths = [Path(u.toLocalFile()) for u in event.mimeData().urls() if u.isLocalFile()]
+        event.acceptProposedAction()
+        self.open_paths(paths)
+
+    def open_paths(self, paths: list[Path]) -> None:
+        """A dropped project opens; dropped folders, images, meshes or calibrations fill
+        the import dialog."""
+        projects = [p for p in paths if p.suffix == ".fluoro"]
+        if projects:
+            self.open_project(projects[0])
+            return
+        fill: dict = {}
+        meshes = [p for p in paths if p.suffix.lower() in MESH_SUFFIXES]
+        for m in meshes:
+            fill.setdefault("tibial" if "tib" in m.name.lower() else "femoral", m)
+        folders = [p for p in paths if p.is_dir()]
+        for k, folder in enumerate(folders[:2] if len(folders) > 1 else []):
+            fill[f"images{k + 1}"] = folder
+        calibrations = [p for p in paths if p.suffix.lower() in {".txt", ".json", ".cal"}]
+        for k, cal in enumerate(calibrations[:2]):
+            fill[f"calibration{k + 1}"] = cal
+        self.import_session(fill, folder=folders[0] if len(folders) == 1 else None)
+
+    # -- showing the session ---------------------------------------------------------------
+    def _project_replaced(self) -> None:
+        c = self.controller
+        self.place_clicks.clear()
+        names = c.components()
+        self.component_combo.blockSignals(True)
+        self.component_combo.clear()
+        self.component_combo.addItems(names)
+        if c.component in names:
+            self.component_combo.setCurrentText(c.component)
+        self.component_combo.blockSignals(False)
+        self.component_menu.clear()
+        for name in names:
+            action = QAction(name, self, checkable=True)
+            action.setChecked(name == c.component)
+            action.triggered.connect(lambda _=False, n=name: c.set_component(n))
+            self.component_actions.addAction(action)
+            self.component_menu.addAction(action)
+        if self.scene_widget is not None:
+            scene = self.scene_widget.scene
+            scene.set_views(c.project.views)
+            for name in names:
+                try:
+                    vertices, faces = c.raw_mesh(name)
+                except InputError as exc:
+                    self._warn("Cannot load a model", str(exc))
+                    continue
+                scene.set_model(name, vertices, faces, COMPONENT_COLOURS.get(name, QColor(200, 200, 200)).getRgbF()[:3])
+        self._camera_pending = True
+        self._refresh_tree()
+        self._refresh_title()
+        self.timeline.set_frames(c.frames, c.frame_states())
+        self._component_changed(c.component)
+        saved_index = c.project.settings.get("gui", {}).get("frame_index", 0)
+        if isinstance(saved_index, int) and 0 < saved_index < len(c.frames):
+            c.set_frame_index(saved_index)
+
+    def _refresh_all(self) -> None:
+        self.pose_editor.set_component(None)
+
+    def _refresh_tree(self) -> None:
+        c = self.controller
+        self.tree.clear()
+        root = QTreeWidgetItem([c.path.name if c.path else "Untitled session"])
+        views = QTreeWidgetItem(root, ["Views"])
+        for i, v in enumerate(c.project.views):
+            QTreeWidgetItem(views, [f"View {i + 1}: {v.name or 'calibrated'} ({v.image_size[0]}×{v.image_size[1]})"])
+        models = QTreeWidgetItem(root, ["Components"])
+        for name in c.components():
+            item = QTreeWidgetItem(models, [f"{name}  ({c.project.model(name).mesh_path.name})"])
+            item.setData(0, Qt.ItemDataRole.UserRole, ("component", name))
+        frames = QTreeWidgetItem(root, [f"Frames ({len(c.frames)})"])
+        for i, f in enumerate(c.frames[:500]):
+            item = QTreeWidgetItem(frames, [f"Frame {f}"])
+            item.setData(0, Qt.ItemDataRole.UserRole, ("frame", i))
+        self.tree.addTopLevelItem(root)
+        root.setExpanded(True)
+        views.setExpanded(True)
+        models.setExpanded(True)
+
+    def _tree_activated(self, item, _column=0) -> None:
+        data = item.data(0, Qt.ItemDataRole.UserRole)
+        if not data:
+            return
+        kind, value = data
+        if kind == "component":
+            self.controller.set_component(value)
+        elif kind == "frame":
+            self.controller.set_frame_index(value)
+
+    def show_frame(self) -> None:
+        """Show the current frame: images, outlines, overlays, pose, match summary."""
+        c = self.controller
+        if c.frame is None:
+            return
+        try:
+            images = c.images()
+        except InputError as exc:
+            self._warn("Cannot read an image", str(exc))
+            images = [None] * c.n_views()
+        for view, panel in enumerate(self.panels):
+            panel.set_image(images[view] if view < len(images) else None, key=(c.frame, view))
+            for name in c.components():
+                key = c.outline_key(view, name)
+                panel.set_outline(name, c.outline_points(key), key)
+        if self.scene_widget is not None:
+            self.scene_widget.scene.set_images(images)
+        for name in c.components():
+            self._show_pose(name)
+        self._show_rays()
+        if self.scene_widget is not None and getattr(self, "_camera_pending", False):
+            self._camera_pending = False
+            self.scene_widget.scene.reset_camera()
+        self._show_match_summary()
+        self.timeline.set_current(c.frame_index)
+        self.frame_label.setText(f"Frame {c.frame} ({c.frame_index + 1}/{len(c.frames)})")
+        self.frame_shown.emit(c.frame_index)
+
+    def _show_rays(self) -> None:
+        """Rays in the 3D scene through the active component's image outline."""
+        if self.scene_widget is None:
+            return
+        c = self.controller
+        for view in range(c.n_views()):
+            self.scene_widget.scene.set_rays(view, c.outline_points(c.outline_key(view)))
+
+    def _show_pose(self, component: str) -> None:
+        """Overlays and 3D model of one component at its current pose."""
+        c = self.controller
+        pose = c.pose(component)
+        self._show_model_outline(component, pose)
+        if self.scene_widget is not None:
+            self.scene_widget.scene.set_pose(component, pose)
+            self.scene_widget.scene.render()
+        if component == c.component:
+            self.pose_editor.set_pose(pose)
+
+    def _show_model_outline(self, component: str, pose, outlines=None) -> None:
+        c = self.controller
+        try:
+            mesh = c.mesh(component)
+        except (InputError, KeyError):
+            return
+        splines = c.splines(component)
+        for view, panel in enumerate(self.panels[:c.n_views()]):
+            points = outlines[view] if outlines is not None else predicted_outline(
+                mesh, pose, c.project.views[view], jobs.OVERLAY_SPACING_PX)
+            distances = None
+            if splines is not None:
+                try:
+                    distances = splines[view].closest(points)[0]
+                except (OutlineError, ValueError):
+                    distances = None
+            panel.set_model_outline(component, points, distances)
+
+    def _show_match_summary(self) -> None:
+        record = self.controller.pose_record(self.controller.component)
+        if record is None or record.match is None:
+            self.matcher.show_result(None)
+        else:
+            self.matcher.show_result(record.match, label="Reviewed. " if record.reviewed else "")
+
+    def _component_changed(self, name: str) -> None:
+        self.component_combo.blockSignals(True)
+        self.component_combo.setCurrentText(name)
+        self.component_combo.blockSignals(False)
+        for action in self.component_actions.actions():
+            action.setChecked(action.text() == name)
+        for panel in self.panels:
+            panel.set_active_component(name)
+        self.pose_editor.set_component(name if name in self.controller.components() else None)
+        if name in self.controller.components() and self.controller.frame is not None:
+            self.pose_editor.set_pose(self.controller.pose(name))
+            self._show_match_summary()
+        if self.scene_widget is not None and name in self.controller.components():
+            self.scene_widget.enable_gizmo(name)
+            self._show_rays()
+
+    def _pose_changed(self, frame: int, component: str) -> None:
+        c = self.controller
+        if frame == c.frame:
+            self._show_pose(component)
+            if component == c.component:
+                self._show_match_summary()
+        self.timeline.set_states(c.frame_states())
+
+    def _outline_changed(self, key, component: str) -> None:
+        c = self.controller
+        frame, view, _ = key
+        if frame == c.frame and view < len(self.panels):
+            self.panels[view].set_outline(component, c.outline_points(key), key)
+            self._show_model_outline(component, c.pose(component))
+            if component == c.component:
+                self._show_rays()
+        self.timeline.set_states(c.frame_states())
+
+    def _show_cursor(self, u: float, v: float, value: float) -> None:
+        self.cursor_label.setText(f"u {u:.1f}  v {v:.1f}  value {value:.0f}")
+
+    # -- editing ---------------------------------------------------------------------------
+    def set_tool(self, tool: Tool) -> None:
+        for panel in self.panels:
+            panel.set_tool(tool)
+        self.tool_actions[tool].setChecked(True)
+        if tool == Tool.PLACE:
+            self.place_clicks.clear()
+            self.statusBar().showMessage(
+                f"Click the {self.controller.component} component in view 1, then in view 2", 10000)
+
+    def fit_images(self) -> None:
+        for panel in self.panels:
+            panel.fit()
+
+    def toggle_edges(self, on: bool | None = None) -> None:
+        on = self.edges_action.isChecked() if on is None else on
+        self.edges_action.setChecked(on)
+        self._thresholds_changed()
+        for panel in self.panels:
+            panel.set_edges_visible(on)
+
+    def _thresholds_changed(self, _value=None) -> None:
+        low, high = self.low_slider.value() / 100, self.high_slider.value() / 100
+        if low > high:
+            low, high = high, low
+        if self.edges_action.isChecked():
+            for panel in self.panels:
+                panel.set_canny_thresholds(low, high)
+
+    def clear_outlines(self) -> None:
+        c = self.controller
+        c.undo_stack.beginMacro(f"Clear {c.component} outlines")
+        for view in range(c.n_views()):
+            c.set_outline(c.outline_key(view), None)
+        c.undo_stack.endMacro()
+
+    def _place_click(self, view: int, u: float, v: float) -> None:
+        c = self.controller
+        self.place_clicks[view] = (u, v)
+        if len(self.place_clicks) < 2:
+            other = 2 if view == 0 else 1
+            self.statusBar().showMessage(f"Now click the {c.component} component in view {other}", 10000)
+            return
+        pixels = [self.place_clicks[0], self.place_clicks[1]]
+        self.place_clicks.clear()
+        for panel in self.panels:
+            panel.clear_place_marker()
+        try:
+            miss = c.place_at(c.component, pixels)
+        except (InputError, KeyError, ValueError) as exc:
+            self._warn("Cannot place the model", str(exc))
+            return
+        quality = "good" if miss < 5 else "check that you clicked the same part in both views"
+        self.statusBar().showMessage(f"Placed the {c.component} model: the rays miss by {miss:.1f} mm ({quality})",
+                                     10000)
+        self.last_place_miss = miss
+
+    def _orient(self, angles) -> None:
+        try:
+            self.controller.orient(self.controller.component, angles)
+        except (InputError, KeyError) as exc:
+            self._warn("Cannot orient the model", str(exc))
+
+    def step_frame(self, step: int) -> None:
+        self.controller.set_frame_index(self.controller.frame_index + step)
+
+    def accept_pose(self) -> None:
+        c = self.controller
+        record = c.pose_record(c.component)
+        if record is None or record.match is None:
+            self.statusBar().showMessage("Match the component first (F5)", 5000)
+            return
+        c.set_reviewed(c.component, not record.reviewed)
+
+    # -- matching --------------------------------------------------------------------------
+    def _match_inputs(self):
+        c = self.controller
+        if c.frame is None or c.n_views() < 2 or c.component not in c.components():
+            raise ValueError("open a session with two views and a model first")
+        return c.images(), c.project.views[:2], c.mesh(c.component)
+
+    def run_match(self) -> bool:
+        """Match the active component in the current frame in the worker thread."""
+        c = self.controller
+        if self.runner.is_running():
+            return False
+        try:
+            images, views, mesh = self._match_inputs()
+        except (InputError, ValueError) as exc:
+            self._warn("Cannot match", str(exc))
+            return False
+        if any(image is None for image in images):
+            self._warn("Cannot match", "an image of this frame is missing")
+            return False
+        splines = c.splines(c.component)
+        self._live_component = c.component
+        self._match_started = time.perf_counter()
+        task = jobs.match_task(c.component, c.frame, images, views, mesh, c.pose(c.component),
+                               self.matcher.settings(), splines)
+        return self.runner.start(task, f"Matching the {c.component} component")
+
+    def track_frames(self) -> bool:
+        """Match the active component in this and every later frame, each from the last."""
+        c = self.controller
+        if self.runner.is_running():
+            return False
+        try:
+            _, views, mesh = self._match_inputs()
+        except (InputError, ValueError) as exc:
+            self._warn("Cannot track", str(exc))
+            return False
+        frames = c.frames[c.frame_index:]
+        paths = [[c.image_path(v, c.frame_index + k) for v in range(2)] for k in range(len(frames))]
+        reviewed = {}
+        for f in frames:
+            records = [c.outline_record(c.outline_key(v, c.component, f)) for v in range(2)]
+            if all(r is not None and r.reviewed for r in records):
+                reviewed[f] = [r.points for r in records]
+        self._live_component = c.component
+        self._batch_macro_open = False
+        task = jobs.batch_task(c.component, frames, paths, views, mesh, c.pose(c.component),
+                               self.matcher.settings(), reviewed)
+        return self.runner.start(task, f"Tracking the {c.component} component")
+
+    def find_implants(self) -> bool:
+        c = self.controller
+        if self.runner.is_running():
+            return False
+        try:
+            images, views, _ = self._match_inputs()
+            meshes = {name: c.mesh(name) for name in c.components()}
+        except (InputError, ValueError) as exc:
+            self._warn("Cannot search", str(exc))
+            return False
+        return self.runner.start(jobs.placement_task(images, views, meshes), "Finding the implants")
+
+    def _running_changed(self, running: bool) -> None:
+        self.matcher.set_running(running)
+        self.cancel_action.setEnabled(running)
+        for a in (self.run_action, self.track_action, self.find_action, self.open_action, self.import_action,
+                  self.demo_action):
+            a.setEnabled(not running)
+        if running:
+            self.statusBar().showMessage(self.runner.label + "…")
+
+    def _task_progress(self, payload) -> None:
+        if isinstance(payload, jobs.LiveUpdate):
+            self.matcher.show_live(payload.calls, payload.objective_mm, payload.history)
+            self._show_model_outline(payload.component, payload.pose, payload.outlines_px)
+            if self.scene_widget is not None:
+                self.scene_widget.scene.set_pose(payload.component, payload.pose)
+                self.scene_widget.scene.render()
+        elif isinstance(payload, jobs.BatchProgress):
+            self.matcher.show_batch(payload.done, payload.total, payload.seconds)
+            self.statusBar().showMessage(f"{self.runner.label}: frame {payload.frame} done")
+        elif isinstance(payload, str):
+            self.statusBar().showMessage(payload)
+
+    def _store_outcome(self, outcome: jobs.MatchOutcome) -> None:
+        c = self.controller
+        c.undo_stack.beginMacro(f"Match {outcome.component} in frame {outcome.frame}")
+        if outcome.outlines_px is not None:
+            for view, points in enumerate(outcome.outlines_px):
+                c.set_outline(c.outline_key(view, outcome.component, outcome.frame), points, text="Automatic outline",
+                              reviewed=False)
+        c.set_pose(outcome.component, outcome.result.pose, frame=outcome.frame,
+                   match=match_record(outcome.result), text="Match")
+        c.undo_stack.endMacro()
+
+    def _task_item(self, payload) -> None:
+        if isinstance(payload, jobs.MatchOutcome):
+            self._store_outcome(payload)
+
+    def _task_finished(self, result) -> None:
+        c = self.controller
+        if isinstance(result, jobs.MatchOutcome):
+            self._store_outcome(result)
+            self.matcher.show_result(match_record(result.result), history=result.result.history)
+            state = "converged" if result.result.converged else "did NOT converge - check the outlines"
+            self.statusBar().showMessage(
+                f"Matched the {result.component} component in {result.result.seconds:.2f} s: "
+                f"objective {result.result.objective_mm:.3f} mm, {state}. Ctrl+Return accepts.", 15000)
+        elif isinstance(result, jobs.BatchOutcome):
+            n = len(result.frames_done)
+            message = f"Tracked the {result.component} component through {n} frame(s)"
+            if result.stopped_at is not None:
+                message += f"; stopped at {result.reason}"
+                if result.stopped_at in c.frames:
+                    c.set_frame_index(c.frames.index(result.stopped_at))
+            elif result.frames_done:
+                c.set_frame_index(c.frames.index(result.frames_done[-1]))
+            self.statusBar().showMessage(message, 20000)
+        elif isinstance(result, jobs.PlacementOutcome):
+            c.undo_stack.beginMacro("Find implants")
+            for name, pose in result.poses.items():
+                c.set_pose(name, pose, text=f"Find {name}")
+            c.undo_stack.endMacro()
+            found = ", ".join(f"{n} (overlap {100 * iou:.0f} %)" for n, iou in result.iou.items())
+            self.statusBar().showMessage(f"Found {found}. Press F5 to match.", 15000)
+
+    def _task_cancelled(self) -> None:
+        latency = (time.perf_counter() - self.runner.cancel_requested_at) if self.runner.cancel_requested_at else None
+        self.last_cancel_latency = latency
+        if self._live_component is not None:
+            self._show_pose(self._live_component)  # back to the stored pose
+        self.matcher.show_result(None, label="Cancelled; the pose is unchanged")
+        self.statusBar().showMessage("Cancelled; the pose is unchanged", 8000)
+
+    def _task_failed(self, message: str) -> None:
+        if self._live_component is not None:
+            self._show_pose(self._live_component)
+        self._warn("The task failed", message)
+
+    # -- help ------------------------------------------------------------------------------
+    def show_shortcuts(self) -> None:
+        rows = [(a.text().replace("&", ""), a.shortcut().toString()) for a in self.actions()
+                if not a.shortcut().isEmpty() and not a.text().startswith(("Move ", "Turn "))]
+        rows.append(("Nudge the model", "Ctrl+arrows, Ctrl+PgUp/PgDn (add Shift to turn)"))
+        text = "\n".join(f"{k:<12} {name}" for name, k in rows)
+        QMessageBox.information(self, "Keyboard shortcuts", text)
+
+    def show_about(self) -> None:
+        QMessageBox.about(self, "About fluorogui",
+                          f"fluorogui {__version__}\n\nPose of total-knee-replacement implants from two "
+                          "fluoroscopic views (after Tsai et al., J Biomech Eng 2006).")

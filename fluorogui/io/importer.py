@@ -1,0 +1,360 @@
+"""Build a Project from a user's files: calibrations, image sequences, implant models.
+
+``import_session`` checks everything it can without reading whole sequences, so a bad
+file is reported before any work starts: every calibration loads, the first image of
+each view has the size its calibration expects (``check_image_size``), every model
+loads and has the size of a knee-implant component in millimetres, and the two views
+have the same number of images (or a pairs CSV says which images go together). Every
+problem is an ``InputError`` naming the file (or folder) at fault.
+
+An image source is one of:
+
+* a folder: its image files (TIFF, PNG, JPEG, BMP, DICOM), in natural name order
+  ("frame_2" before "frame_10"), hidden files skipped;
+* a list of image files, in the given order;
+* one image file (a sequence of one frame);
+* one video (AVI / MP4 / MOV / MKV): its frames are extracted once to 8-bit PNG files in
+  ``<video folder>/<video stem>_frames/`` (a project refers to image files), and reused
+  when the video has not changed since.
+
+A pairs CSV (like ``data/biplane-tka/pairs.csv``) has a header ``frame,cam1,cam2`` and one
+line per frame: the frame number, then one image path per view, relative to the CSV's
+folder (absolute paths are kept). With it, the image sources are not needed.
+
+``detect_biplane_folder`` recognises a folder laid out like ``data/biplane-tka``
+(``calibration/``, ``cam1/``, ``cam2/``, ``models/``, ``pairs.csv``) and returns the
+arguments of ``import_session`` for it.
+"""
+from __future__ import annotations
+
+import csv
+import os
+import re
+from pathlib import Path
+from typing import Callable, Sequence, Union
+
+import cv2
+import numpy as np
+
+from fluorogui.core.session import ImageSequence, ModelEntry, Project
+from fluorogui.io.calibration import check_image_size, load_view
+from fluorogui.io.errors import InputError, describe_os_error
+from fluorogui.io.images import IMAGE_SUFFIXES, VIDEO_SUFFIXES, read_image
+from fluorogui.io.meshes import MESH_SUFFIXES, load_mesh
+
+ImageSource = Union[Path, str, Sequence[Union[Path, str]]]
+
+#: Bounding-box diagonal (mm) a knee-implant component can plausibly have.
+IMPLANT_DIAGONAL_MM = (20.0, 400.0)
+CALIBRATION_SUFFIXES = (".txt", ".json", ".cfg", ".csv")
+_CAMERA_FOLDER = re.compile(r"^(?:cam|camera|view)[ _-]?(\d+)$", re.IGNORECASE)
+_CALIBRATION_FOLDERS = ("calibration", "calibrations", "calib")
+_MODEL_FOLDERS = ("models", "model", "meshes")
+_COMPONENT_HINTS = {"femoral": ("fem",), "tibial": ("tib",)}
+
+
+# -- public API ---------------------------------------------------------------------------
+def import_session(
+    calibrations: Sequence[Path | str],
+    image_sources: Sequence[ImageSource] | None,
+    models: dict[str, Path | str],
+    pairs_csv: Path | str | None = None,
+) -> Project:
+    """A new Project from calibration files, image sources (one per view) and models.
+
+    ``models`` maps a component name ("femoral", "tibial") to its mesh file. With
+    ``pairs_csv`` the frames and their images come from the CSV and ``image_sources`` is
+    ignored (it may be empty). Raises InputError naming the offending file.
+    """
+    calibrations = [_absolute(p) for p in calibrations]
+    if not calibrations:
+        raise ValueError("at least one calibration is needed")
+    views = [load_view(path) for path in calibrations]
+
+    if pairs_csv is not None:
+        frames, paths = read_pairs_csv(pairs_csv, len(views))
+    else:
+        sources = list(image_sources or [])
+        if len(sources) != len(views):
+            raise ValueError(f"{len(views)} calibrations need {len(views)} image sources, got {len(sources)}")
+        paths = [resolve_image_source(source) for source in sources]
+        counts = [len(p) for p in paths]
+        if len(set(counts)) > 1:
+            k = next(i for i, n in enumerate(counts) if n != counts[0])
+            raise InputError(
+                _source_label(sources[k]),
+                f"has {counts[k]} images but {_source_label(sources[0])} has {counts[0]}; both views need the "
+                "same number of images (or give a pairs CSV saying which images go together)",
+            )
+        frames = list(range(counts[0]))
+
+    for view, sequence in zip(views, paths):
+        check_image_size(view, read_image(sequence[0]).shape, sequence[0])
+
+    entries = []
+    for component, path in models.items():
+        if not str(component).strip():
+            raise ValueError("a model needs a component name")
+        path = _absolute(path)
+        check_implant_model(path)
+        entries.append(ModelEntry(str(component), path))
+
+    return Project(
+        views=views,
+        sequences=[ImageSequence(p) for p in paths],
+        frames=frames,
+        models=entries,
+    )
+
+
+def check_implant_model(path) -> tuple[np.ndarray, np.ndarray]:
+    """Load a mesh and check it has the size of a knee-implant component in mm."""
+    vertices, faces = load_mesh(path)
+    used = vertices[np.unique(faces)]
+    diagonal = float(np.linalg.norm(used.max(axis=0) - used.min(axis=0)))
+    low, high = IMPLANT_DIAGONAL_MM
+    if not low <= diagonal <= high:
+        raise InputError(
+            path,
+            f"implausible size for a knee-implant component: bounding-box diagonal {diagonal:.4g} "
+            f"(expected {low:g} to {high:g} mm); is the mesh in mm?",
+        )
+    return vertices, faces
+
+
+def resolve_image_source(source: ImageSource) -> list[Path]:
+    """The image files of one view's source (folder, list of files, one image or one video)."""
+    if isinstance(source, (str, os.PathLike)):
+        path = _absolute(source)
+        if path.is_dir():
+            return list_image_files(path)
+        if not path.exists():
+            raise InputError(path, "file or folder not found")
+        if path.suffix.lower() in VIDEO_SUFFIXES:
+            return extract_video_frames(path)
+        return [_checked_image_file(path)]
+    files = [_absolute(p) for p in source]
+    if not files:
+        raise ValueError("an empty list of image files")
+    if len(files) == 1 and files[0].suffix.lower() in VIDEO_SUFFIXES:
+        return resolve_image_source(files[0])
+    return [_checked_image_file(p) for p in files]
+
+
+def list_image_files(folder) -> list[Path]:
+    """Image files of a folder in natural name order; InputError when there are none."""
+    folder = _absolute(folder)
+    if not folder.is_dir():
+        raise InputError(folder, "folder not found" if not folder.exists() else "is a file, not a folder")
+    try:
+        entries = list(folder.iterdir())
+    except OSError as exc:
+        raise InputError(folder, f"cannot list the folder: {describe_os_error(exc)}") from None
+    files = [
+        p for p in entries
+        if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".") and p.is_file()
+    ]
+    if not files:
+        raise InputError(folder, "contains no image files (TIFF, PNG, JPEG, BMP or DICOM)")
+    return sorted(files, key=_natural_key)
+
+
+def read_pairs_csv(path, n_views: int = 2) -> tuple[list[int], list[list[Path]]]:
+    """Frames and, per view, the image of each frame, from a ``frame,cam1,cam2`` CSV."""
+    path = _absolute(path)
+    if not path.is_file():
+        raise InputError(path, "file not found" if not path.exists() else "is a folder, not a CSV file")
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise InputError(path, "not a text CSV file") from None
+    except OSError as exc:
+        raise InputError(path, f"cannot read the file: {describe_os_error(exc)}") from None
+    rows = [(n, [c.strip() for c in row]) for n, row in enumerate(csv.reader(text.splitlines()), start=1)]
+    rows = [(n, row) for n, row in rows if any(row)]
+    if rows and rows[0][1][0].lower() == "frame":
+        rows = rows[1:]
+    if not rows:
+        raise InputError(path, "lists no image pairs")
+    frames: list[int] = []
+    paths: list[list[Path]] = [[] for _ in range(n_views)]
+    for n, row in rows:
+        if len(row) != 1 + n_views:
+            raise InputError(path, f"line {n} has {len(row)} columns, expected {1 + n_views} (frame, one image per view)")
+        try:
+            frame = int(row[0])
+        except ValueError:
+            raise InputError(path, f"line {n}: frame {row[0]!r} is not a whole number") from None
+        if frame in frames:
+            raise InputError(path, f"line {n} repeats frame {frame}")
+        frames.append(frame)
+        for k, cell in enumerate(row[1:]):
+            image = Path(cell)
+            image = image if image.is_absolute() else Path(os.path.normpath(path.parent / image))
+            if not image.is_file():
+                raise InputError(image, f"listed on line {n} of {path.name} but not found")
+            paths[k].append(_checked_image_file(image))
+    return frames, paths
+
+
+def extract_video_frames(
+    video,
+    out_dir=None,
+    progress: Callable[[int], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> list[Path]:
+    """Write a video's frames as 8-bit grayscale PNGs (once) and return their paths.
+
+    ``out_dir`` defaults to ``<video stem>_frames`` beside the video. A previous
+    extraction newer than the video is reused. ``progress(n)`` is called after each frame;
+    ``cancel()`` returning True stops with an InputError.
+    """
+    video = _absolute(video)
+    if not video.is_file():
+        raise InputError(video, "file not found")
+    out_dir = _absolute(out_dir) if out_dir is not None else video.with_name(video.stem + "_frames")
+    done = out_dir / ".complete"
+    if done.is_file() and done.stat().st_mtime >= video.stat().st_mtime:
+        return list_image_files(out_dir)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        for stale in list(out_dir.glob("frame_*.png")) + [done]:
+            stale.unlink(missing_ok=True)  # a previous, outdated or interrupted extraction
+    except OSError as exc:
+        raise InputError(out_dir, f"cannot create the frame folder: {describe_os_error(exc)}") from None
+    capture = cv2.VideoCapture(str(video))
+    written: list[Path] = []
+    try:
+        if not capture.isOpened():
+            raise InputError(video, "cannot open the video (corrupt file or unsupported codec)")
+        while True:
+            ok, frame = capture.read()
+            if not ok:
+                break
+            if cancel is not None and cancel():
+                raise InputError(video, "frame extraction cancelled")
+            if frame.ndim == 3:
+                frame = cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)  # same luma weights as read_image
+            if frame.dtype != np.uint8:
+                frame = np.round(frame.astype(np.float64) / np.iinfo(frame.dtype).max * 255).astype(np.uint8)
+            target = out_dir / f"frame_{len(written):06d}.png"
+            if not cv2.imwrite(str(target), frame):
+                raise InputError(target, "could not write the extracted frame")
+            written.append(target)
+            if progress is not None:
+                progress(len(written))
+    finally:
+        capture.release()
+    if not written:
+        raise InputError(video, "the video has no readable frames")
+    try:
+        done.write_text(f"{len(written)}\n", encoding="utf-8")
+    except OSError as exc:
+        raise InputError(done, f"could not save: {describe_os_error(exc)}") from None
+    return written
+
+
+def detect_biplane_folder(folder) -> dict | None:
+    """Arguments of ``import_session`` for a folder laid out like ``data/biplane-tka``, or None.
+
+    Needed: a calibration folder (``calibration/``) with one calibration file per camera
+    folder (``cam1/``, ``cam2/``; also ``camera1``, ``view1``...), matched by the camera
+    name or number in the file name. Optional: ``models/`` with meshes whose names say
+    "fem..." / "tib...", and ``pairs.csv``. Result keys: ``calibrations``,
+    ``image_sources``, ``models``, ``pairs_csv`` (None when absent).
+    """
+    folder = _absolute(folder)
+    if not folder.is_dir():
+        return None
+    try:
+        children = [p for p in folder.iterdir() if not p.name.startswith(".")]
+    except OSError:
+        return None
+    cameras = sorted(
+        ((int(m.group(1)), p) for p in children if p.is_dir() and (m := _CAMERA_FOLDER.match(p.name))),
+        key=lambda item: item[0],
+    )[:2]
+    calibration_dir = _child_folder(children, _CALIBRATION_FOLDERS)
+    if len(cameras) < 2 or calibration_dir is None:
+        return None
+    candidates = sorted(
+        (p for p in calibration_dir.iterdir()
+         if p.is_file() and p.suffix.lower() in CALIBRATION_SUFFIXES and not p.name.startswith(".")),
+        key=_natural_key,
+    )
+    calibrations = []
+    for number, camera in cameras:
+        match = [p for p in candidates if camera.name.lower() in p.stem.lower()]
+        if len(match) != 1:
+            match = [p for p in candidates if re.search(rf"(?<!\d){number}(?!\d)", p.stem)]
+        if len(match) != 1:
+            if len(candidates) != len(cameras):
+                return None
+            match = [candidates[len(calibrations)]]
+        calibrations.append(match[0])
+    if len(set(calibrations)) != len(calibrations):
+        return None
+
+    models: dict[str, Path] = {}
+    model_dir = _child_folder(children, _MODEL_FOLDERS)
+    if model_dir is not None:
+        meshes = [p for p in model_dir.iterdir() if p.is_file() and p.suffix.lower() in MESH_SUFFIXES]
+        for component, hints in _COMPONENT_HINTS.items():
+            found = sorted((p for p in meshes if any(h in p.stem.lower() for h in hints)), key=_natural_key)
+            if found:
+                models[component] = found[0]
+    pairs = [p for p in children if p.is_file() and p.name.lower() == "pairs.csv"]
+    return {
+        "calibrations": calibrations,
+        "image_sources": [camera for _, camera in cameras],
+        "models": models,
+        "pairs_csv": pairs[0] if pairs else None,
+    }
+
+
+# -- helpers --------------------------------------------------------------------------------
+def _absolute(path) -> Path:
+    return Path(os.path.normpath(Path(path).expanduser().absolute()))
+
+
+def _natural_key(path: Path):
+    return [(0, int(part), "") if part.isdigit() else (1, 0, part.lower()) for part in re.split(r"(\d+)", path.name)]
+
+
+def _checked_image_file(path: Path) -> Path:
+    if path.is_dir():
+        raise InputError(path, "is a folder; give a folder as the whole image source, not in a list of files")
+    if not path.exists():
+        raise InputError(path, "file not found")
+    suffix = path.suffix.lower()
+    if suffix in VIDEO_SUFFIXES:
+        raise InputError(path, "is a video: give it alone as the image source of its view")
+    if suffix not in IMAGE_SUFFIXES:
+        raise InputError(path, f"unsupported image type '{suffix or '(none)'}' (use TIFF, PNG, JPEG, BMP or DICOM)")
+    return path
+
+
+def _source_label(source: ImageSource) -> Path:
+    if isinstance(source, (str, os.PathLike)):
+        return _absolute(source)
+    files = [_absolute(p) for p in source]
+    return files[0].parent if files else Path(".")
+
+
+def _child_folder(children: list[Path], names: Sequence[str]) -> Path | None:
+    for name in names:
+        for child in children:
+            if child.is_dir() and child.name.lower() == name:
+                return child
+    return None
+
+
+__all__ = [
+    "check_implant_model",
+    "detect_biplane_folder",
+    "extract_video_frames",
+    "import_session",
+    "list_image_files",
+    "read_pairs_csv",
+    "resolve_image_source",
+]
