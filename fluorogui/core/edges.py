@@ -86,10 +86,16 @@ def subpixel_edges(gx: np.ndarray, gy: np.ndarray, pixels: np.ndarray, max_shift
     grad = np.column_stack([gx[row, col], gy[row, col]]).astype(float)
     direction = grad / np.maximum(np.linalg.norm(grad, axis=1, keepdims=True), 1e-12)
     samples = []
+    # cv2.remap takes maps of fewer than 32767 columns: lay the samples out in rows
+    k = len(pixels)
+    width = min(k, 4096)
+    rows = -(-k // width)
+    pad = rows * width - k
     for step in (-1.0, 0.0, 1.0):
-        map_u = (pixels[:, 0] + step * direction[:, 0]).astype(np.float32)[None, :]
-        map_v = (pixels[:, 1] + step * direction[:, 1]).astype(np.float32)[None, :]
-        samples.append(cv2.remap(mag, map_u, map_v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)[0].astype(float))
+        map_u = np.pad((pixels[:, 0] + step * direction[:, 0]).astype(np.float32), (0, pad)).reshape(rows, width)
+        map_v = np.pad((pixels[:, 1] + step * direction[:, 1]).astype(np.float32), (0, pad)).reshape(rows, width)
+        sampled = cv2.remap(mag, map_u, map_v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+        samples.append(sampled.reshape(-1)[:k].astype(float))
     before, centre, after = samples
     if fit == "gaussian":  # a parabola through the log-magnitude is exact for a Gaussian peak
         before, centre, after = (np.log(np.maximum(x, 1e-12)) for x in samples)
@@ -331,34 +337,12 @@ def best_translation(edge_mask: np.ndarray, predicted_px: np.ndarray, search_px:
     return best
 
 
-def component_outline(image: np.ndarray, predicted_px: np.ndarray, sigma: float = 1.0, tolerance_px: float = 8.0,
-                      polarity: str = "dark", search_px: int = 60, low: float = DEFAULT_LOW,
-                      high: float = DEFAULT_HIGH) -> np.ndarray:
-    """Ordered, closed, sub-pixel outline (K, 2) of the component predicted at ``predicted_px``
-    (e.g. the projected model outline at the start pose).
-
-    Canny runs in a region around the prediction; the prediction is first translated to
-    the best chamfer fit within ``search_px`` (a start pose a few mm off), the sub-pixel edge
-    chains within ``tolerance_px`` of it are kept, and with ``polarity`` "dark" only edges
-    whose intensity rises outwards (a dark component on a brighter surround) - "any" keeps
-    all; the pieces are then merged along the prediction.
-    """
-    predicted = np.asarray(predicted_px, dtype=float)
-    if predicted.ndim != 2 or len(predicted) < 4:
-        raise EdgeError("the predicted outline needs at least 4 points")
-    margin = search_px + tolerance_px + 4 * sigma
-    lo, hi = predicted.min(axis=0) - margin, predicted.max(axis=0) + margin
-    roi = (int(np.floor(lo[0])), int(np.floor(lo[1])), int(np.ceil(hi[0])) + 1, int(np.ceil(hi[1])) + 1)
-    edges = canny_edges(image, low, high, sigma, roi)
-    if not edges.any():
-        raise EdgeError("the image has no edges near the predicted outline")
-    if search_px > 0:
-        predicted = predicted + best_translation(edges, predicted, search_px)
-    # every Canny pixel counts (no chain linking, which drops pixels where Canny's edge
-    # is two pixels thick); pieces are the connected edges
+def _dark_edge_points(image, edges, predicted, sigma, polarity, gradients=None):
+    """Sub-pixel points of the pixels of an edge map, their connected-edge labels, and
+    whether each has the expected polarity relative to the predicted outline."""
     _, labels = cv2.connectedComponents(edges.astype(np.uint8), connectivity=8)
     rows, cols = np.nonzero(edges)
-    _, gx, gy = smoothed_gradients(image, sigma)
+    _, gx, gy = gradients if gradients is not None else smoothed_gradients(image, sigma)
     refined, grad = subpixel_edges(gx, gy, np.column_stack([cols, rows]).astype(float))
     if polarity == "dark":
         dense, _, _ = _arc_parameter(predicted)
@@ -369,6 +353,112 @@ def component_outline(image: np.ndarray, predicted_px: np.ndarray, sigma: float 
         agrees = np.ones(len(refined), dtype=bool)
     else:
         raise ValueError(f"unknown polarity {polarity!r}; use 'dark' or 'any'")
-    if not agrees.any():
+    return refined, labels[rows, cols], agrees
+
+
+def uncovered_arc(points: np.ndarray, predicted_px: np.ndarray, tolerance_px: float = 8.0,
+                  bin_px: float = 1.0, min_gap_px: float = 6.0) -> tuple[np.ndarray, np.ndarray]:
+    """Where a predicted closed outline has no edge point within ``tolerance_px``: the bin
+    index of every given point's nearest arc position (``bin_px`` bins along the
+    prediction) and a boolean flag per bin, True on runs of uncovered bins at least
+    ``min_gap_px`` long (shorter runs are the normal breaks of an edge chain)."""
+    dense, arc, total = _arc_parameter(np.asarray(predicted_px, dtype=float))
+    n_bins = max(4, int(np.ceil(total / bin_px)))
+    covered = np.zeros(n_bins, dtype=bool)
+    bins = np.zeros(0, dtype=int)
+    if len(points):
+        dist, nearest = cKDTree(dense).query(points)
+        bins = np.minimum((arc[nearest] / total * n_bins).astype(int), n_bins - 1)
+        covered[bins[dist <= tolerance_px]] = True
+    gap = ~covered
+    if gap.all() or not gap.any():
+        return bins, gap
+    # runs of uncovered bins on the closed outline (rotate so a covered bin comes first)
+    shift = int(np.flatnonzero(covered)[0])
+    rolled = np.roll(gap, -shift)
+    keep = np.zeros(n_bins, dtype=bool)
+    for start, stop in _runs(rolled):
+        if (stop - start) * total / n_bins >= min_gap_px:
+            keep[start:stop] = True
+    return bins, np.roll(keep, shift)
+
+
+def component_outline(image: np.ndarray, predicted_px: np.ndarray, sigma: float = 1.0, tolerance_px: float = 8.0,
+                      polarity: str = "dark", search_px: int = 60, low: float = DEFAULT_LOW,
+                      high: float = DEFAULT_HIGH, gap_fill: tuple[float, float] | None = (0.04, 0.12),
+                      min_gap_px: float = 6.0) -> np.ndarray:
+    """Ordered, closed, sub-pixel outline (K, 2) of the component predicted at ``predicted_px``
+    (e.g. the projected model outline at the start pose).
+
+    Canny runs in a region around the prediction; the prediction is first translated to
+    the best chamfer fit within ``search_px`` (a start pose a few mm off), the sub-pixel edge
+    chains within ``tolerance_px`` of it are kept, and with ``polarity`` "dark" only edges
+    whose intensity rises outwards (a dark component on a brighter surround) - "any" keeps
+    all; the pieces are then merged along the prediction.
+
+    Canny's thresholds are fractions of the strongest gradients around the prediction,
+    so a faint part of the outline next to a strong one (a tibial keel in bone beside the
+    tray and the femoral component) can fall below them and the outline would bridge it
+    with a chord. With ``gap_fill`` (low, high), every run of the prediction at least
+    ``min_gap_px`` long that no edge covers is searched again in a Canny map with these
+    lower thresholds, and only the weak edges found in those runs are added; where the
+    default edges cover the whole prediction the result is unchanged. ``None`` turns
+    this off.
+    """
+    predicted = np.asarray(predicted_px, dtype=float)
+    if predicted.ndim != 2 or len(predicted) < 4:
+        raise EdgeError("the predicted outline needs at least 4 points")
+    margin = search_px + tolerance_px + 4 * sigma
+    lo, hi = predicted.min(axis=0) - margin, predicted.max(axis=0) + margin
+    roi = (int(np.floor(lo[0])), int(np.floor(lo[1])), int(np.ceil(hi[0])) + 1, int(np.ceil(hi[1])) + 1)
+    edges = canny_edges(image, low, high, sigma, roi)
+    if not edges.any():
+        raise EdgeError("the image has no edges near the predicted outline")
+    gradients = smoothed_gradients(image, sigma)
+    weak_map = []
+
+    def weak_edges():
+        if not weak_map:
+            weak = canny_edges(image, gap_fill[0], gap_fill[1], sigma, roi)
+            inside = np.zeros_like(weak)
+            inside[max(roi[1], 0):max(roi[3], 0), max(roi[0], 0):max(roi[2], 0)] = True
+            weak_map.append(weak & inside)
+        return weak_map[0]
+
+    def gather(shift):
+        """Edge points along the prediction shifted by ``shift``: the pieces, whether
+        the default edges left gaps, and how many 1 px bins stay uncovered."""
+        pred = predicted + shift
+        # every Canny pixel counts (no chain linking, which drops pixels where Canny's
+        # edge is two pixels thick); pieces are the connected edges
+        refined, labels, agrees = _dark_edge_points(image, edges, pred, sigma, polarity, gradients)
+        points, pieces = refined[agrees], labels[agrees]
+        had_gaps = False
+        if gap_fill is not None:
+            _, gap = uncovered_arc(points, pred, tolerance_px, min_gap_px=min_gap_px)
+            had_gaps = bool(gap.any())
+            weak = weak_edges() & ~edges if had_gaps else None
+            if had_gaps and weak.any():
+                w_points, w_labels, w_agrees = _dark_edge_points(image, weak, pred, sigma, polarity, gradients)
+                w_bins, _ = uncovered_arc(w_points, pred, tolerance_px, min_gap_px=min_gap_px)
+                use = w_agrees & gap[w_bins]
+                points = np.vstack([points, w_points[use]])
+                pieces = np.concatenate([pieces, w_labels[use] + int(labels.max()) + 1])
+        _, left = uncovered_arc(points, pred, tolerance_px, min_gap_px=0.0)
+        return pred, points, pieces, had_gaps, int(left.sum())
+
+    shift = best_translation(edges, predicted, search_px) if search_px > 0 else np.zeros(2)
+    found = gather(shift)
+    if gap_fill is not None and search_px > 0 and found[3]:
+        # the default edges miss part of the outline, so their chamfer fit may have slid
+        # the prediction onto other edges (soft tissue): try the fit to the weak edges too
+        # and keep whichever leaves less of the prediction uncovered
+        weak_shift = best_translation(weak_edges(), predicted, search_px)
+        if np.any(weak_shift != shift):
+            other = gather(weak_shift)
+            if other[4] < found[4]:
+                found = other
+    predicted, points, pieces = found[:3]
+    if not len(points):
         raise EdgeError("no edge with the expected polarity near the predicted outline")
-    return _merge_along([refined[agrees]], predicted, tolerance_px, pieces=labels[rows, cols][agrees])
+    return _merge_along([points], predicted, tolerance_px, pieces=pieces)

@@ -69,7 +69,7 @@ BACKGROUND = QColor(18, 19, 23)
 DEFAULT_COLOURS = {"femoral": QColor(70, 155, 255), "tibial": QColor(70, 215, 115)}
 EXTRA_COLOURS = (QColor(255, 160, 60), QColor(200, 120, 255), QColor(60, 210, 220), QColor(240, 90, 120))
 EDGE_RGBA = (255, 190, 0, 170)  # Canny edges: amber, semi-transparent
-MODEL_COLOUR = QColor(255, 95, 205)  # projected model outline when no distances are given
+MODEL_COLOUR = QColor(255, 95, 205)  # projected model outline before its component has a colour
 HIGHLIGHT = QColor(255, 255, 255)
 PLACE_COLOUR = QColor(255, 235, 60)
 
@@ -245,7 +245,7 @@ class _Component:
         self.dots.setZValue(5)
         self.model_line = QGraphicsPathItem()
         self.model_line.setZValue(2)
-        self.model_dots = _DotsItem(5.0, MODEL_COLOUR, halo=True)
+        self.model_dots = _DotsItem(3.0, MODEL_COLOUR, halo=False)
         self.model_dots.setZValue(6)
         for item in (self.spline, self.dots, self.model_line, self.model_dots):
             item.setAcceptedMouseButtons(Qt.MouseButton.NoButton)
@@ -661,7 +661,8 @@ class ImagePanel(QGraphicsView):
         comp.spline.setPen(_cosmetic_pen(line, 2.2 if active else 1.5))
         comp.dots.set_style(size_px=5.0 if active else 3.0, colour=comp.colour, halo=active)
         comp.model_line.setPen(_cosmetic_pen(QColor(255, 255, 255, 80), 1.0))
-        comp.model_dots.set_style(colour=MODEL_COLOUR)
+        # the model outline takes a light tint of its component's colour unless coloured by distance
+        comp.model_dots.set_style(colour=QColor(comp.colour).lighter(135))
 
     def set_outline(self, component: str, points: np.ndarray | None, key=None) -> None:
         """Show a component's outline (closed, (K, 2) of (u, v); None or empty clears it)

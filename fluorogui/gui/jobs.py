@@ -107,8 +107,7 @@ def match_task(component: str, frame: int, images: Sequence[np.ndarray], views: 
 
         result, outlines = _segment_and_match(images, views, mesh, start, settings, splines, passes,
                                               progress, reporter.cancelled)
-        if not result.history:
-            result.history = history
+        result.history = history or result.history  # every pass, not just the last
         return MatchOutcome(component, frame, result, outlines)
 
     return task

@@ -25,7 +25,9 @@ def main(argv=None) -> int:
     parser.add_argument("--import-folder", type=Path)
     parser.add_argument("--size", default="1280x800")
     parser.add_argument("--frame", type=int, default=0)
-    parser.add_argument("--match", action="store_true")
+    parser.add_argument("--find", action="store_true", help="find the implants automatically first")
+    parser.add_argument("--match", action="store_true", help="match the active component")
+    parser.add_argument("--match-all", action="store_true", help="match every component")
     parser.add_argument("--component")
     parser.add_argument("--theme", default="system")
     parser.add_argument("--settings", type=Path, help="QSettings ini file (default: a temporary one)")
@@ -79,15 +81,27 @@ def main(argv=None) -> int:
     t_first = time.perf_counter() - t0
     timings = {"window_s": round(t_window, 3), "first_frame_s": round(t_first, 3)}
 
-    if args.match:
+    def run(start) -> float:
         loop = QEventLoop()
-        window.runner.finished.connect(lambda _r: loop.quit())
-        window.runner.failed.connect(lambda _m: loop.quit())
+        window.runner.finished.connect(loop.quit)
+        window.runner.failed.connect(loop.quit)
         t = time.perf_counter()
-        if window.run_match():
+        if start():
             loop.exec()
-        timings["match_s"] = round(time.perf_counter() - t, 3)
-        timings["match_error"] = window.last_error
+        window.runner.finished.disconnect(loop.quit)
+        window.runner.failed.disconnect(loop.quit)
+        return round(time.perf_counter() - t, 3)
+
+    if args.find:
+        timings["find_s"] = run(window.find_implants)
+    if args.match or args.match_all:
+        active = window.controller.component
+        names = window.controller.components() if args.match_all else [active]
+        for name in names:
+            window.controller.set_component(name)
+            timings[f"match_{name}_s"] = run(window.run_match)
+        window.controller.set_component(active)
+    timings["error"] = window.last_error
     wait(600)
     window.fit_images()
     wait(300)
@@ -98,6 +112,16 @@ def main(argv=None) -> int:
     args.out.parent.mkdir(parents=True, exist_ok=True)
     shot.save(str(args.out))
     timings["screenshot"] = str(args.out)
+
+    def region(widget):
+        top_left = widget.mapTo(window, widget.rect().topLeft())
+        offset = window.geometry().topLeft() - geometry.topLeft()  # window frame, if any
+        return [top_left.x() + offset.x(), top_left.y() + offset.y(), widget.width(), widget.height()]
+
+    timings["regions"] = {f"view{i + 1}": region(p) for i, p in enumerate(window.panels)}
+    if window.scene_widget is not None and window.scene_widget.isVisible():
+        timings["regions"]["scene"] = region(window.scene_widget)
+        timings["scene_interactive"] = window.scene_widget.interactive
     print(json.dumps(timings))
     window.controller.undo_stack.setClean()
     window.close()

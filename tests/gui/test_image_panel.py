@@ -8,7 +8,7 @@ from PySide6.QtCore import QPoint, QPointF, Qt  # noqa: E402
 from PySide6.QtGui import QColor  # noqa: E402
 
 from fluorogui.core.outline_edit import points_near_path  # noqa: E402
-from fluorogui.gui.image_panel import MODEL_COLOUR, ImagePanel, Tool  # noqa: E402
+from fluorogui.gui.image_panel import ImagePanel, Tool  # noqa: E402
 
 SIZE = 200
 CENTRE = np.array([100.0, 100.0])
@@ -352,7 +352,8 @@ def test_model_outline_colours_follow_distance_and_updates_are_cheap(panel):
     assert len(panel.scene().items()) == n_items
     np.testing.assert_array_equal(panel.model_outline("femoral"), points + 4)
     panel.set_model_outline("femoral", points)
-    assert all(c == MODEL_COLOUR for c in panel.model_outline_colours("femoral"))
+    tint = panel.component_colour("femoral").lighter(135)  # no distances: the component's own tint
+    assert all(c == tint for c in panel.model_outline_colours("femoral"))
     panel.set_model_outline("femoral", None)
     assert panel.model_outline("femoral") is None
 
