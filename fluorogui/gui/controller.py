@@ -122,6 +122,7 @@ class SessionController(QObject):
         self._images: OrderedDict = OrderedDict()
         self._meshes: dict[str, PreparedMesh] = {}
         self._raw_meshes: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self._splines: dict = {}  # outline key -> (record, OutlineSpline or None)
 
     def _clean_changed(self, clean: bool) -> None:
         self.dirty_changed.emit(not clean)
@@ -138,6 +139,7 @@ class SessionController(QObject):
         self._images.clear()
         self._meshes.clear()
         self._raw_meshes.clear()
+        self._splines.clear()
         self.undo_stack.clear()
         self.undo_stack.setClean()
         self.frame_index = 0
@@ -367,18 +369,26 @@ class SessionController(QObject):
             self.project.records[key] = record
         self.outline_changed.emit(key, key[2])
 
+    def spline(self, key) -> OutlineSpline | None:
+        """The spline of an outline record (fitted once per record), None if it has none."""
+        key = tuple(key)
+        record = self.project.records.get(key)
+        if record is None or len(record.points) < 4:
+            return None
+        cached = self._splines.get(key)
+        if cached is not None and cached[0] is record:
+            return cached[1]
+        try:
+            spline = OutlineSpline.fit(record.points)
+        except (OutlineError, ValueError):
+            spline = None
+        self._splines[key] = (record, spline)
+        return spline
+
     def splines(self, component: str, frame: int | None = None) -> list[OutlineSpline] | None:
         """The image outline splines of a component in every view, or None if any is missing."""
-        out = []
-        for view in range(self.n_views()):
-            record = self.project.records.get(self.outline_key(view, component, frame))
-            if record is None or len(record.points) < 4:
-                return None
-            try:
-                out.append(OutlineSpline.fit(record.points))
-            except (OutlineError, ValueError):
-                return None
-        return out
+        out = [self.spline(self.outline_key(view, component, frame)) for view in range(self.n_views())]
+        return None if any(s is None for s in out) else out
 
     # -- progress of the work --------------------------------------------------------------
     def frame_state(self, frame: int) -> FrameState:

@@ -46,6 +46,7 @@ MESH_SUFFIXES = {".stl", ".ply", ".obj", ".vtk", ".vtp"}
 IMAGE_SUFFIXES = {".tif", ".tiff", ".png", ".jpg", ".jpeg", ".dcm", ".avi", ".mp4"}
 MAX_RECENT = 8
 AUTOSAVE_MS = 3 * 60 * 1000
+LIVE_3D_INTERVAL_S = 0.4
 COMPONENT_COLOURS = {"femoral": QColor(90, 170, 255), "tibial": QColor(110, 220, 120)}
 TOOLS = (
     (Tool.NAVIGATE, "navigate", "Navigate", "N", "Pan and zoom (wheel zooms at the cursor, right-drag sets window/level)"),
@@ -90,6 +91,9 @@ class MainWindow(QMainWindow):
         self.place_clicks: dict[int, tuple[float, float]] = {}
         self.last_error = ""
         self._live_component: str | None = None
+        self.last_cancel_latency: float | None = None
+        self._last_live_3d = 0.0
+        self.last_place_miss: float | None = None
         self.setWindowIcon(theme.icon("app"))
         self.setAcceptDrops(True)
         self.setDockNestingEnabled(True)
@@ -914,7 +918,9 @@ class MainWindow(QMainWindow):
         if isinstance(payload, jobs.LiveUpdate):
             self.matcher.show_live(payload.calls, payload.objective_mm, payload.history)
             self._show_model_outline(payload.component, payload.pose, payload.outlines_px)
-            if self.scene_widget is not None:
+            now = time.perf_counter()
+            if self.scene_widget is not None and now - self._last_live_3d > LIVE_3D_INTERVAL_S:
+                self._last_live_3d = now  # a 3D render costs more than a 2D overlay: follow less often
                 self.scene_widget.scene.set_pose(payload.component, payload.pose)
                 self.scene_widget.scene.render()
         elif isinstance(payload, jobs.BatchProgress):
