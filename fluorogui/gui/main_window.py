@@ -47,6 +47,7 @@ IMAGE_SUFFIXES = {".tif", ".tiff", ".png", ".jpg", ".jpeg", ".dcm", ".avi", ".mp
 MAX_RECENT = 8
 AUTOSAVE_MS = 3 * 60 * 1000
 LIVE_3D_INTERVAL_S = 0.4
+LIVE_3D_MAX_RENDER_S = 0.03
 COMPONENT_COLOURS = {"femoral": QColor(90, 170, 255), "tibial": QColor(110, 220, 120)}
 TOOLS = (
     (Tool.NAVIGATE, "navigate", "Navigate", "N", "Pan and zoom (wheel zooms at the cursor, right-drag sets window/level)"),
@@ -114,6 +115,7 @@ class MainWindow(QMainWindow):
             from fluorogui.gui.scene3d import Scene3DWidget
 
             self.scene_widget = Scene3DWidget(self)
+            self.scene_widget.rays_button.setChecked(False)  # rays on demand: they hide the models
             self.scene_widget.pose_dragged.connect(
                 lambda name, pose: self.controller.set_pose(name, pose, text="Drag model", mergeable=True))
         self.pose_editor = PoseEditor()
@@ -682,7 +684,7 @@ class MainWindow(QMainWindow):
         self._show_rays()
         if self.scene_widget is not None and getattr(self, "_camera_pending", False):
             self._camera_pending = False
-            self.scene_widget.scene.reset_camera()
+            self.scene_widget.scene.camera_preset("implant")
         self._show_match_summary()
         self.timeline.set_current(c.frame_index)
         self.frame_label.setText(f"Frame {c.frame} ({c.frame_index + 1}/{len(c.frames)})")
@@ -919,8 +921,11 @@ class MainWindow(QMainWindow):
             self.matcher.show_live(payload.calls, payload.objective_mm, payload.history)
             self._show_model_outline(payload.component, payload.pose, payload.outlines_px)
             now = time.perf_counter()
-            if self.scene_widget is not None and now - self._last_live_3d > LIVE_3D_INTERVAL_S:
-                self._last_live_3d = now  # a 3D render costs more than a 2D overlay: follow less often
+            if (self.scene_widget is not None and now - self._last_live_3d > LIVE_3D_INTERVAL_S
+                    and self.scene_widget.last_render_s < LIVE_3D_MAX_RENDER_S):
+                # a 3D render costs more than a 2D overlay: follow less often, and not at all
+                # where rendering is slow (software OpenGL); the result is shown at the end
+                self._last_live_3d = now
                 self.scene_widget.scene.set_pose(payload.component, payload.pose)
                 self.scene_widget.scene.render()
         elif isinstance(payload, jobs.BatchProgress):

@@ -83,7 +83,7 @@ class ObjectivePlot(QWidget):
             p.drawText(QRectF(0, y - 8, margin_l - 4, 16), Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter,
                        f"{10.0 ** e:g}")
         p.drawText(QRectF(area.left(), area.bottom() + 2, area.width(), margin_b - 2),
-                   Qt.AlignmentFlag.AlignRight, f"{len(self.values)} calls")
+                   Qt.AlignmentFlag.AlignRight, f"{len(self.values)} steps")
         path = QPainterPath(point(0, self.values[0]))
         for i, v in enumerate(self.values[1:], start=1):
             path.lineTo(point(i, v))

@@ -16,8 +16,10 @@ exactly where ``View.pixel_to_plane`` puts the pixel.
 """
 from __future__ import annotations
 
+import time
+
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import pyvista as pv
@@ -36,7 +38,7 @@ FALLBACK_MODEL_COLOUR = (0.9, 0.8, 0.55)
 BACKGROUND_TOP = (0.16, 0.18, 0.22)
 BACKGROUND_BOTTOM = (0.05, 0.05, 0.07)
 DEFAULT_PERCENTILES = (0.5, 99.5)
-CAMERA_PRESETS = ("view1", "view2", "top", "iso")
+CAMERA_PRESETS = ("view1", "view2", "top", "iso", "implant")
 
 
 def window_image(image: np.ndarray, window=None, out: np.ndarray | None = None) -> np.ndarray:
@@ -79,7 +81,6 @@ class _ViewActors:
     image_data: pv.ImageData | None = None
     buffer: np.ndarray | None = None  # uint8 (h, w) shared with the VTK texture
     texture: pv.Texture | None = None
-    extra: list = field(default_factory=list)
 
 
 class FluoroScene:
@@ -103,7 +104,7 @@ class FluoroScene:
         self._light_kit()
 
     def _light_kit(self) -> None:
-        # a soft headlight plus the default kit keeps the metal readable from any side
+        # VTK's light kit (key, fill, back, head lights) keeps the metal readable from any side
         self.plotter.enable_lightkit()
 
     # -- views ------------------------------------------------------------------------------
@@ -117,7 +118,7 @@ class FluoroScene:
         ``plane_depth="calibration"`` keeps it as read.
         """
         for va in self._view_actors:
-            for actor in (va.source, va.plane, va.frustum, va.label, va.rays, *va.extra):
+            for actor in (va.source, va.plane, va.frustum, va.label, va.rays):
                 if actor is not None:
                     self.plotter.remove_actor(actor, render=False)
         self.views = list(views)
@@ -363,7 +364,7 @@ class FluoroScene:
             half = max(h * view.pitch[1] / 2, w * view.pitch[0] / 2 / aspect) * 1.04
             cam.view_angle = float(np.degrees(2 * np.arctan(half / dist)))
             self.plotter.renderer.reset_camera_clipping_range()
-        elif name in ("top", "iso"):
+        elif name in ("top", "iso", "implant"):
             up = self._world_up()
             target = self._target()
             if name == "top":
@@ -384,11 +385,28 @@ class FluoroScene:
             cam.focal_point = tuple(target)
             cam.position = tuple(target + 1000.0 * direction)
             cam.up = tuple(cam_up)
-            self.plotter.reset_camera(render=False)
-            cam.Zoom(1.25)  # the bounding sphere is loose around the long beams
+            bounds = self._model_bounds() if name == "implant" else None
+            if bounds is not None:  # the implants fill the view, seen from the iso direction
+                centre = np.array([(bounds[0] + bounds[1]) / 2, (bounds[2] + bounds[3]) / 2,
+                                   (bounds[4] + bounds[5]) / 2])
+                cam.focal_point = tuple(centre)
+                cam.position = tuple(centre + 1000.0 * direction)
+                self.plotter.reset_camera(render=False, bounds=bounds)
+                cam.Zoom(0.8)  # some room around the implants
+            else:
+                self.plotter.reset_camera(render=False)
+                cam.Zoom(1.25)  # the bounding sphere is loose around the long beams
         else:
             raise ValueError(f"unknown camera preset {name!r} (use {', '.join(CAMERA_PRESETS)})")
         self.render()
+
+    def _model_bounds(self):
+        """Bounds (xmin, xmax, ymin, ymax, zmin, zmax) of the visible posed models, or None."""
+        boxes = [np.asarray(a.GetBounds()) for a in self._models.values() if a.GetVisibility()]
+        if not boxes:
+            return None
+        b = np.array(boxes)
+        return (b[:, 0].min(), b[:, 1].max(), b[:, 2].min(), b[:, 3].max(), b[:, 4].min(), b[:, 5].max())
 
     def reset_camera(self) -> None:
         self.camera_preset("iso") if self.views else self.plotter.reset_camera(render=False)
@@ -469,6 +487,7 @@ class FluoroScene:
 # ---------------------------------------------------------------------------------------
 
 NO_GL_PLATFORMS = {"offscreen", "minimal"}
+SOFTWARE_GL = ("llvmpipe", "softpipe", "swrast", "software rasterizer", "swiftshader")
 
 
 def opengl_available() -> bool:
@@ -544,11 +563,13 @@ class Scene3DWidget(QWidget):
 
     def __init__(self, parent: QWidget | None = None, *, window_size=(800, 600), interactive: bool | None = None,
                  multi_samples: int | None = None):
-        """``multi_samples``: MSAA samples; default pyvista's (4) when interactive and 0 in the
-        fallback, which usually renders in software where MSAA costs about 3x per frame."""
+        """``multi_samples``: MSAA samples; by default pyvista's (4) when interactive, dropped to 0
+        on a software GL, and 0 in the fallback (usually software, where MSAA costs ~2-3x)."""
         super().__init__(parent)
         self.interactive = opengl_available() if interactive is None else bool(interactive)
+        self._msaa_auto = self.interactive and multi_samples is None
         self._closed = False
+        self.last_render_s = 0.0  # duration of the latest render (the app skips live 3D when slow)
         self._timer = QTimer(self)
         self._timer.setSingleShot(True)
         self._timer.setInterval(0)
@@ -560,7 +581,8 @@ class Scene3DWidget(QWidget):
         bar = QHBoxLayout()
         bar.setContentsMargins(4, 2, 4, 0)
         self.buttons: dict[str, QToolButton] = {}
-        for key, text in (("view1", "View 1"), ("view2", "View 2"), ("top", "Top"), ("iso", "Iso")):
+        for key, text in (("implant", "Implants"), ("view1", "View 1"), ("view2", "View 2"), ("top", "Top"),
+                          ("iso", "Iso")):
             button = QToolButton(self)
             button.setText(text)
             button.setObjectName(f"camera_{key}")
@@ -617,12 +639,24 @@ class Scene3DWidget(QWidget):
             self._show(image)
         return np.ascontiguousarray(image[..., :3])
 
+    def _check_software_gl(self) -> None:
+        # once, after the first frame: a software GL (llvmpipe, Xvfb) pays ~2x per frame for MSAA
+        if self._msaa_auto:
+            self._msaa_auto = False
+            try:
+                caps = self.plotter.render_window.ReportCapabilities() or ""
+            except Exception:  # noqa: BLE001 - a diagnostics call; never fatal
+                caps = ""
+            if any(word in caps.lower() for word in SOFTWARE_GL):
+                self.plotter.render_window.SetMultiSamples(0)
+
     def _render_now(self) -> np.ndarray:
         """Render synchronously and read the frame back."""
         if self.plotter._first_time:  # before the first frame screenshot() renders by itself
             return self.plotter.screenshot(return_img=True)
         if self.interactive:
             self.plotter._render()
+            self._check_software_gl()
         else:
             self.plotter.render()
         return self.plotter.screenshot(return_img=True)  # reads the frame, never re-renders
@@ -631,10 +665,13 @@ class Scene3DWidget(QWidget):
     def _do_render(self) -> None:
         if self._closed:
             return
+        t0 = time.perf_counter()
         if self.interactive:
             self.plotter._render()
+            self._check_software_gl()
         else:
             self._show(self._render_now())
+        self.last_render_s = time.perf_counter() - t0
 
     def _show(self, image: np.ndarray) -> None:
         image = np.ascontiguousarray(image[..., :3])

@@ -92,6 +92,10 @@ def test_actors_exist_for_sources_planes_frusta_labels_and_models(scene):
     vertices, faces = sphere_mesh(10.0)
     scene.set_model("femoral", vertices, faces)
     assert sum(name.startswith("model_") for name in scene.plotter.actors) == 1
+    # setting the views again replaces, never duplicates
+    count = len(scene.plotter.actors)
+    scene.set_views(synthetic_views())
+    assert len(scene.plotter.actors) == count
 
 
 def test_planes_sit_at_the_true_position_and_size(scene):
