@@ -243,3 +243,38 @@ def test_timeline_shows_frame_states(window, demo, qtbot):
 def test_dropping_a_project_opens_it(window, demo):
     window.open_paths([demo])
     assert window.controller.path == demo
+
+
+def test_track_following_frames_matches_every_frame(window, demo, qtbot):
+    window.open_project(demo)
+    c = window.controller
+    name = c.components()[1]
+    c.set_component(name)
+    batches = []
+    window.runner.progress.connect(batches.append)
+    with qtbot.waitSignal(window.runner.finished, timeout=300000):
+        assert window.track_frames()
+    for frame in c.frames:
+        record = c.pose_record(name, frame)
+        assert record is not None and record.match is not None and record.match.converged
+        truth = np.array(c.project.settings["demo_truth"][str(frame)][name])
+        assert np.abs(pose_error(record.pose, truth)).max() < 0.2
+    assert [b.done for b in batches if hasattr(b, "done")][-1] == len(c.frames)
+    assert "3 frame" in window.statusBar().currentMessage()
+
+
+def test_dropped_folder_opens_the_import_dialog_filled(window, demo, monkeypatch):
+    from fluorogui.gui.import_dialog import ImportDialog
+
+    shown = []
+
+    def fake_exec(dialog):
+        shown.append({k: e.text() for k, e in dialog.fields.items()})
+        dialog.accept()
+        return ImportDialog.DialogCode.Accepted if dialog.project is not None else ImportDialog.DialogCode.Rejected
+
+    monkeypatch.setattr(ImportDialog, "exec", fake_exec)
+    window.open_paths([demo.parent])
+    assert shown and shown[0]["pairs_csv"].endswith("pairs.csv")
+    assert len(window.controller.frames) == 3 and window.controller.path is None
+    assert window.controller.dirty  # an import is unsaved work
