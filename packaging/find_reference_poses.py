@@ -3,10 +3,19 @@
 Frame 1: global search (dark blobs -> which blob is which component -> orientation scan ->
 matcher on the blob outlines), then two passes of Canny outlines along the found pose
 and the fast matcher. Following frames: start from the previous frame's pose, Canny
-outlines along it, fast matcher, twice. Writes ``tests/data/biplane_reference_poses.csv``
-and overlay PNGs (projected silhouettes on both images) to ``--overlays``.
+outlines along it, fast matcher, twice. A component whose match fails or whose objective
+exceeds ``--max-objective`` is lost; with ``--reinit`` (default) the global search runs
+again for it in the next frames until it is found. A pose is written only when its mean
+outline residual is at most ``--max-view-px`` in both views (frames where it is not are
+reported and skipped). Writes ``tests/data/biplane_reference_poses.csv`` and overlay PNGs
+(projected silhouettes on both images) to ``--overlays``.
+
+``--components tibial`` recomputes only the tibia: the rows of the other components in
+an existing ``--out`` file are kept unchanged (first, in their order), the tibial rows
+are replaced.
 
 Usage: .venv/bin/python packaging/find_reference_poses.py [--data DIR] [--frames N] [--overlays DIR]
+           [--components femoral tibial] [--no-reinit] [--max-view-px PX]
 """
 from __future__ import annotations
 
@@ -82,6 +91,38 @@ def overlay(images, views, meshes, poses, splines, path: Path, label: str) -> No
     cv2.imwrite(str(path), np.hstack(tiles))
 
 
+def global_search(images, views, meshes, names) -> dict[str, np.ndarray]:
+    """Poses of the ``names`` components from scratch (blobs, assignment, orientation
+    search), each refined on Canny outlines from every refined candidate (the mask
+    outline can be incomplete: thin tray ends lost to the threshold); the best is kept."""
+    blobs = [dark_blobs(img) for img in images]
+    try:
+        found = assign_blobs(meshes, views, blobs, refine=6)
+    except ValueError as exc:
+        print(f"  global search failed: {exc}", flush=True)
+        return {}
+    poses = {}
+    for name, a in found.items():
+        if name not in names:
+            continue
+        best = None
+        for start in [a.result.pose] + [c[1] for c in a.result.candidates]:
+            try:
+                res, _ = match_images(images, views, meshes[name], start, passes=2)
+            except ValueError:
+                continue
+            if best is None or res.objective_mm < best.objective_mm:
+                best = res
+        poses[name] = best.pose if best is not None else a.result.pose
+        print(f"  {name} search on blobs {a.blob_indices}: objective {a.result.objective_mm:.2f} mm, "
+              f"mask IoU {np.round(a.result.iou, 3)}, {a.result.seconds:.1f} s", flush=True)
+    return poses
+
+
+HEADER = ["frame", "component", "x", "y", "z", "alpha", "beta", "gamma", "objective_mm",
+          "view1_mean_mm", "view2_mean_mm", "view1_iou", "view2_iou"]
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=ROOT.parent / "shared/data/biplane-tka")
@@ -89,8 +130,20 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=ROOT / "tests/data/biplane_reference_poses.csv")
     ap.add_argument("--overlays", type=Path, default=Path("/tmp/reference_overlays"))
     ap.add_argument("--max-objective", type=float, default=3.0,
-                    help="stop tracking a component whose objective (mm) exceeds this")
+                    help="a component whose objective (mm) exceeds this is lost")
+    ap.add_argument("--max-view-px", type=float, default=1.0,
+                    help="write a pose only when the mean outline residual of both views is at most this (px)")
+    ap.add_argument("--components", nargs="+", choices=COMPONENTS, default=list(COMPONENTS),
+                    help="components to (re)compute; rows of the others in --out are kept")
+    ap.add_argument("--no-reinit", dest="reinit", action="store_false",
+                    help="stop tracking a lost component instead of searching for it again")
     args = ap.parse_args(argv)
+    names = [n for n in COMPONENTS if n in args.components]
+    kept_rows = []
+    if args.out.exists() and set(names) != set(COMPONENTS):
+        with open(args.out, newline="") as fh:
+            kept_rows = [r for r in csv.reader(fh)][1:]
+        kept_rows = [r for r in kept_rows if r and r[1] not in names]
 
     views = load_views(args.data)
     meshes = {name: load_mesh(args.data / f"models/{name}_component.stl") for name in COMPONENTS}
@@ -107,32 +160,34 @@ def main(argv=None) -> int:
     for n, row in enumerate(rows):
         t0 = time.perf_counter()
         images = [cv2.imread(str(args.data / row[k]), cv2.IMREAD_GRAYSCALE) for k in ("cam1", "cam2")]
-        if n == 0:
-            blobs = [dark_blobs(img) for img in images]
-            found = assign_blobs(meshes, views, blobs, refine=6)
-            for name, a in found.items():
-                # the mask outline can be incomplete (thin tray ends lost to the threshold):
-                # take every refined candidate through the Canny outlines and keep the best
-                best = None
-                for start in [a.result.pose] + [c[1] for c in a.result.candidates]:
-                    try:
-                        res, _ = match_images(images, views, meshes[name], start, passes=2)
-                    except ValueError:
-                        continue
-                    if best is None or res.objective_mm < best.objective_mm:
-                        best = res
-                poses[name] = best.pose if best is not None else a.result.pose
-                print(f"frame {row['frame']}: {name} search on blobs {a.blob_indices}: objective "
-                      f"{a.result.objective_mm:.2f} mm, mask IoU {np.round(a.result.iou, 3)}, "
-                      f"{a.result.seconds:.1f} s", flush=True)
+        wanted = [name for name in names if name not in poses]
+        if wanted and (n == 0 or args.reinit):
+            print(f"frame {row['frame']}: global search for {', '.join(wanted)}", flush=True)
+            poses.update(global_search(images, views, meshes, wanted))
+        searched = set(wanted) if wanted and (n == 0 or args.reinit) else set()
         splines_by = {}
-        for name in COMPONENTS:
-            if name in lost or name not in poses:
+        for name in names:
+            if name not in poses:
                 continue
             try:
                 res, splines = match_images(images, views, meshes[name], poses[name], passes=2)
             except ValueError as exc:
-                print(f"frame {row['frame']}: {name}: no outline ({exc}); tracking stops", flush=True)
+                res = None
+                print(f"frame {row['frame']}: {name}: no outline ({exc})", flush=True)
+            if args.reinit and name not in searched and (res is None or res.objective_mm > args.max_objective):
+                # lost while tracking: search for it in this frame from scratch
+                print(f"frame {row['frame']}: {name}: lost; global search", flush=True)
+                searched.add(name)
+                found = global_search(images, views, meshes, [name])
+                if name in found:
+                    try:
+                        res, splines = match_images(images, views, meshes[name], found[name], passes=2)
+                    except ValueError as exc:
+                        res = None
+                        print(f"frame {row['frame']}: {name}: no outline ({exc})", flush=True)
+            if res is None:
+                print(f"frame {row['frame']}: {name}: lost", flush=True)
+                del poses[name]
                 lost.add(name)
                 continue
             ious = [outline_iou(meshes[name], res.pose, v, s.sample(max(64, int(s.length_px))), img.shape)
@@ -143,24 +198,29 @@ def main(argv=None) -> int:
                   f"{px[0]:.2f}, {px[1]:.2f} px), IoU {ious[0]:.3f} / {ious[1]:.3f}, "
                   f"{'converged' if res.converged else res.message}", flush=True)
             if res.objective_mm > args.max_objective:
-                print(f"frame {row['frame']}: {name}: objective too large; tracking stops", flush=True)
+                print(f"frame {row['frame']}: {name}: objective too large; lost", flush=True)
+                del poses[name]
                 lost.add(name)
                 continue
             poses[name] = res.pose
             splines_by[name] = splines
+            if max(px) > args.max_view_px or not res.converged:
+                print(f"frame {row['frame']}: {name}: residual above {args.max_view_px} px or not converged; "
+                      "not written", flush=True)
+                continue
             out_rows.append([row["frame"], name, *[f"{v:.4f}" for v in res.pose], f"{res.objective_mm:.4f}",
                              f"{res.per_view_mean_mm[0]:.4f}", f"{res.per_view_mean_mm[1]:.4f}",
                              f"{ious[0]:.4f}", f"{ious[1]:.4f}"])
         overlay(images, views, meshes, {k: v for k, v in poses.items() if k in splines_by}, splines_by,
                 args.overlays / f"frame_{int(row['frame']):04d}.png", f"frame {row['frame']}")
         print(f"frame {row['frame']}: {time.perf_counter() - t0:.1f} s", flush=True)
-        if len(lost) == len(COMPONENTS):
+        if not args.reinit and len(lost) == len(names):
             break
         # write as we go so a long run leaves a usable file
         with open(args.out, "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["frame", "component", "x", "y", "z", "alpha", "beta", "gamma", "objective_mm",
-                        "view1_mean_mm", "view2_mean_mm", "view1_iou", "view2_iou"])
+            w.writerow(HEADER)
+            w.writerows(kept_rows)
             w.writerows(out_rows)
     print(f"{len(out_rows)} poses in {time.perf_counter() - t_start:.0f} s -> {args.out}")
     return 0

@@ -402,8 +402,11 @@ def component_outline(image: np.ndarray, predicted_px: np.ndarray, sigma: float 
     with a chord. With ``gap_fill`` (low, high), every run of the prediction at least
     ``min_gap_px`` long that no edge covers is searched again in a Canny map with these
     lower thresholds, and only the weak edges found in those runs are added; where the
-    default edges cover the whole prediction the result is unchanged. ``None`` turns
-    this off.
+    default edges cover the whole prediction the result is unchanged. When the default
+    edges leave gaps, the chamfer fit may have slid the prediction onto other strong
+    edges (skin against the bright background); the fit to the weak edge map is tried
+    too and the shift leaving less of the prediction uncovered is kept. ``None`` turns
+    both off.
     """
     predicted = np.asarray(predicted_px, dtype=float)
     if predicted.ndim != 2 or len(predicted) < 4:

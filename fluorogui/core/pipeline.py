@@ -4,7 +4,9 @@ The outline of a component is segmented along the projection of a rough pose
 (``edges.component_outline``). When that pose is several degrees off, parts of the true
 edge fall outside the search band and the spline bridges them with a chord; matching
 once and segmenting again along the matched pose removes that, as a user reviewing the
-outline would.
+outline would. Where part of the outline is too faint for Canny's default thresholds
+(a tibial keel in bone next to the tray and the femoral component), component_outline
+searches the uncovered runs again with lower thresholds instead of bridging them.
 """
 from __future__ import annotations
 

@@ -10,6 +10,7 @@ from fluorogui.core.edges import (
     edge_contours,
     outline_from_mask,
     select_outline,
+    uncovered_arc,
 )
 from fluorogui.core.geometry import View
 from fluorogui.core.render import render_fluoro
@@ -138,3 +139,66 @@ def test_outline_from_mask():
     assert set(np.round(side[:, 0], 6)) == {4.5, 24.5}
     with pytest.raises(EdgeError):
         outline_from_mask(np.zeros((5, 5), dtype=bool))
+
+
+def half_weak_disc(weak_step=20.0, radius=60.0, centre=(128.0, 128.0), seed=3):
+    """A dark disc (40) on a bright field (200) above its equator and on 'bone' (40 +
+    ``weak_step``) below it: the lower half of its outline is a faint edge next to strong
+    ones, like a tibial keel beside the tray."""
+    v, u = np.mgrid[0:256, 0:256].astype(float)
+    r = np.hypot(u - centre[0], v - centre[1])
+    inside = np.clip(radius + 0.5 - r, 0.0, 1.0)  # one-pixel linear ramp
+    below = np.clip(v - centre[1] + 0.5, 0.0, 1.0)
+    surround = 200.0 * (1.0 - below) + (40.0 + weak_step) * below
+    image = inside * 40.0 + (1.0 - inside) * surround
+    image = cv2.GaussianBlur(image, (0, 0), 1.0) + np.random.default_rng(seed).normal(0, 0.5, image.shape)
+    return np.clip(image, 0, 255).astype(np.float32), circle_px(radius, centre=centre, n=720)
+
+
+def test_component_outline_fills_faint_gaps_with_weak_edges():
+    image, truth = half_weak_disc()
+    lower = truth[truth[:, 1] > 140]
+    assert not canny_edges(image)[np.round(lower[:, 1]).astype(int), np.round(lower[:, 0]).astype(int)].any()
+    predicted = truth[::12] + np.array([2.0, -1.5])
+    # without the weak edges the outline bridges the lower half with a chord
+    chord = OutlineSpline.fit(component_outline(image, predicted, gap_fill=None))
+    assert chord.closest(lower)[0].max() > 30.0
+    # with them (the default) it follows the faint edge
+    spline = OutlineSpline.fit(component_outline(image, predicted))
+    d = spline.closest(truth)[0]
+    assert np.sqrt(np.mean(d**2)) < 0.5 and d.max() < 2.0
+    assert abs(spline.length_px - 2 * np.pi * 60.0) < 3.0
+
+
+def test_gap_fill_leaves_a_fully_covered_outline_unchanged():
+    mesh, truth = disc()
+    image = render_fluoro(VIEW, [mesh], np.random.default_rng(5))
+    predicted = truth[::20] + np.array([4.0, -3.0])
+    np.testing.assert_array_equal(component_outline(image, predicted), component_outline(image, predicted, gap_fill=None))
+
+
+def test_uncovered_arc_finds_runs_longer_than_the_minimum():
+    predicted = circle_px(50.0, n=400)
+    on = circle_px(50.0, n=2000)
+    th = np.arctan2(on[:, 1] - 128.0, on[:, 0] - 128.0)
+    keep = ~((th > 0.0) & (th < 0.5)) & ~((th > 2.0) & (th < 2.05))  # a 25 px and a 2.5 px gap
+    _, gap = uncovered_arc(on[keep], predicted, min_gap_px=6.0)
+    length = 2 * np.pi * 50.0
+    assert abs(gap.sum() * length / len(gap) - 25.0) < 3.0
+    _, none = uncovered_arc(on, predicted)
+    assert not none.any()
+    _, everything = uncovered_arc(np.zeros((0, 2)), predicted)
+    assert everything.all()
+
+
+def test_subpixel_edges_takes_more_points_than_remap_allows_in_a_row():
+    rng = np.random.default_rng(0)
+    image = cv2.GaussianBlur(rng.normal(100, 20, (300, 300)).astype(np.float32), (0, 0), 2.0)
+    from fluorogui.core.edges import smoothed_gradients, subpixel_edges
+    _, gx, gy = smoothed_gradients(image)
+    v, u = np.mgrid[0:300, 0:300]
+    pixels = np.column_stack([u.ravel(), v.ravel()]).astype(float)  # 90 000 > 32 767
+    refined, grad = subpixel_edges(gx, gy, pixels)
+    assert refined.shape == pixels.shape and np.all(np.abs(refined - pixels) <= 1.0 + 1e-9)
+    part, _ = subpixel_edges(gx, gy, pixels[:1000])
+    np.testing.assert_allclose(refined[:1000], part)
