@@ -317,6 +317,9 @@ class ImagePanel(QGraphicsView):
         self._image_item.setOffset(-0.5, -0.5)
         self._image_item.setZValue(0)
         self._image_item.setShapeMode(QGraphicsPixmapItem.ShapeMode.BoundingRectShape)
+        self._image_item.setTransformationMode(Qt.TransformationMode.SmoothTransformation)
+        # the scaled image is cached at screen resolution, so overlay updates only blit it
+        self._image_item.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
         self._scene.addItem(self._image_item)
 
         # edges
@@ -329,6 +332,7 @@ class ImagePanel(QGraphicsView):
         self._edge_item.setOffset(-0.5, -0.5)
         self._edge_item.setZValue(1)
         self._edge_item.setVisible(False)
+        self._edge_item.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
         self._scene.addItem(self._edge_item)
 
         # outlines

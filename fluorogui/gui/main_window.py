@@ -94,6 +94,7 @@ class MainWindow(QMainWindow):
         self._live_component: str | None = None
         self.last_cancel_latency: float | None = None
         self._last_live_3d = 0.0
+        self._deferred_overlay = False
         self.last_place_miss: float | None = None
         self.setWindowIcon(theme.icon("app"))
         self.setAcceptDrops(True)
@@ -763,7 +764,8 @@ class MainWindow(QMainWindow):
         frame, view, _ = key
         if frame == c.frame and view < len(self.panels):
             self.panels[view].set_outline(component, c.outline_points(key), key)
-            self._show_model_outline(component, c.pose(component))
+            if not self._deferred_overlay:
+                self._show_model_outline(component, c.pose(component))
             if component == c.component:
                 self._show_rays()
         self.timeline.set_states(c.frame_states())
@@ -922,6 +924,7 @@ class MainWindow(QMainWindow):
             self._show_model_outline(payload.component, payload.pose, payload.outlines_px)
             now = time.perf_counter()
             if (self.scene_widget is not None and now - self._last_live_3d > LIVE_3D_INTERVAL_S
+                    and not self.scene_widget.software_gl
                     and self.scene_widget.last_render_s < LIVE_3D_MAX_RENDER_S):
                 # a 3D render costs more than a 2D overlay: follow less often, and not at all
                 # where rendering is slow (software OpenGL); the result is shown at the end
@@ -937,10 +940,14 @@ class MainWindow(QMainWindow):
     def _store_outcome(self, outcome: jobs.MatchOutcome) -> None:
         c = self.controller
         c.undo_stack.beginMacro(f"Match {outcome.component} in frame {outcome.frame}")
-        if outcome.outlines_px is not None:
-            for view, points in enumerate(outcome.outlines_px):
-                c.set_outline(c.outline_key(view, outcome.component, outcome.frame), points, text="Automatic outline",
-                              reviewed=False)
+        self._deferred_overlay = True  # one overlay refresh (by the pose change) instead of one per outline
+        try:
+            if outcome.outlines_px is not None:
+                for view, points in enumerate(outcome.outlines_px):
+                    c.set_outline(c.outline_key(view, outcome.component, outcome.frame), points,
+                                  text="Automatic outline", reviewed=False)
+        finally:
+            self._deferred_overlay = False
         c.set_pose(outcome.component, outcome.result.pose, frame=outcome.frame,
                    match=match_record(outcome.result), text="Match")
         c.undo_stack.endMacro()

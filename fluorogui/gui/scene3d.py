@@ -497,6 +497,40 @@ def opengl_available() -> bool:
     return QGuiApplication.platformName() not in NO_GL_PLATFORMS
 
 
+def gl_renderer() -> str:
+    """The OpenGL renderer string of this display ("" when there is no context)."""
+    from PySide6.QtGui import QOffscreenSurface, QOpenGLContext
+
+    context = QOpenGLContext()
+    if not context.create():
+        return ""
+    surface = QOffscreenSurface()
+    surface.setFormat(context.format())
+    surface.create()
+    try:
+        if not context.makeCurrent(surface):
+            return ""
+        return str(context.functions().glGetString(0x1F01) or "")  # GL_RENDERER
+    finally:
+        context.doneCurrent()
+
+
+def interactive_view_advised() -> bool:
+    """Whether to embed the interactive OpenGL view. Not with software OpenGL (llvmpipe,
+    typical of VMs and remote desktops): Qt then composites the whole window through it,
+    so every 2D repaint also costs a software 3D frame (60-90 ms stalls while matching).
+    ``FLUOROGUI_GL=interactive`` forces the interactive view, ``=image`` the image view."""
+    choice = os.environ.get("FLUOROGUI_GL", "").lower()
+    if choice in ("image", "fallback"):
+        return False
+    if not opengl_available():
+        return False
+    if choice == "interactive":
+        return True
+    renderer = gl_renderer().lower()
+    return bool(renderer) and not any(word in renderer for word in SOFTWARE_GL)
+
+
 class _ImageView(QLabel):
     """Fallback display: shows screenshots, turns mouse drags / wheel into camera moves."""
 
@@ -566,9 +600,10 @@ class Scene3DWidget(QWidget):
         """``multi_samples``: MSAA samples; by default pyvista's (4) when interactive, dropped to 0
         on a software GL, and 0 in the fallback (usually software, where MSAA costs ~2-3x)."""
         super().__init__(parent)
-        self.interactive = opengl_available() if interactive is None else bool(interactive)
+        self.interactive = interactive_view_advised() if interactive is None else bool(interactive)
         self._msaa_auto = self.interactive and multi_samples is None
         self._closed = False
+        self.software_gl = not self.interactive  # the fallback renders off-screen, usually in software
         self.last_render_s = 0.0  # duration of the latest render (the app skips live 3D when slow)
         self._timer = QTimer(self)
         self._timer.setSingleShot(True)
@@ -648,6 +683,7 @@ class Scene3DWidget(QWidget):
             except Exception:  # noqa: BLE001 - a diagnostics call; never fatal
                 caps = ""
             if any(word in caps.lower() for word in SOFTWARE_GL):
+                self.software_gl = True
                 self.plotter.render_window.SetMultiSamples(0)
 
     def _render_now(self) -> np.ndarray:

@@ -109,6 +109,7 @@ class TaskRunner(QObject):
         self._thread: _TaskThread | None = None
         self.label = ""
         self.cancel_requested_at: float | None = None
+        self.ended_at: float | None = None  # perf_counter when the last task's end arrived
 
     def is_running(self) -> bool:
         return self._thread is not None
@@ -142,6 +143,7 @@ class TaskRunner(QObject):
         return True if thread is None else thread.wait(ms)
 
     def _end(self, signal, *args) -> None:
+        self.ended_at = time.perf_counter()
         thread, self._thread = self._thread, None
         if thread is not None:
             thread.wait()
