@@ -178,15 +178,17 @@ class MainWindow(QMainWindow):
         menu = self.menuBar()
         file_menu = menu.addMenu("&File")
         self.open_action = self._action("&Open…", lambda: self.open_project(), QKeySequence.StandardKey.Open, "open")
-        self.import_action = self._action("&Import images and calibration…", self.import_session, "Ctrl+I")
+        self.new_action = self._action("&New session from images and calibration…", lambda: self.import_session(),
+                                       QKeySequence.StandardKey.New)
+        self.import_action = self.new_action
         self.demo_action = self._action("Open the &demo session", self.open_demo)
         self.save_action = self._action("&Save", self.save, QKeySequence.StandardKey.Save, "save")
         self.save_as_action = self._action("Save &as…", self.save_as, QKeySequence.StandardKey.SaveAs)
         self.quit_action = self._action("&Quit", self.close, QKeySequence.StandardKey.Quit)
         self.recent_menu = file_menu.addMenu("Open &recent")
-        for a in (self.open_action, self.import_action, self.demo_action):
+        for a in (self.new_action, self.open_action, self.demo_action):
             file_menu.addAction(a)
-        file_menu.insertMenu(self.import_action, self.recent_menu)
+        file_menu.insertMenu(self.demo_action, self.recent_menu)
         file_menu.addSeparator()
         file_menu.addAction(self.save_action)
         file_menu.addAction(self.save_as_action)
