@@ -14,9 +14,6 @@ shows the outline again (``set_outline``).
 """
 from __future__ import annotations
 
-import enum
-import functools
-import sys
 from collections.abc import Callable
 
 import numpy as np
@@ -29,10 +26,7 @@ from PySide6.QtGui import (
     QImage,
     QPainter,
     QPainterPath,
-    QPen,
     QPixmap,
-    QPolygonF,
-    QUndoCommand,
     QUndoStack,
 )
 from PySide6.QtWidgets import (
@@ -49,231 +43,29 @@ from fluorogui.core import outline_edit as oe
 from fluorogui.core.edges import DEFAULT_HIGH, DEFAULT_LOW, canny_edges
 from fluorogui.core.edges import edge_contours as find_edge_contours
 from fluorogui.core.spline import OutlineSpline
-
-
-class Tool(enum.Enum):
-    """What a left click / drag does in the image."""
-
-    NAVIGATE = "Navigate"
-    PICK_CONTOUR = "Pick contour"
-    MOVE = "Move point"
-    INSERT = "Insert point"
-    DELETE = "Delete point"
-    ERASE = "Erase"
-    LASSO = "Lasso delete"
-    CLOSE_GAP = "Close gap"
-    PLACE = "Place"
-
-
-BACKGROUND = QColor(18, 19, 23)
-DEFAULT_COLOURS = {"femoral": QColor(70, 155, 255), "tibial": QColor(70, 215, 115)}
-EXTRA_COLOURS = (QColor(255, 160, 60), QColor(200, 120, 255), QColor(60, 210, 220), QColor(240, 90, 120))
-EDGE_RGBA = (255, 190, 0, 170)  # Canny edges: amber, semi-transparent
-MODEL_COLOUR = QColor(255, 95, 205)  # projected model outline before its component has a colour
-HIGHLIGHT = QColor(255, 255, 255)
-PLACE_COLOUR = QColor(255, 235, 60)
-
-#: distance (px) -> colour stops of the projected model outline: green, yellow, red
-DISTANCE_STOPS = (1.0, 3.0, 5.0)
-_STOP_RGB = np.array([[40, 205, 70], [245, 220, 40], [235, 50, 40]], dtype=float)
-
-PICK_TOLERANCE_PX = 10.0  # screen pixels within which a click hits a point or contour
-MIN_SCALE, MAX_SCALE = 0.02, 64.0
-
-
-def distance_colours(distances) -> np.ndarray:
-    """RGB (N, 3) uint8 for model outline distances (px): green up to 1 px, yellow at 3 px,
-    red from 5 px; distances are quantised to 0.25 px so there are few distinct colours."""
-    d = np.round(np.nan_to_num(np.asarray(distances, dtype=float), nan=np.inf, posinf=1e9) * 4.0) / 4.0
-    return np.column_stack([np.interp(d, DISTANCE_STOPS, _STOP_RGB[:, c]) for c in range(3)]).round().astype(np.uint8)
-
-
-def _guarded(handler):
-    """Event handler wrapper: an error abandons the gesture and goes to sys.excepthook
-    instead of unwinding through Qt's event dispatch (which is not exception-safe)."""
-
-    @functools.wraps(handler)
-    def wrapper(self, event):
-        try:
-            handler(self, event)
-        except Exception:  # noqa: BLE001 (reported, not hidden)
-            self._drag = None
-            event.accept()
-            sys.excepthook(*sys.exc_info())
-
-    return wrapper
-
-
-def _polygon(points: np.ndarray) -> QPolygonF:
-    return QPolygonF([QPointF(u, v) for u, v in np.asarray(points, dtype=float).tolist()])
-
-
-def _cosmetic_pen(colour: QColor, width: float, style=Qt.PenStyle.SolidLine) -> QPen:
-    pen = QPen(colour, width, style, Qt.PenCapStyle.RoundCap, Qt.PenJoinStyle.RoundJoin)
-    pen.setCosmetic(True)
-    return pen
-
-
-# -- scene items ------------------------------------------------------------------------------------
-class _DotsItem(QGraphicsItem):
-    """Round markers a fixed number of screen pixels wide at any zoom (cosmetic pens),
-    optionally with a dark halo, one colour or one colour per point."""
-
-    def __init__(self, size_px: float, colour: QColor, halo: bool = True, min_gap_px: float = 0.0):
-        super().__init__()
-        self._size = float(size_px)
-        self._min_gap = float(min_gap_px)  # hide the markers when they would be closer than this
-        self._spacing = np.inf
-        self._colour = QColor(colour)
-        self._halo = halo
-        self._points = np.zeros((0, 2))
-        self._rgb: np.ndarray | None = None
-        self._groups: list[tuple[QColor, QPolygonF]] = []
-        self._all = QPolygonF()
-        self._rect = QRectF()
-        self._margin = self._size
-        self.setAcceptedMouseButtons(Qt.MouseButton.NoButton)
-
-    def set_points(self, points, rgb: np.ndarray | None = None) -> None:
-        self.prepareGeometryChange()
-        pts = np.zeros((0, 2)) if points is None else np.asarray(points, dtype=float).reshape(-1, 2)
-        self._points = pts
-        self._rgb = None if rgb is None else np.asarray(rgb, dtype=np.uint8).reshape(-1, 3)
-        if len(pts) == 0:
-            self._rect, self._all, self._groups = QRectF(), QPolygonF(), []
-        else:
-            lo, hi = pts.min(axis=0), pts.max(axis=0)
-            self._rect = QRectF(lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1])
-            self._all = _polygon(pts)
-            self._spacing = oe.outline_spacing(pts) if len(pts) > 1 else np.inf
-            self._regroup()
-        self.update()
-
-    def _regroup(self) -> None:
-        if self._rgb is None or len(self._rgb) != len(self._points):
-            self._groups = [(self._colour, self._all)]
-            return
-        colours, inverse = np.unique(self._rgb, axis=0, return_inverse=True)
-        inverse = inverse.reshape(-1)
-        self._groups = [(QColor(*map(int, c)), _polygon(self._points[inverse == g])) for g, c in enumerate(colours)]
-
-    def colours(self) -> list[QColor]:
-        """The colour of each point."""
-        if self._rgb is None or len(self._rgb) != len(self._points):
-            return [QColor(self._colour) for _ in range(len(self._points))]
-        return [QColor(*map(int, c)) for c in self._rgb]
-
-    def set_style(self, size_px: float | None = None, colour: QColor | None = None, halo: bool | None = None) -> None:
-        if size_px is not None:
-            self._size = float(size_px)
-        if colour is not None:
-            self._colour = QColor(colour)
-            if self._rgb is None and len(self._points):
-                self._groups = [(self._colour, self._all)]
-        if halo is not None:
-            self._halo = halo
-        self.update()
-
-    def set_pixel_scale(self, scale: float) -> None:
-        """Screen pixels per scene pixel: sets the bounding margin that holds a marker."""
-        margin = (self._size / 2.0 + 3.0) / max(scale, 1e-6)
-        if abs(margin - self._margin) > 1e-9:
-            self.prepareGeometryChange()
-            self._margin = margin
-
-    def boundingRect(self) -> QRectF:  # noqa: N802 (Qt override)
-        if self._rect.isNull() and not len(self._points):
-            return QRectF()
-        m = self._margin
-        return self._rect.adjusted(-m, -m, m, m)
-
-    def markers_shown(self, scale: float) -> bool:
-        """Whether the markers are drawn at ``scale`` screen pixels per image pixel (dense
-        markers are left out until zoomed in, so the line under them stays readable)."""
-        return bool(len(self._points)) and self._spacing * scale >= self._min_gap
-
-    def paint(self, painter: QPainter, option, widget=None) -> None:
-        if not self.markers_shown(painter.worldTransform().m11()):
-            return
-        painter.setRenderHint(QPainter.RenderHint.Antialiasing, True)
-        if self._halo:
-            painter.setPen(_cosmetic_pen(QColor(0, 0, 0, 200), self._size + 2.5))
-            painter.drawPoints(self._all)
-        for colour, polygon in self._groups:
-            painter.setPen(_cosmetic_pen(colour, self._size))
-            painter.drawPoints(polygon)
-
-
-class _CrossItem(QGraphicsItem):
-    """A cross a fixed number of screen pixels big (the placed point)."""
-
-    def __init__(self, size_px: float = 9.0):
-        super().__init__()
-        self._size = size_px
-        self.setFlag(QGraphicsItem.GraphicsItemFlag.ItemIgnoresTransformations, True)
-        self.setAcceptedMouseButtons(Qt.MouseButton.NoButton)
-
-    def boundingRect(self) -> QRectF:  # noqa: N802 (Qt override)
-        s = self._size + 3
-        return QRectF(-s, -s, 2 * s, 2 * s)
-
-    def paint(self, painter: QPainter, option, widget=None) -> None:
-        painter.setRenderHint(QPainter.RenderHint.Antialiasing, True)
-        s = self._size
-        for colour, width in ((QColor(0, 0, 0, 210), 4.0), (PLACE_COLOUR, 2.0)):
-            painter.setPen(QPen(colour, width, Qt.PenStyle.SolidLine, Qt.PenCapStyle.RoundCap))
-            painter.drawLine(QPointF(-s, 0), QPointF(s, 0))
-            painter.drawLine(QPointF(0, -s), QPointF(0, s))
-        painter.setPen(QPen(PLACE_COLOUR, 1.5))
-        painter.setBrush(Qt.BrushStyle.NoBrush)
-        painter.drawEllipse(QPointF(0, 0), s * 0.45, s * 0.45)
-
-
-class _Component:
-    """The items and state of one component's outline and projected model outline."""
-
-    def __init__(self, scene: QGraphicsScene, colour: QColor):
-        self.colour = QColor(colour)
-        self.key = None
-        self.points: np.ndarray | None = None
-        self.spline_ok = False
-        self.model_points: np.ndarray | None = None
-        self.model_distances: np.ndarray | None = None
-        self.spline = QGraphicsPathItem()
-        self.spline.setZValue(4)
-        self.dots = _DotsItem(5.0, colour, min_gap_px=6.0)
-        self.dots.setZValue(5)
-        self.model_line = QGraphicsPathItem()
-        self.model_line.setZValue(2)
-        self.model_dots = _DotsItem(3.0, MODEL_COLOUR, halo=False)
-        self.model_dots.setZValue(6)
-        for item in (self.spline, self.dots, self.model_line, self.model_dots):
-            item.setAcceptedMouseButtons(Qt.MouseButton.NoButton)
-            scene.addItem(item)
-
-
-class _EditCommand(QUndoCommand):
-    """An undoable edit made of (redo, undo) steps; undo runs them in reverse."""
-
-    def __init__(self, text: str, steps: list[tuple[Callable[[], None], Callable[[], None]]]):
-        super().__init__(text)
-        self._steps = steps
-
-    def redo(self) -> None:
-        for do, _ in self._steps:
-            do()
-
-    def undo(self) -> None:
-        for _, undo in reversed(self._steps):
-            undo()
-
-
-class _AnonymousImage:
-    """Key of an image set without a key (its erased-edge mask lives until the next one)."""
+from fluorogui.gui.panel_items import (
+    BACKGROUND,
+    DEFAULT_COLOURS,
+    EDGE_RGBA,
+    EXTRA_COLOURS,
+    HIGHLIGHT,
+    MAX_SCALE,
+    MIN_SCALE,
+    PICK_TOLERANCE_PX,
+    AnonymousImage,
+    ComponentItems,
+    CrossItem,
+    DotsItem,
+    Tool,
+    cosmetic_pen,
+    distance_colours,
+    polygon,
+)
+from fluorogui.gui.panel_tools import PanelInteraction
 
 
 # -- the panel ------------------------------------------------------------------------------------------
-class ImagePanel(QGraphicsView):
+class ImagePanel(PanelInteraction, QGraphicsView):
     """Zoomable image view of one fluoroscope with edges, outlines and outline tools."""
 
     window_level_changed = Signal(float, float)
@@ -336,11 +128,11 @@ class ImagePanel(QGraphicsView):
         self._scene.addItem(self._edge_item)
 
         # outlines
-        self._components: dict[str, _Component] = {}
+        self._components: dict[str, ComponentItems] = {}
         self._active: str | None = None
         self._selected: int | None = None
         self._gap_first: int | None = None
-        self._highlight = _DotsItem(12.0, HIGHLIGHT, halo=True)
+        self._highlight = DotsItem(12.0, HIGHLIGHT, halo=True)
         self._highlight.setZValue(4.5)
         self._scene.addItem(self._highlight)
 
@@ -348,17 +140,17 @@ class ImagePanel(QGraphicsView):
         self._tool = Tool.NAVIGATE
         self._brush_radius = 6.0
         self._brush = QGraphicsEllipseItem()
-        self._brush.setPen(_cosmetic_pen(QColor(255, 255, 255, 220), 1.2, Qt.PenStyle.DashLine))
+        self._brush.setPen(cosmetic_pen(QColor(255, 255, 255, 220), 1.2, Qt.PenStyle.DashLine))
         self._brush.setBrush(QColor(255, 255, 255, 30))
         self._brush.setZValue(11)
         self._brush.setVisible(False)
         self._scene.addItem(self._brush)
         self._lasso_item = QGraphicsPathItem()
-        self._lasso_item.setPen(_cosmetic_pen(QColor(255, 255, 255, 230), 1.2, Qt.PenStyle.DashLine))
+        self._lasso_item.setPen(cosmetic_pen(QColor(255, 255, 255, 230), 1.2, Qt.PenStyle.DashLine))
         self._lasso_item.setBrush(QColor(255, 80, 80, 45))
         self._lasso_item.setZValue(10)
         self._scene.addItem(self._lasso_item)
-        self._place = _CrossItem()
+        self._place = CrossItem()
         self._place.setZValue(12)
         self._place.setVisible(False)
         self._scene.addItem(self._place)
@@ -397,9 +189,9 @@ class ImagePanel(QGraphicsView):
         old_shape = None if self._image is None else self._image.shape
         self._image = arr
         if key is None:
-            for stale in [k for k in self._erased if isinstance(k, _AnonymousImage)]:
+            for stale in [k for k in self._erased if isinstance(k, AnonymousImage)]:
                 del self._erased[stale]
-            key = _AnonymousImage()
+            key = AnonymousImage()
         self._image_key = key
         self._quantise(arr)
         stride = max(1, int(np.sqrt(arr.size / 250_000)))  # percentiles of a regular subsample: fast
@@ -620,13 +412,13 @@ class ImagePanel(QGraphicsView):
         return pieces
 
     # -- components and outlines ---------------------------------------------------------------------------
-    def _component(self, component: str) -> _Component:
+    def _component(self, component: str) -> ComponentItems:
         comp = self._components.get(component)
         if comp is None:
             colour = DEFAULT_COLOURS.get(component)
             if colour is None:
                 colour = EXTRA_COLOURS[sum(c not in DEFAULT_COLOURS for c in self._components) % len(EXTRA_COLOURS)]
-            comp = self._components[component] = _Component(self._scene, colour)
+            comp = self._components[component] = ComponentItems(self._scene, colour)
             comp.dots.set_pixel_scale(self.scale_factor())
             comp.model_dots.set_pixel_scale(self.scale_factor())
             self._style_component(component)
@@ -664,9 +456,9 @@ class ImagePanel(QGraphicsView):
         line = QColor(comp.colour)
         if not active:
             line.setAlpha(170)
-        comp.spline.setPen(_cosmetic_pen(line, 2.2 if active else 1.5))
+        comp.spline.setPen(cosmetic_pen(line, 2.2 if active else 1.5))
         comp.dots.set_style(size_px=5.0 if active else 3.0, colour=comp.colour, halo=active)
-        comp.model_line.setPen(_cosmetic_pen(QColor(255, 255, 255, 80), 1.0))
+        comp.model_line.setPen(cosmetic_pen(QColor(255, 255, 255, 80), 1.0))
         # the model outline takes a light tint of its component's colour unless coloured by distance
         comp.model_dots.set_style(colour=QColor(comp.colour).lighter(135))
 
@@ -722,7 +514,7 @@ class ImagePanel(QGraphicsView):
                     comp.spline_ok = True
                 except Exception:  # an unusable outline is shown as its polyline
                     curve = pts
-            path.addPolygon(_polygon(curve))
+            path.addPolygon(polygon(curve))
             path.closeSubpath()
         comp.spline.setPath(path)
         self._style_component(component)
@@ -750,7 +542,7 @@ class ImagePanel(QGraphicsView):
         comp.model_dots.set_points(pts, rgb)
         path = QPainterPath()
         if pts is not None and len(pts) >= 2:
-            path.addPolygon(_polygon(pts))
+            path.addPolygon(polygon(pts))
             path.closeSubpath()
         comp.model_line.setPath(path)
         self.viewport().update()
@@ -774,347 +566,6 @@ class ImagePanel(QGraphicsView):
 
     def place_marker(self) -> tuple[float, float] | None:
         return (self._place.pos().x(), self._place.pos().y()) if self._place.isVisible() else None
-
-    # -- tools -----------------------------------------------------------------------------------------------
-    def set_tool(self, tool: Tool) -> None:
-        tool = Tool(tool)
-        if tool == self._tool:
-            return
-        self._cancel_interaction()
-        self._tool = tool
-        self._brush.setVisible(False)
-        self._update_cursor_shape()
-        self.viewport().update()
-        self.tool_changed.emit(tool)
-
-    def tool(self) -> Tool:
-        return self._tool
-
-    def set_brush_radius(self, radius_px: float) -> None:
-        """Radius (image pixels) of the ERASE brush."""
-        self._brush_radius = max(float(radius_px), 0.5)
-        if self._cursor_scene is not None:
-            self._update_brush(self._cursor_scene)
-        self.viewport().update()
-
-    def brush_radius(self) -> float:
-        return self._brush_radius
-
-    def selected_point(self) -> int | None:
-        return self._selected
-
-    def _update_cursor_shape(self) -> None:
-        shape = Qt.CursorShape.OpenHandCursor if self._tool == Tool.NAVIGATE else Qt.CursorShape.CrossCursor
-        self.viewport().setCursor(shape)
-
-    def _update_brush(self, scene: QPointF) -> None:
-        r = self._brush_radius
-        self._brush.setRect(QRectF(scene.x() - r, scene.y() - r, 2 * r, 2 * r))
-        self._brush.setVisible(self._tool == Tool.ERASE)
-
-    def _update_highlight(self) -> None:
-        comp = self._components.get(self._active) if self._active is not None else None
-        marked = [i for i in (self._selected, self._gap_first) if i is not None]
-        if comp is None or comp.points is None or not marked:
-            self._highlight.set_points(None)
-        else:
-            self._highlight.set_points(comp.points[[i for i in marked if i < len(comp.points)]])
-
-    def _active_points(self) -> np.ndarray | None:
-        if self._active is None or self._active not in self._components:
-            return None
-        return self._components[self._active].points
-
-    def _nearest_within(self, scene: QPointF) -> int | None:
-        pts = self._active_points()
-        if pts is None or len(pts) == 0:
-            return None
-        i, d = oe.nearest_point(pts, (scene.x(), scene.y()))
-        return i if d <= self._tolerance() else None
-
-    # -- commands ------------------------------------------------------------------------------------------------
-    def _apply_outline(self, key, component: str, points: np.ndarray | None) -> None:
-        points = None if points is None else points.copy()
-        if self.outline_sink is None:
-            self.set_outline(component, points, key)
-        else:
-            self.outline_sink(key, component, points)
-        self.outline_edited.emit(key, component)
-
-    def _outline_steps(self, component: str, before, after):
-        key = self._components[component].key
-        before = None if before is None or len(before) == 0 else oe.as_points(before)
-        after = None if after is None or len(after) == 0 else oe.as_points(after)
-        return [(lambda: self._apply_outline(key, component, after), lambda: self._apply_outline(key, component, before))]
-
-    def _push_outline_edit(self, text: str, before, after) -> None:
-        component = self._active
-        self.undo_stack.push(_EditCommand(text, self._outline_steps(component, before, after)))
-
-    def _set_erased_pixels(self, key, shape, flat: np.ndarray, value: bool) -> None:
-        mask = self._erased_for(key, shape)
-        mask.flat[flat] = value
-        if key == self._image_key:
-            self._refresh_edges()
-
-    # -- mouse ------------------------------------------------------------------------------------------------------
-    @_guarded
-    def mousePressEvent(self, event) -> None:  # noqa: N802 (Qt override)
-        pos = event.position()
-        scene = self._to_scene(pos)
-        button = event.button()
-        self.setFocus(Qt.FocusReason.MouseFocusReason)
-        if self._drag is not None:
-            event.accept()
-            return
-        if button == Qt.MouseButton.MiddleButton or (button == Qt.MouseButton.LeftButton and self._tool == Tool.NAVIGATE):
-            self._drag = {"kind": "pan", "last": QPointF(pos)}
-            self.viewport().setCursor(Qt.CursorShape.ClosedHandCursor)
-        elif button == Qt.MouseButton.RightButton:
-            self._drag = {"kind": "window", "start": QPointF(pos), "window": self._window, "level": self._level}
-        elif button == Qt.MouseButton.LeftButton:
-            self._press_tool(scene, event.modifiers())
-        else:
-            super().mousePressEvent(event)
-            return
-        event.accept()
-
-    @_guarded
-    def mouseMoveEvent(self, event) -> None:  # noqa: N802 (Qt override)
-        pos = event.position()
-        scene = self._to_scene(pos)
-        self._cursor_scene = scene
-        self.cursor_moved.emit(scene.x(), scene.y(), self.value_at(scene.x(), scene.y()))
-        if self._tool == Tool.ERASE:
-            self._update_brush(scene)
-        drag = self._drag
-        if drag is None:
-            event.accept()
-            return
-        kind = drag["kind"]
-        if kind == "pan":
-            delta = QPointF(pos) - drag["last"]
-            drag["last"] = QPointF(pos)
-            self._pan(delta.x(), delta.y())
-        elif kind == "window":
-            delta = QPointF(pos) - drag["start"]
-            window = drag["window"] * float(2.0 ** (delta.x() / 150.0))
-            level = drag["level"] + delta.y() * drag["window"] / 300.0
-            self.set_window_level(window, level)
-        elif kind == "move":
-            drag["moved"] = True
-            current = oe.move_point(drag["before"], drag["index"], (scene.x(), scene.y()))
-            self._display_outline(drag["component"], current)
-            self._update_highlight()
-        elif kind == "erase":
-            self._erase_to(drag, scene)
-        elif kind == "lasso":
-            drag["path"].append((scene.x(), scene.y()))
-            self._draw_lasso(drag["path"])
-        event.accept()
-
-    @_guarded
-    def mouseReleaseEvent(self, event) -> None:  # noqa: N802 (Qt override)
-        drag = self._drag
-        if drag is None:
-            event.accept()
-            return
-        scene = self._to_scene(event.position())
-        self._drag = None
-        kind = drag["kind"]
-        if kind == "pan":
-            self._update_cursor_shape()
-        elif kind == "move":
-            if drag.get("moved"):
-                after = oe.move_point(drag["before"], drag["index"], (scene.x(), scene.y()))
-                self._display_outline(drag["component"], after)
-                self._push_outline_edit("Move point", drag["before"], after)
-        elif kind == "erase":
-            self._erase_to(drag, scene)
-            self._finish_erase(drag)
-        elif kind == "lasso":
-            self._lasso_item.setPath(QPainterPath())
-            pts = self._active_points()
-            inside = oe.points_in_polygon(pts, drag["path"]) if pts is not None else np.zeros(0, bool)
-            n = int(inside.sum())
-            if n:
-                self._selected = None
-                self._push_outline_edit(f"Delete {n} point{'s' if n != 1 else ''}", pts, oe.delete_points(pts, inside))
-        event.accept()
-
-    @_guarded
-    def wheelEvent(self, event) -> None:  # noqa: N802 (Qt override)
-        delta = event.angleDelta().y() or event.angleDelta().x()
-        if delta:
-            self.zoom_at(2.0 ** (delta / 480.0), event.position())
-        event.accept()
-
-    def leaveEvent(self, event) -> None:  # noqa: N802 (Qt override)
-        self._brush.setVisible(False)
-        super().leaveEvent(event)
-
-    def resizeEvent(self, event) -> None:  # noqa: N802 (Qt override)
-        super().resizeEvent(event)
-        if self._fitted:
-            self.fit()
-
-    def _press_tool(self, scene: QPointF, modifiers) -> None:
-        p = (scene.x(), scene.y())
-        tool = self._tool
-        if tool == Tool.PLACE:
-            self.set_place_marker(*p)
-            self.point_clicked.emit(self.view_index, float(p[0]), float(p[1]))
-            return
-        if self._active is None:
-            return
-        pts = self._active_points()
-        if tool == Tool.PICK_CONTOUR:
-            self._pick(p, join=bool(modifiers & Qt.KeyboardModifier.ShiftModifier))
-        elif tool == Tool.MOVE:
-            i = self._nearest_within(scene)
-            self._selected = i
-            self._update_highlight()
-            if i is not None:
-                self._drag = {"kind": "move", "component": self._active, "index": i, "before": pts.copy(), "moved": False}
-        elif tool == Tool.INSERT:
-            base = np.zeros((0, 2)) if pts is None else pts
-            after = oe.insert_point(base, p)
-            self._push_outline_edit("Insert point", pts, after)
-            self._selected = oe.nearest_segment(base, p)[0] + 1 if len(base) >= 2 else len(base)
-            self._update_highlight()
-        elif tool == Tool.DELETE:
-            i = self._nearest_within(scene)
-            if i is not None:
-                self._delete_index(i)
-        elif tool == Tool.ERASE:
-            shape = None if self._image is None else self._image.shape
-            self._drag = {
-                "kind": "erase", "component": self._active, "before": None if pts is None else pts.copy(),
-                "removed": np.zeros(0 if pts is None else len(pts), dtype=bool), "last": p, "image_key": self._image_key,
-                "erased_before": None if shape is None else self._erased_for(self._image_key, shape).copy(),
-            }
-            if shape is not None:
-                self._drag["erased"] = self._drag["erased_before"].copy()
-            self._erase_to(self._drag, scene)
-        elif tool == Tool.LASSO:
-            self._drag = {"kind": "lasso", "path": [p]}
-            self._draw_lasso([p])
-        elif tool == Tool.CLOSE_GAP:
-            i = self._nearest_within(scene)
-            if i is None:
-                return
-            if self._gap_first is None or self._gap_first == i:
-                self._gap_first = i
-            else:
-                try:
-                    after = oe.close_gap(pts, self._gap_first, i)
-                except ValueError:
-                    after = None
-                self._gap_first = None
-                self._selected = None
-                if after is not None:
-                    self._push_outline_edit("Close gap", pts, after)
-            self._update_highlight()
-
-    def _pick(self, p, join: bool) -> None:
-        contours = self.edge_contours()
-        index = oe.pick_contour(contours, p, self._tolerance())
-        if index is None:
-            return
-        contour = contours[index]
-        pts = self._active_points()
-        self._selected = None
-        self._gap_first = None
-        if join and pts is not None and len(pts):
-            self._push_outline_edit("Join contour", pts, oe.join_contours(pts, contour))
-        else:
-            self._push_outline_edit("Pick contour", pts, contour)
-
-    def _delete_index(self, i: int) -> None:
-        pts = self._active_points()
-        self._selected = None
-        self._gap_first = None
-        self._push_outline_edit("Delete point", pts, oe.delete_points(pts, [i]))
-        self._update_highlight()
-
-    def _erase_to(self, drag: dict, scene: QPointF) -> None:
-        """Extend a brush stroke to ``scene`` and show the result live."""
-        p = (scene.x(), scene.y())
-        segment = [drag["last"], p]
-        drag["last"] = p
-        if drag["before"] is not None:
-            drag["removed"] |= oe.points_near_path(drag["before"], segment, self._brush_radius)
-            self._display_outline(drag["component"], oe.delete_points(drag["before"], drag["removed"]))
-        if "erased" in drag:
-            drag["erased"] |= oe.stroke_pixels(drag["erased"].shape, segment, self._brush_radius)
-            self._refresh_edges(erased_override=drag["erased"])
-
-    def _finish_erase(self, drag: dict) -> None:
-        steps = []
-        parts = []
-        if "erased" in drag:
-            flat = np.flatnonzero(drag["erased"] & ~drag["erased_before"])
-            canny = self._canny_mask()
-            if flat.size:
-                key, shape = drag["image_key"], drag["erased"].shape
-                steps.append((lambda: self._set_erased_pixels(key, shape, flat, True),
-                              lambda: self._set_erased_pixels(key, shape, flat, False)))
-                if canny is not None and canny.flat[flat].any():
-                    parts.append("edges")
-        n = int(drag["removed"].sum())
-        if n:
-            after = oe.delete_points(drag["before"], drag["removed"])
-            steps.extend(self._outline_steps(drag["component"], drag["before"], after))
-            parts.append(f"{n} point{'s' if n != 1 else ''}")
-        if not steps:
-            self._refresh_edges()
-            return
-        self._selected = None
-        self._gap_first = None
-        text = "Erase " + (" and ".join(parts) if parts else "edges")
-        self.undo_stack.push(_EditCommand(text, steps))
-
-    def _draw_lasso(self, path) -> None:
-        qpath = QPainterPath()
-        qpath.addPolygon(_polygon(np.asarray(path, dtype=float)))
-        qpath.closeSubpath()
-        self._lasso_item.setPath(qpath)
-
-    def _cancel_interaction(self) -> None:
-        """Abandon a drag in progress (restoring what it showed), a lasso or a half-made gap."""
-        drag, self._drag = self._drag, None
-        if drag is not None:
-            if drag["kind"] in ("move", "erase") and drag.get("before") is not None:
-                self._display_outline(drag["component"], drag["before"])
-            if drag["kind"] == "erase":
-                self._refresh_edges()
-            if drag["kind"] == "pan":
-                self._update_cursor_shape()
-        self._lasso_item.setPath(QPainterPath())
-        self._gap_first = None
-        self._update_highlight()
-
-    # -- keyboard ------------------------------------------------------------------------------------------------
-    @_guarded
-    def keyPressEvent(self, event) -> None:  # noqa: N802 (Qt override)
-        key = event.key()
-        if key == Qt.Key.Key_F and not event.modifiers() & ~Qt.KeyboardModifier.KeypadModifier:
-            self.fit()
-        elif key in (Qt.Key.Key_Delete, Qt.Key.Key_Backspace):
-            i = self._selected
-            if i is None and self._cursor_scene is not None:
-                i = self._nearest_within(self._cursor_scene)
-            pts = self._active_points()
-            if i is not None and pts is not None and i < len(pts):
-                self._delete_index(i)
-        elif key == Qt.Key.Key_Escape:
-            self._cancel_interaction()
-            self._selected = None
-            self._update_highlight()
-        else:
-            super().keyPressEvent(event)
-            return
-        event.accept()
 
     # -- overlay text ------------------------------------------------------------------------------------------
     def drawForeground(self, painter: QPainter, rect: QRectF) -> None:  # noqa: N802 (Qt override)
