@@ -85,6 +85,19 @@ class MatchRecord:
     method: str
     settings: dict = field(default_factory=dict)
 
+    @classmethod
+    def from_result(cls, result) -> "MatchRecord":
+        """The record of a ``fluorogui.core.matching.MatchResult`` (its stored fields)."""
+        return cls(
+            objective_mm=float(result.objective_mm),
+            per_view_mean_mm=[float(v) for v in result.per_view_mean_mm],
+            calls=int(result.calls),
+            seconds=float(result.seconds),
+            converged=bool(result.converged),
+            method=str(result.method),
+            settings=dict(result.settings),
+        )
+
 
 @dataclass(eq=False)
 class PoseRecord:

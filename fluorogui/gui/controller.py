@@ -19,7 +19,7 @@ from PySide6.QtGui import QUndoCommand, QUndoStack
 from fluorogui.core.geometry import triangulate
 from fluorogui.core.mesh import MeshError, PreparedMesh, prepare_mesh
 from fluorogui.core.pose import as_pose, rotation_matrix
-from fluorogui.core.session import MatchRecord, OutlineRecord, PoseRecord, Project
+from fluorogui.core.session import MatchRecord, OutlineRecord, PoseRecord, Project, SplineRecord
 from fluorogui.core.spline import OutlineError, OutlineSpline
 from fluorogui.io.errors import InputError
 from fluorogui.io.images import read_image
@@ -39,29 +39,16 @@ class FrameState(enum.IntEnum):
     REVIEWED = 3  # every matched pose accepted by the user
 
 
-def match_record(result) -> MatchRecord:
-    """The project's record of a core ``MatchResult``."""
-    return MatchRecord(
-        objective_mm=float(result.objective_mm),
-        per_view_mean_mm=[float(v) for v in result.per_view_mean_mm],
-        calls=int(result.calls),
-        seconds=float(result.seconds),
-        converged=bool(result.converged),
-        method=str(result.method),
-        settings=dict(result.settings),
-    )
-
-
-def spline_record(points: np.ndarray):
-    """The SplineRecord of an outline, or None while the outline cannot carry a spline."""
-    from fluorogui.core.session import SplineRecord
-
+def fitted_outline(points: np.ndarray) -> tuple[SplineRecord | None, OutlineSpline | None]:
+    """The spline of an outline as stored (SplineRecord) and as used, or None for both
+    while the outline cannot carry a spline."""
     try:
         spline = OutlineSpline.fit(points)
     except (OutlineError, ValueError):
-        return None
+        return None, None
     d = spline.to_dict()
-    return SplineRecord(knots=d["knots"], coefficients=d["coefficients"], degree=d["degree"], t_range=d["t_range"])
+    record = SplineRecord(knots=d["knots"], coefficients=d["coefficients"], degree=d["degree"], t_range=d["t_range"])
+    return record, spline
 
 
 class _SetOutline(QUndoCommand):
@@ -295,9 +282,7 @@ class SessionController(QObject):
         key = (frame, component)
         before = self.project.poses.get(key)
         if before is None:
-            before_pose = self.pose(component, frame)
-            before = None
-            after = PoseRecord(before_pose, None, reviewed=reviewed)
+            after = PoseRecord(self.pose(component, frame), None, reviewed=reviewed)
         else:
             after = PoseRecord(before.pose.copy(), before.match, reviewed=reviewed)
         self.undo_stack.push(_SetPose(self, key, before, after, "Accept pose" if reviewed else "Reopen pose", False))
@@ -349,7 +334,7 @@ class SessionController(QObject):
         else:
             points = np.asarray(points, dtype=float).reshape(-1, 2)
             keep_reviewed = before.reviewed if (before is not None and reviewed is None) else bool(reviewed)
-            after = OutlineRecord(points, spline_record(points), reviewed=keep_reviewed)
+            after = self._new_record(key, points, keep_reviewed)
         self.undo_stack.push(_SetOutline(self, key, before, after, text))
 
     def outline_sink(self, key, component: str, points) -> None:
@@ -360,7 +345,14 @@ class SessionController(QObject):
             return
         points = np.asarray(points, dtype=float).reshape(-1, 2)
         before = self.project.records.get(key)
-        self._store_outline(key, OutlineRecord(points, spline_record(points), before.reviewed if before else False))
+        self._store_outline(key, self._new_record(key, points, before.reviewed if before else False))
+
+    def _new_record(self, key, points: np.ndarray, reviewed: bool) -> OutlineRecord:
+        """An outline record with its spline; the fitted spline is cached for ``spline``."""
+        stored, spline = fitted_outline(points)
+        record = OutlineRecord(points, stored, reviewed=reviewed)
+        self._splines[key] = (record, spline)
+        return record
 
     def _store_outline(self, key, record: OutlineRecord | None) -> None:
         if record is None:
@@ -370,20 +362,15 @@ class SessionController(QObject):
         self.outline_changed.emit(key, key[2])
 
     def spline(self, key) -> OutlineSpline | None:
-        """The spline of an outline record (fitted once per record), None if it has none."""
+        """The spline of an outline record (fitted once per record), None if it cannot have one."""
         key = tuple(key)
         record = self.project.records.get(key)
         if record is None or len(record.points) < 4:
             return None
         cached = self._splines.get(key)
-        if cached is not None and cached[0] is record:
-            return cached[1]
-        try:
-            spline = OutlineSpline.fit(record.points)
-        except (OutlineError, ValueError):
-            spline = None
-        self._splines[key] = (record, spline)
-        return spline
+        if cached is None or cached[0] is not record:  # e.g. a record loaded from a file
+            cached = self._splines[key] = (record, fitted_outline(record.points)[1])
+        return cached[1]
 
     def splines(self, component: str, frame: int | None = None) -> list[OutlineSpline] | None:
         """The image outline splines of a component in every view, or None if any is missing."""

@@ -1,24 +1,18 @@
-"""The main window: two image panels, the 3D fluoroscope, docks, menus and the session life cycle.
+"""The main window: two image panels, the 3D fluoroscope, docks, menus and what they show.
 
 Thin by design: every change to the project goes through ``SessionController`` (undoable,
 announced by signals); long work goes through ``TaskRunner`` with the tasks in ``jobs``.
-This module wires them to the widgets and keeps the views in step.
+This module wires them to the widgets and keeps the views in step; the session files
+(``session_files``) and the long tasks (``match_control``) are mixins of their own.
 """
 from __future__ import annotations
 
-import json
-import os
-import time
-from pathlib import Path
-
-import numpy as np
-from PySide6.QtCore import QSettings, QStandardPaths, Qt, QTimer, Signal
+from PySide6.QtCore import QSettings, Qt, QTimer, Signal
 from PySide6.QtGui import QAction, QActionGroup, QColor, QKeySequence
 from PySide6.QtWidgets import (
     QApplication,
     QComboBox,
     QDockWidget,
-    QFileDialog,
     QLabel,
     QMainWindow,
     QMessageBox,
@@ -33,21 +27,17 @@ from fluorogui import __version__
 from fluorogui.core.pipeline import predicted_outline
 from fluorogui.core.spline import OutlineError
 from fluorogui.gui import jobs, theme
-from fluorogui.gui.controller import SessionController, match_record
+from fluorogui.gui.controller import SessionController
 from fluorogui.gui.image_panel import ImagePanel, Tool
+from fluorogui.gui.match_control import MatchControl
 from fluorogui.gui.matcher_panel import MatcherPanel
 from fluorogui.gui.pose_editor import PoseEditor
+from fluorogui.gui.session_files import SessionFiles
 from fluorogui.gui.timeline import Timeline
 from fluorogui.gui.worker import TaskRunner
 from fluorogui.io.errors import InputError
 
-PROJECT_FILTER = "fluorogui projects (*.fluoro);;All files (*)"
-MESH_SUFFIXES = {".stl", ".ply", ".obj", ".vtk", ".vtp"}
-IMAGE_SUFFIXES = {".tif", ".tiff", ".png", ".jpg", ".jpeg", ".dcm", ".avi", ".mp4"}
-MAX_RECENT = 8
 AUTOSAVE_MS = 3 * 60 * 1000
-LIVE_3D_INTERVAL_S = 0.4
-LIVE_3D_MAX_RENDER_S = 0.03
 COMPONENT_COLOURS = {"femoral": QColor(90, 170, 255), "tibial": QColor(110, 220, 120)}
 TOOLS = (
     (Tool.NAVIGATE, "navigate", "Navigate", "N", "Pan and zoom (wheel zooms at the cursor, right-drag sets window/level)"),
@@ -69,16 +59,7 @@ ORIENTATION_PRESETS = (
 )
 
 
-def app_data_dir() -> Path:
-    """Where recovery files and the generated demo live (FLUOROGUI_DATA_DIR overrides)."""
-    override = os.environ.get("FLUOROGUI_DATA_DIR")
-    base = Path(override) if override else Path(QStandardPaths.writableLocation(
-        QStandardPaths.StandardLocation.AppDataLocation) or Path.home() / ".fluorogui")
-    base.mkdir(parents=True, exist_ok=True)
-    return base
-
-
-class MainWindow(QMainWindow):
+class MainWindow(SessionFiles, MatchControl, QMainWindow):
     """The fluorogui main window."""
 
     frame_shown = Signal(int)  # emitted after a frame's images and overlays are on screen
@@ -113,7 +94,7 @@ class MainWindow(QMainWindow):
 
         self.scene_widget = None
         if with_3d:
-            from fluorogui.gui.scene3d import Scene3DWidget
+            from fluorogui.gui.scene_widget import Scene3DWidget
 
             self.scene_widget = Scene3DWidget(self)
             self.scene_widget.rays_button.setChecked(False)  # rays on demand: they hide the models
@@ -136,7 +117,7 @@ class MainWindow(QMainWindow):
         self.autosave_timer.start()
         self._restore_layout()
         self._refresh_title()
-        self._refresh_all()
+        self.pose_editor.set_component(None)
 
     # -- construction ----------------------------------------------------------------------
     def _dock(self, title: str, widget: QWidget, area, name: str) -> QDockWidget:
@@ -361,25 +342,6 @@ class MainWindow(QMainWindow):
         if app is not None:
             theme.apply_theme(app, name)
 
-    def recent_files(self) -> list[str]:
-        value = self.settings.value("recent", [])
-        if isinstance(value, str):
-            value = [value]
-        return [v for v in (value or []) if v]
-
-    def _add_recent(self, path: Path) -> None:
-        items = [str(path)] + [p for p in self.recent_files() if p != str(path)]
-        self.settings.setValue("recent", items[:MAX_RECENT])
-        self._refresh_recent()
-
-    def _refresh_recent(self) -> None:
-        self.recent_menu.clear()
-        for p in self.recent_files():
-            action = self.recent_menu.addAction(Path(p).name)
-            action.setToolTip(p)
-            action.triggered.connect(lambda _=False, path=p: self.open_project(path))
-        self.recent_menu.setEnabled(bool(self.recent_files()))
-
     # -- session life cycle ----------------------------------------------------------------
     def _refresh_title(self) -> None:
         path = self.controller.path
@@ -394,165 +356,6 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(message, 10000)
         QMessageBox.warning(self, title, message)
 
-    def maybe_save(self) -> bool:
-        """Ask about unsaved changes; False if the user cancelled."""
-        if not self.controller.dirty:
-            return True
-        answer = QMessageBox.question(
-            self, "Unsaved changes", "The session has unsaved changes. Save them first?",
-            QMessageBox.StandardButton.Save | QMessageBox.StandardButton.Discard | QMessageBox.StandardButton.Cancel,
-            QMessageBox.StandardButton.Save)
-        if answer == QMessageBox.StandardButton.Save:
-            return self.save()
-        return answer == QMessageBox.StandardButton.Discard
-
-    def open_project(self, path=None, ask: bool = True) -> bool:
-        """Open a project file (asks for one when ``path`` is None). A failure shows a
-        dialog naming the file and leaves the open project as it was."""
-        if self.runner.is_running():
-            self.statusBar().showMessage("Wait for the running task to end (or cancel it) first", 5000)
-            return False
-        if ask and not self.maybe_save():
-            return False
-        if path is None:
-            name, _ = QFileDialog.getOpenFileName(self, "Open project", str(self._last_dir()), PROJECT_FILTER)
-            if not name:
-                return False
-            path = name
-        try:
-            self.controller.open(path)
-        except InputError as exc:
-            self._warn("Cannot open project", str(exc))
-            return False
-        self._add_recent(Path(path).resolve())
-        self.settings.setValue("last_dir", str(Path(path).resolve().parent))
-        self.statusBar().showMessage(f"Opened {path}", 5000)
-        return True
-
-    def _last_dir(self) -> Path:
-        return Path(self.settings.value("last_dir", str(Path.home())))
-
-    def open_demo(self, ask: bool = True) -> bool:
-        """Open the built-in demo session (generated on first use)."""
-        from fluorogui.io.demo import demo_project_path
-
-        if ask and not self.maybe_save():
-            return False
-        QApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
-        self.statusBar().showMessage("Preparing the demo session…")
-        QApplication.processEvents()
-        try:
-            path = demo_project_path(app_data_dir() / "demo")
-        except (InputError, OSError) as exc:
-            QApplication.restoreOverrideCursor()
-            self._warn("Cannot build the demo", str(exc))
-            return False
-        QApplication.restoreOverrideCursor()
-        opened = self.open_project(path, ask=False)
-        if opened:
-            self.controller.project.settings["demo"] = True
-            self._refresh_title()
-            self.statusBar().showMessage(
-                "Demo session: press F5 to match the femoral component, then Ctrl+Return to accept", 15000)
-        return opened
-
-    def save(self) -> bool:
-        if self.controller.path is None or self.controller.project.settings.get("demo"):
-            return self.save_as()
-        return self._save_to(self.controller.path)
-
-    def save_as(self) -> bool:
-        start = str(self.controller.path or self._last_dir() / "session.fluoro")
-        name, _ = QFileDialog.getSaveFileName(self, "Save project as", start, PROJECT_FILTER)
-        if not name:
-            return False
-        if not name.endswith(".fluoro"):
-            name += ".fluoro"
-        self.controller.project.settings.pop("demo", None)
-        return self._save_to(Path(name))
-
-    def _save_to(self, path: Path) -> bool:
-        try:
-            self.controller.save(path)
-        except (InputError, OSError) as exc:
-            self._warn("Cannot save project", str(exc))
-            return False
-        self._add_recent(path.resolve())
-        self.recovery_path().unlink(missing_ok=True)
-        self._refresh_title()
-        self.statusBar().showMessage(f"Saved {path}", 5000)
-        return True
-
-    def import_session(self, paths: dict | None = None, folder: Path | None = None) -> bool:
-        """The import dialog (optionally pre-filled); the imported session replaces this one."""
-        from fluorogui.gui.import_dialog import ImportDialog
-
-        if not self.maybe_save():
-            return False
-        dialog = ImportDialog(self)
-        if folder is not None:
-            dialog.fill_from_folder(folder)
-        if paths:
-            dialog.fill(**paths)
-        if dialog.exec() != ImportDialog.DialogCode.Accepted or dialog.project is None:
-            return False
-        self.controller.set_project(dialog.project, None)
-        self.controller.undo_stack.resetClean()  # never saved: closing asks
-        self.statusBar().showMessage("Imported. Save the session to keep it (Ctrl+S)", 8000)
-        return True
-
-    # -- autosave and recovery -------------------------------------------------------------
-    def recovery_path(self) -> Path:
-        return app_data_dir() / "recovery" / "autosave.fluoro"
-
-    def autosave(self) -> bool:
-        """Write the session to the recovery file if it has unsaved changes."""
-        if not self.controller.dirty or not self.controller.project.views:
-            return False
-        from fluorogui.io.project import save_project
-
-        path = self.recovery_path()
-        path.parent.mkdir(parents=True, exist_ok=True)
-        try:
-            save_project(self.controller.project, path)
-            origin = str(self.controller.path) if self.controller.path else ""
-            path.with_suffix(".json").write_text(json.dumps({"origin": origin, "time": time.time()}))
-        except (InputError, OSError) as exc:
-            self.statusBar().showMessage(f"Autosave failed: {exc}", 10000)
-            return False
-        self.statusBar().showMessage("Autosaved for recovery", 3000)
-        return True
-
-    def offer_recovery(self) -> bool:
-        """After a crash: offer the autosaved session. True if it was recovered."""
-        path = self.recovery_path()
-        if not path.exists():
-            return False
-        info = {}
-        try:
-            info = json.loads(path.with_suffix(".json").read_text())
-        except (OSError, ValueError):
-            pass
-        origin = info.get("origin") or ""
-        answer = QMessageBox.question(
-            self, "Recover session",
-            "fluorogui did not close normally. Recover the autosaved session"
-            + (f" of {Path(origin).name}" if origin else "") + "?",
-            QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, QMessageBox.StandardButton.Yes)
-        if answer != QMessageBox.StandardButton.Yes:
-            path.unlink(missing_ok=True)
-            return False
-        try:
-            self.controller.open(path)
-        except InputError as exc:
-            self._warn("Cannot recover the session", str(exc))
-            return False
-        self.controller.path = Path(origin) if origin else None
-        self.controller.undo_stack.resetClean()
-        self._refresh_title()
-        self.statusBar().showMessage("Recovered; save to keep it", 8000)
-        return True
-
     def closeEvent(self, event) -> None:  # noqa: N802 (Qt override)
         if not self.maybe_save():
             event.ignore()
@@ -565,35 +368,6 @@ class MainWindow(QMainWindow):
         if self.scene_widget is not None:
             self.scene_widget.close()
         event.accept()
-
-    # -- drag and drop ---------------------------------------------------------------------
-    def dragEnterEvent(self, event) -> None:  # noqa: N802 (Qt override)
-        if event.mimeData().hasUrls():
-            event.acceptProposedAction()
-
-    def dropEvent(self, event) -> None:  # noqa: N802 (Qt override)
-        paths = [Path(u.toLocalFile()) for u in event.mimeData().urls() if u.isLocalFile()]
-        event.acceptProposedAction()
-        self.open_paths(paths)
-
-    def open_paths(self, paths: list[Path]) -> None:
-        """A dropped project opens; dropped folders, images, meshes or calibrations fill
-        the import dialog."""
-        projects = [p for p in paths if p.suffix == ".fluoro"]
-        if projects:
-            self.open_project(projects[0])
-            return
-        fill: dict = {}
-        meshes = [p for p in paths if p.suffix.lower() in MESH_SUFFIXES]
-        for m in meshes:
-            fill.setdefault("tibial" if "tib" in m.name.lower() else "femoral", m)
-        folders = [p for p in paths if p.is_dir()]
-        for k, folder in enumerate(folders[:2] if len(folders) > 1 else []):
-            fill[f"images{k + 1}"] = folder
-        calibrations = [p for p in paths if p.suffix.lower() in {".txt", ".json", ".cal"}]
-        for k, cal in enumerate(calibrations[:2]):
-            fill[f"calibration{k + 1}"] = cal
-        self.import_session(fill, folder=folders[0] if len(folders) == 1 else None)
 
     # -- showing the session ---------------------------------------------------------------
     def _project_replaced(self) -> None:
@@ -631,9 +405,6 @@ class MainWindow(QMainWindow):
         saved_index = c.project.settings.get("gui", {}).get("frame_index", 0)
         if isinstance(saved_index, int) and 0 < saved_index < len(c.frames):
             c.set_frame_index(saved_index)
-
-    def _refresh_all(self) -> None:
-        self.pose_editor.set_component(None)
 
     def _refresh_tree(self) -> None:
         c = self.controller
@@ -848,155 +619,6 @@ class MainWindow(QMainWindow):
             self.statusBar().showMessage("Match the component first (F5)", 5000)
             return
         c.set_reviewed(c.component, not record.reviewed)
-
-    # -- matching --------------------------------------------------------------------------
-    def _match_inputs(self):
-        c = self.controller
-        if c.frame is None or c.n_views() < 2 or c.component not in c.components():
-            raise ValueError("open a session with two views and a model first")
-        return c.images(), c.project.views[:2], c.mesh(c.component)
-
-    def run_match(self) -> bool:
-        """Match the active component in the current frame in the worker thread."""
-        c = self.controller
-        if self.runner.is_running():
-            return False
-        try:
-            images, views, mesh = self._match_inputs()
-        except (InputError, ValueError) as exc:
-            self._warn("Cannot match", str(exc))
-            return False
-        if any(image is None for image in images):
-            self._warn("Cannot match", "an image of this frame is missing")
-            return False
-        splines = c.splines(c.component)
-        self._live_component = c.component
-        self._match_started = time.perf_counter()
-        task = jobs.match_task(c.component, c.frame, images, views, mesh, c.pose(c.component),
-                               self.matcher.settings(), splines)
-        return self.runner.start(task, f"Matching the {c.component} component")
-
-    def track_frames(self) -> bool:
-        """Match the active component in this and every later frame, each from the last."""
-        c = self.controller
-        if self.runner.is_running():
-            return False
-        try:
-            _, views, mesh = self._match_inputs()
-        except (InputError, ValueError) as exc:
-            self._warn("Cannot track", str(exc))
-            return False
-        frames = c.frames[c.frame_index:]
-        paths = [[c.image_path(v, c.frame_index + k) for v in range(2)] for k in range(len(frames))]
-        reviewed = {}
-        for f in frames:
-            records = [c.outline_record(c.outline_key(v, c.component, f)) for v in range(2)]
-            if all(r is not None and r.reviewed for r in records):
-                reviewed[f] = [r.points for r in records]
-        self._live_component = c.component
-        self._batch_macro_open = False
-        task = jobs.batch_task(c.component, frames, paths, views, mesh, c.pose(c.component),
-                               self.matcher.settings(), reviewed)
-        return self.runner.start(task, f"Tracking the {c.component} component")
-
-    def find_implants(self) -> bool:
-        c = self.controller
-        if self.runner.is_running():
-            return False
-        try:
-            images, views, _ = self._match_inputs()
-            meshes = {name: c.mesh(name) for name in c.components()}
-        except (InputError, ValueError) as exc:
-            self._warn("Cannot search", str(exc))
-            return False
-        return self.runner.start(jobs.placement_task(images, views, meshes), "Finding the implants")
-
-    def _running_changed(self, running: bool) -> None:
-        self.matcher.set_running(running)
-        self.cancel_action.setEnabled(running)
-        for a in (self.run_action, self.track_action, self.find_action, self.open_action, self.import_action,
-                  self.demo_action):
-            a.setEnabled(not running)
-        if running:
-            self.statusBar().showMessage(self.runner.label + "…")
-
-    def _task_progress(self, payload) -> None:
-        if isinstance(payload, jobs.LiveUpdate):
-            self.matcher.show_live(payload.calls, payload.objective_mm, payload.history)
-            self._show_model_outline(payload.component, payload.pose, payload.outlines_px)
-            now = time.perf_counter()
-            if (self.scene_widget is not None and now - self._last_live_3d > LIVE_3D_INTERVAL_S
-                    and not self.scene_widget.software_gl
-                    and self.scene_widget.last_render_s < LIVE_3D_MAX_RENDER_S):
-                # a 3D render costs more than a 2D overlay: follow less often, and not at all
-                # where rendering is slow (software OpenGL); the result is shown at the end
-                self._last_live_3d = now
-                self.scene_widget.scene.set_pose(payload.component, payload.pose)
-                self.scene_widget.scene.render()
-        elif isinstance(payload, jobs.BatchProgress):
-            self.matcher.show_batch(payload.done, payload.total, payload.seconds)
-            self.statusBar().showMessage(f"{self.runner.label}: frame {payload.frame} done")
-        elif isinstance(payload, str):
-            self.statusBar().showMessage(payload)
-
-    def _store_outcome(self, outcome: jobs.MatchOutcome) -> None:
-        c = self.controller
-        c.undo_stack.beginMacro(f"Match {outcome.component} in frame {outcome.frame}")
-        self._deferred_overlay = True  # one overlay refresh (by the pose change) instead of one per outline
-        try:
-            if outcome.outlines_px is not None:
-                for view, points in enumerate(outcome.outlines_px):
-                    c.set_outline(c.outline_key(view, outcome.component, outcome.frame), points,
-                                  text="Automatic outline", reviewed=False)
-        finally:
-            self._deferred_overlay = False
-        c.set_pose(outcome.component, outcome.result.pose, frame=outcome.frame,
-                   match=match_record(outcome.result), text="Match")
-        c.undo_stack.endMacro()
-
-    def _task_item(self, payload) -> None:
-        if isinstance(payload, jobs.MatchOutcome):
-            self._store_outcome(payload)
-
-    def _task_finished(self, result) -> None:
-        c = self.controller
-        if isinstance(result, jobs.MatchOutcome):
-            self._store_outcome(result)
-            self.matcher.show_result(match_record(result.result), history=result.result.history)
-            state = "converged" if result.result.converged else "did NOT converge - check the outlines"
-            self.statusBar().showMessage(
-                f"Matched the {result.component} component in {result.result.seconds:.2f} s: "
-                f"objective {result.result.objective_mm:.3f} mm, {state}. Ctrl+Return accepts.", 15000)
-        elif isinstance(result, jobs.BatchOutcome):
-            n = len(result.frames_done)
-            message = f"Tracked the {result.component} component through {n} frame(s)"
-            if result.stopped_at is not None:
-                message += f"; stopped at {result.reason}"
-                if result.stopped_at in c.frames:
-                    c.set_frame_index(c.frames.index(result.stopped_at))
-            elif result.frames_done:
-                c.set_frame_index(c.frames.index(result.frames_done[-1]))
-            self.statusBar().showMessage(message, 20000)
-        elif isinstance(result, jobs.PlacementOutcome):
-            c.undo_stack.beginMacro("Find implants")
-            for name, pose in result.poses.items():
-                c.set_pose(name, pose, text=f"Find {name}")
-            c.undo_stack.endMacro()
-            found = ", ".join(f"{n} (overlap {100 * iou:.0f} %)" for n, iou in result.iou.items())
-            self.statusBar().showMessage(f"Found {found}. Press F5 to match.", 15000)
-
-    def _task_cancelled(self) -> None:
-        latency = (time.perf_counter() - self.runner.cancel_requested_at) if self.runner.cancel_requested_at else None
-        self.last_cancel_latency = latency
-        if self._live_component is not None:
-            self._show_pose(self._live_component)  # back to the stored pose
-        self.matcher.show_result(None, label="Cancelled; the pose is unchanged")
-        self.statusBar().showMessage("Cancelled; the pose is unchanged", 8000)
-
-    def _task_failed(self, message: str) -> None:
-        if self._live_component is not None:
-            self._show_pose(self._live_component)
-        self._warn("The task failed", message)
 
     # -- help ------------------------------------------------------------------------------
     def show_shortcuts(self) -> None:

@@ -14,7 +14,6 @@ from fluorogui.gui.controller import FrameState  # noqa: E402
 from fluorogui.gui.image_panel import Tool  # noqa: E402
 from fluorogui.gui.main_window import MainWindow  # noqa: E402
 from fluorogui.io.demo import build_demo_project  # noqa: E402
-from fluorogui.io.project import load_project  # noqa: E402
 
 
 @pytest.fixture(scope="session")

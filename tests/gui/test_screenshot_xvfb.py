@@ -1,15 +1,14 @@
 """The real main window on a real (virtual) X display: the screen shows the images and the models.
 
 Runs ``fluorogui.gui.snapshot`` in a subprocess with Qt's xcb platform, with the 3D panel
-as an embedded OpenGL view and as the image view used on software OpenGL; skipped where there is no X display (packaging/test.sh runs the suite
-under Xvfb, so CI always has one).
+as an embedded OpenGL view and as the image view used on software OpenGL; skipped where
+there is no X display (packaging/test.sh runs the suite under Xvfb, so CI always has one).
 """
 import json
 import os
 import subprocess
 import sys
 
-import numpy as np
 import pytest
 
 pytestmark = pytest.mark.skipif(not os.environ.get("DISPLAY"), reason="needs an X display (run under xvfb-run)")

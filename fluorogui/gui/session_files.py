@@ -1,0 +1,240 @@
+"""The session life cycle of the main window: open, save, the demo, import, recent files,
+autosave and crash recovery, and dropped files.
+
+``SessionFiles`` is a mixin of ``MainWindow``; it works through the window's controller,
+settings, status bar and ``_warn`` / ``_refresh_title``."""
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+from PySide6.QtCore import QStandardPaths, Qt
+from PySide6.QtWidgets import QApplication, QFileDialog, QMessageBox
+
+from fluorogui.io.errors import InputError
+from fluorogui.io.meshes import MESH_SUFFIXES
+
+PROJECT_FILTER = "fluorogui projects (*.fluoro);;All files (*)"
+MAX_RECENT = 8
+
+
+def app_data_dir() -> Path:
+    """Where recovery files and the generated demo live (FLUOROGUI_DATA_DIR overrides)."""
+    override = os.environ.get("FLUOROGUI_DATA_DIR")
+    base = Path(override) if override else Path(QStandardPaths.writableLocation(
+        QStandardPaths.StandardLocation.AppDataLocation) or Path.home() / ".fluorogui")
+    base.mkdir(parents=True, exist_ok=True)
+    return base
+
+
+class SessionFiles:
+    """File handling of ``MainWindow`` (a mixin)."""
+
+    def recent_files(self) -> list[str]:
+        value = self.settings.value("recent", [])
+        if isinstance(value, str):
+            value = [value]
+        return [v for v in (value or []) if v]
+
+    def _add_recent(self, path: Path) -> None:
+        items = [str(path)] + [p for p in self.recent_files() if p != str(path)]
+        self.settings.setValue("recent", items[:MAX_RECENT])
+        self._refresh_recent()
+
+    def _refresh_recent(self) -> None:
+        self.recent_menu.clear()
+        for p in self.recent_files():
+            action = self.recent_menu.addAction(Path(p).name)
+            action.setToolTip(p)
+            action.triggered.connect(lambda _=False, path=p: self.open_project(path))
+        self.recent_menu.setEnabled(bool(self.recent_files()))
+
+    def maybe_save(self) -> bool:
+        """Ask about unsaved changes; False if the user cancelled."""
+        if not self.controller.dirty:
+            return True
+        answer = QMessageBox.question(
+            self, "Unsaved changes", "The session has unsaved changes. Save them first?",
+            QMessageBox.StandardButton.Save | QMessageBox.StandardButton.Discard | QMessageBox.StandardButton.Cancel,
+            QMessageBox.StandardButton.Save)
+        if answer == QMessageBox.StandardButton.Save:
+            return self.save()
+        return answer == QMessageBox.StandardButton.Discard
+
+    def open_project(self, path=None, ask: bool = True) -> bool:
+        """Open a project file (asks for one when ``path`` is None). A failure shows a
+        dialog naming the file and leaves the open project as it was."""
+        if self.runner.is_running():
+            self.statusBar().showMessage("Wait for the running task to end (or cancel it) first", 5000)
+            return False
+        if ask and not self.maybe_save():
+            return False
+        if path is None:
+            name, _ = QFileDialog.getOpenFileName(self, "Open project", str(self._last_dir()), PROJECT_FILTER)
+            if not name:
+                return False
+            path = name
+        try:
+            self.controller.open(path)
+        except InputError as exc:
+            self._warn("Cannot open project", str(exc))
+            return False
+        self._add_recent(Path(path).resolve())
+        self.settings.setValue("last_dir", str(Path(path).resolve().parent))
+        self.statusBar().showMessage(f"Opened {path}", 5000)
+        return True
+
+    def _last_dir(self) -> Path:
+        return Path(self.settings.value("last_dir", str(Path.home())))
+
+    def open_demo(self, ask: bool = True) -> bool:
+        """Open the built-in demo session (generated on first use)."""
+        from fluorogui.io.demo import demo_project_path
+
+        if ask and not self.maybe_save():
+            return False
+        QApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
+        self.statusBar().showMessage("Preparing the demo session…")
+        QApplication.processEvents()
+        try:
+            path = demo_project_path(app_data_dir() / "demo")
+        except (InputError, OSError) as exc:
+            QApplication.restoreOverrideCursor()
+            self._warn("Cannot build the demo", str(exc))
+            return False
+        QApplication.restoreOverrideCursor()
+        opened = self.open_project(path, ask=False)
+        if opened:
+            self.controller.project.settings["demo"] = True
+            self._refresh_title()
+            self.statusBar().showMessage(
+                "Demo session: press F5 to match the femoral component, then Ctrl+Return to accept", 15000)
+        return opened
+
+    def save(self) -> bool:
+        if self.controller.path is None or self.controller.project.settings.get("demo"):
+            return self.save_as()
+        return self._save_to(self.controller.path)
+
+    def save_as(self) -> bool:
+        start = str(self.controller.path or self._last_dir() / "session.fluoro")
+        name, _ = QFileDialog.getSaveFileName(self, "Save project as", start, PROJECT_FILTER)
+        if not name:
+            return False
+        if not name.endswith(".fluoro"):
+            name += ".fluoro"
+        self.controller.project.settings.pop("demo", None)
+        return self._save_to(Path(name))
+
+    def _save_to(self, path: Path) -> bool:
+        try:
+            self.controller.save(path)
+        except (InputError, OSError) as exc:
+            self._warn("Cannot save project", str(exc))
+            return False
+        self._add_recent(path.resolve())
+        self.recovery_path().unlink(missing_ok=True)
+        self._refresh_title()
+        self.statusBar().showMessage(f"Saved {path}", 5000)
+        return True
+
+    def import_session(self, paths: dict | None = None, folder: Path | None = None) -> bool:
+        """The import dialog (optionally pre-filled); the imported session replaces this one."""
+        from fluorogui.gui.import_dialog import ImportDialog
+
+        if not self.maybe_save():
+            return False
+        dialog = ImportDialog(self)
+        if folder is not None:
+            dialog.fill_from_folder(folder)
+        if paths:
+            dialog.fill(**paths)
+        if dialog.exec() != ImportDialog.DialogCode.Accepted or dialog.project is None:
+            return False
+        self.controller.set_project(dialog.project, None)
+        self.controller.undo_stack.resetClean()  # never saved: closing asks
+        self.statusBar().showMessage("Imported. Save the session to keep it (Ctrl+S)", 8000)
+        return True
+
+    # -- autosave and recovery -------------------------------------------------------------
+    def recovery_path(self) -> Path:
+        return app_data_dir() / "recovery" / "autosave.fluoro"
+
+    def autosave(self) -> bool:
+        """Write the session to the recovery file if it has unsaved changes."""
+        if not self.controller.dirty or not self.controller.project.views:
+            return False
+        from fluorogui.io.project import save_project
+
+        path = self.recovery_path()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            save_project(self.controller.project, path)
+            origin = str(self.controller.path) if self.controller.path else ""
+            path.with_suffix(".json").write_text(json.dumps({"origin": origin, "time": time.time()}))
+        except (InputError, OSError) as exc:
+            self.statusBar().showMessage(f"Autosave failed: {exc}", 10000)
+            return False
+        self.statusBar().showMessage("Autosaved for recovery", 3000)
+        return True
+
+    def offer_recovery(self) -> bool:
+        """After a crash: offer the autosaved session. True if it was recovered."""
+        path = self.recovery_path()
+        if not path.exists():
+            return False
+        info = {}
+        try:
+            info = json.loads(path.with_suffix(".json").read_text())
+        except (OSError, ValueError):
+            pass
+        origin = info.get("origin") or ""
+        answer = QMessageBox.question(
+            self, "Recover session",
+            "fluorogui did not close normally. Recover the autosaved session"
+            + (f" of {Path(origin).name}" if origin else "") + "?",
+            QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, QMessageBox.StandardButton.Yes)
+        if answer != QMessageBox.StandardButton.Yes:
+            path.unlink(missing_ok=True)
+            return False
+        try:
+            self.controller.open(path)
+        except InputError as exc:
+            self._warn("Cannot recover the session", str(exc))
+            return False
+        self.controller.path = Path(origin) if origin else None
+        self.controller.undo_stack.resetClean()
+        self._refresh_title()
+        self.statusBar().showMessage("Recovered; save to keep it", 8000)
+        return True
+
+    # -- drag and drop ---------------------------------------------------------------------
+    def dragEnterEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        if event.mimeData().hasUrls():
+            event.acceptProposedAction()
+
+    def dropEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        paths = [Path(u.toLocalFile()) for u in event.mimeData().urls() if u.isLocalFile()]
+        event.acceptProposedAction()
+        self.open_paths(paths)
+
+    def open_paths(self, paths: list[Path]) -> None:
+        """A dropped project opens; dropped folders, images, meshes or calibrations fill
+        the import dialog."""
+        projects = [p for p in paths if p.suffix == ".fluoro"]
+        if projects:
+            self.open_project(projects[0])
+            return
+        fill: dict = {}
+        meshes = [p for p in paths if p.suffix.lower() in MESH_SUFFIXES]
+        for m in meshes:
+            fill.setdefault("tibial" if "tib" in m.name.lower() else "femoral", m)
+        folders = [p for p in paths if p.is_dir()]
+        for k, folder in enumerate(folders[:2] if len(folders) > 1 else []):
+            fill[f"images{k + 1}"] = folder
+        calibrations = [p for p in paths if p.suffix.lower() in {".txt", ".json", ".cal"}]
+        for k, cal in enumerate(calibrations[:2]):
+            fill[f"calibration{k + 1}"] = cal
+        self.import_session(fill, folder=folders[0] if len(folders) == 1 else None)
