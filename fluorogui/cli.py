@@ -224,7 +224,8 @@ def _case_row(model, method, case):
 # -- commands ---------------------------------------------------------------------------------
 def cmd_match(args) -> int:
     from fluorogui.core.matching import MatchProblem, match
-    from fluorogui.core.pipeline import match_images
+    from fluorogui.core.pipeline import SegmentationError, segment_and_match
+    from fluorogui.io.errors import InputError
 
     views = _load_views(args.camera)
     images = _load_images(args.image, views)
@@ -234,9 +235,12 @@ def cmd_match(args) -> int:
         problem = MatchProblem(mesh, views, _splines(args.outline, images, args.image, views, mesh, start))
         result = match(problem, start, _settings(args))
     else:
-        # segment along the start pose, match, segment again along the result, match again
-        first = _splines(None, images, args.image, views, mesh, start)  # names the image if nothing is found
-        result, _ = match_images(images, views, mesh, start, _settings(args), splines=first)
+        # the one segment -> match -> re-segment loop of the app and of tracking
+        try:
+            result = segment_and_match(images, views, mesh, start, _settings(args)).result
+        except SegmentationError as exc:
+            raise InputError(args.image[exc.view],
+                             f"no outline of the component found near the start pose ({exc.reason})") from None
     if args.json:
         d = result.to_dict()
         print(json.dumps({k: d[k] for k in ("pose", "objective_mm", "per_view_mean_mm", "calls", "seconds",

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .spline import resample_closed_polyline
+from .spline import resample_closed_polyline, untangle_outline
 
 #: fraction of the reference gradient (see ``canny_edges``) used by default
 DEFAULT_LOW, DEFAULT_HIGH = 0.1, 0.3
@@ -324,16 +324,16 @@ def best_translation(edge_mask: np.ndarray, predicted_px: np.ndarray, search_px:
     height, width = distance.shape
     pts = resample_closed_polyline(predicted_px, n=min(300, max(8, len(predicted_px))))
 
-    def cost(shift):
-        u = np.clip(np.round(pts[:, 0] + shift[0]).astype(int), 0, width - 1)
-        v = np.clip(np.round(pts[:, 1] + shift[1]).astype(int), 0, height - 1)
-        return float(distance[v, u].mean())
+    def costs(shifts: np.ndarray) -> np.ndarray:
+        u = np.clip(np.round(pts[None, :, 0] + shifts[:, None, 0]).astype(int), 0, width - 1)
+        v = np.clip(np.round(pts[None, :, 1] + shifts[:, None, 1]).astype(int), 0, height - 1)
+        return distance[v, u].mean(axis=1)
 
     best = np.zeros(2)
     for step, reach in ((8, search_px), (2, 8), (1, 2)):
         offsets = np.arange(-reach, reach + 1, step)
-        candidates = [best + (du, dv) for du in offsets for dv in offsets]
-        best = min(candidates, key=cost)
+        grid = best + np.array([(du, dv) for du in offsets for dv in offsets], dtype=float)
+        best = grid[int(np.argmin(costs(grid)))]  # first minimum, as min() over the list did
     return best
 
 
@@ -386,7 +386,7 @@ def uncovered_arc(points: np.ndarray, predicted_px: np.ndarray, tolerance_px: fl
 def component_outline(image: np.ndarray, predicted_px: np.ndarray, sigma: float = 1.0, tolerance_px: float = 8.0,
                       polarity: str = "dark", search_px: int = 60, low: float = DEFAULT_LOW,
                       high: float = DEFAULT_HIGH, gap_fill: tuple[float, float] | None = (0.04, 0.12),
-                      min_gap_px: float = 6.0) -> np.ndarray:
+                      min_gap_px: float = 6.0, exclude: np.ndarray | None = None) -> np.ndarray:
     """Ordered, closed, sub-pixel outline (K, 2) of the component predicted at ``predicted_px``
     (e.g. the projected model outline at the start pose).
 
@@ -407,14 +407,40 @@ def component_outline(image: np.ndarray, predicted_px: np.ndarray, sigma: float 
     edges (skin against the bright background); the fit to the weak edge map is tried
     too and the shift leaving less of the prediction uncovered is kept. ``None`` turns
     both off.
+
+    ``exclude`` (a boolean mask of the image's shape) removes the edges under it: the
+    region of another component that overlaps this one, whose edges must not pull the
+    outline (the matcher ignores the outline there too). All the work is done on a crop
+    around the prediction, so the cost does not grow with the image size.
     """
     predicted = np.asarray(predicted_px, dtype=float)
     if predicted.ndim != 2 or len(predicted) < 4:
         raise EdgeError("the predicted outline needs at least 4 points")
+    image = np.asarray(image)
     margin = search_px + tolerance_px + 4 * sigma
     lo, hi = predicted.min(axis=0) - margin, predicted.max(axis=0) + margin
-    roi = (int(np.floor(lo[0])), int(np.floor(lo[1])), int(np.ceil(hi[0])) + 1, int(np.ceil(hi[1])) + 1)
+    pad = int(np.ceil(4 * sigma)) + 4  # so the smoothing inside the region sees real pixels
+    height, width = image.shape[:2]
+    u0, v0 = max(int(np.floor(lo[0])) - pad, 0), max(int(np.floor(lo[1])) - pad, 0)
+    u1, v1 = min(int(np.ceil(hi[0])) + 1 + pad, width), min(int(np.ceil(hi[1])) + 1 + pad, height)
+    if u1 - u0 < 8 or v1 - v0 < 8:
+        raise EdgeError("the predicted outline lies outside the image")
+    offset = np.array([u0, v0], dtype=float)
+    crop = image[v0:v1, u0:u1]
+    roi = (int(np.floor(lo[0])) - u0, int(np.floor(lo[1])) - v0, int(np.ceil(hi[0])) + 1 - u0,
+           int(np.ceil(hi[1])) + 1 - v0)
+    keep = None if exclude is None else ~np.asarray(exclude, dtype=bool)[v0:v1, u0:u1]
+    outline = _outline_in_region(crop, predicted - offset, roi, keep, sigma, tolerance_px, polarity, search_px,
+                                 low, high, gap_fill, min_gap_px)
+    return outline + offset
+
+
+def _outline_in_region(image, predicted, roi, keep, sigma, tolerance_px, polarity, search_px, low, high, gap_fill,
+                       min_gap_px) -> np.ndarray:
+    """``component_outline`` in the coordinates of an image crop; ``keep`` masks usable edges."""
     edges = canny_edges(image, low, high, sigma, roi)
+    if keep is not None:
+        edges &= keep
     if not edges.any():
         raise EdgeError("the image has no edges near the predicted outline")
     gradients = smoothed_gradients(image, sigma)
@@ -425,7 +451,7 @@ def component_outline(image: np.ndarray, predicted_px: np.ndarray, sigma: float 
             weak = canny_edges(image, gap_fill[0], gap_fill[1], sigma, roi)
             inside = np.zeros_like(weak)
             inside[max(roi[1], 0):max(roi[3], 0), max(roi[0], 0):max(roi[2], 0)] = True
-            weak_map.append(weak & inside)
+            weak_map.append(weak & inside if keep is None else weak & inside & keep)
         return weak_map[0]
 
     def gather(shift):
@@ -464,4 +490,7 @@ def component_outline(image: np.ndarray, predicted_px: np.ndarray, sigma: float 
     predicted, points, pieces = found[:3]
     if not len(points):
         raise EdgeError("no edge with the expected polarity near the predicted outline")
-    return _merge_along([points], predicted, tolerance_px, pieces=pieces)
+    outline = untangle_outline(_merge_along([points], predicted, tolerance_px, pieces=pieces))
+    if len(outline) < 4:
+        raise EdgeError("too few edge points along the predicted outline")
+    return outline

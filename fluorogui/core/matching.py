@@ -99,12 +99,23 @@ class MatchResult:
 
 @dataclass
 class MatchProblem:
-    """One component in one frame: its mesh, the views and the image outline splines."""
+    """One component in one frame: its mesh, the views and the image outline splines.
+
+    ``occluded`` optionally gives, per view, a boolean image mask (or None) of where
+    another component hides this one's outline: the fast method leaves out the model and
+    image outline points that fall there (their image edges belong to the other
+    component, or are missing)."""
 
     mesh: PreparedMesh
     views: Sequence[View]
     splines: Sequence  # OutlineSpline per view
+    occluded: Sequence | None = None
     _cloud: dict = field(default_factory=dict, repr=False)
+
+    def occluder(self, view_index: int) -> np.ndarray | None:
+        if self.occluded is None or view_index >= len(self.occluded):
+            return None
+        return self.occluded[view_index]
 
     def cloud(self, n: int, seed: int = 0) -> np.ndarray:
         if (n, seed) not in self._cloud:
@@ -214,6 +225,26 @@ def _polyline_normals(points: np.ndarray) -> np.ndarray:
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
 
 
+#: a view keeps all its outline points when fewer than this many are outside the occluded area
+MIN_VISIBLE_POINTS = 8
+
+
+def visible_points(mask: np.ndarray | None, uv: np.ndarray) -> np.ndarray:
+    """True for points (K, 2) in pixels that a boolean ``mask`` does not cover (points off
+    the image count as visible); all True without a mask or when almost nothing is left."""
+    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+    if mask is None or len(uv) == 0:
+        return np.ones(len(uv), dtype=bool)
+    h, w = mask.shape
+    col = np.round(uv[:, 0]).astype(int)
+    row = np.round(uv[:, 1]).astype(int)
+    inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+    hidden = np.zeros(len(uv), dtype=bool)
+    hidden[inside] = mask[row[inside], col[inside]]
+    visible = ~hidden
+    return visible if visible.sum() >= MIN_VISIBLE_POINTS else np.ones(len(uv), dtype=bool)
+
+
 class _FastEvaluation:
     """Residuals and Jacobian of the fast objective at one pose (correspondences frozen)."""
 
@@ -223,7 +254,8 @@ class _FastEvaluation:
         rho = mesh.radius
         self.per_view_mm: list[float] = []
         self.r, self.J, self.w = [], [], []
-        for view, spline, g in zip(problem.views, problem.splines, image_samples):
+        for k, (view, spline, g) in enumerate(zip(problem.views, problem.splines, image_samples)):
+            mask = problem.occluder(k)
             if settings.outline_points:
                 sil = mesh_silhouette(mesh, R, t, view, spacing_px=1.0)
                 fwd = sil.resample(n=settings.outline_points)
@@ -232,6 +264,9 @@ class _FastEvaluation:
             # model outline points to the image spline: signed distance along the spline normal
             X = fwd.model_points @ R.T + t
             uv, Jp = view.project_jacobian(X)
+            if mask is not None:
+                seen = visible_points(mask, uv)
+                X, uv, Jp = X[seen], uv[seen], Jp[seen]
             dist, closest_pt, normal, _ = spline.closest(uv)
             self.per_view_mm.append(float(np.mean(dist)) * view.mm_per_px())
             self._add(np.einsum("ij,ij->i", normal, uv - closest_pt), np.einsum("ij,ijk->ik", normal, Jp), X, c, rho)
@@ -304,7 +339,8 @@ def _match_fast(problem, start, settings, progress, cancel) -> MatchResult:
     R, c = _to_state(start, mesh.centroid)
     image_samples = [s.sample(settings.outline_points or max(16, int(s.length_px / settings.spacing_px)))
                      for s in problem.splines]
-    c = _initial_translation(problem, R, c, image_samples)
+    c = _initial_translation(problem, R, c, image_samples)  # whole outlines: centroids of closed curves
+    image_samples = [g[visible_points(problem.occluder(k), g)] for k, g in enumerate(image_samples)]
     calls = 0
     history: list[float] = []
     lam = 1e-3

@@ -1,15 +1,28 @@
-"""From images to a pose without hand-made outlines: segment near a pose, match, repeat.
+"""From images to a pose without hand-made outlines: the one segment -> match -> re-segment loop.
 
 The outline of a component is segmented along the projection of a rough pose
 (``edges.component_outline``). When that pose is several degrees off, parts of the true
 edge fall outside the search band and the spline bridges them with a chord; matching
-once and segmenting again along the matched pose removes that, as a user reviewing the
-outline would. Where part of the outline is too faint for Canny's default thresholds
-(a tibial keel in bone next to the tray and the femoral component), component_outline
-searches the uncovered runs again with lower thresholds instead of bridging them.
+and segmenting again along the matched pose removes that, as a user reviewing the
+outline would. The loop runs at least ``LoopSettings.min_passes`` passes and stops when
+a pass moves the model centroid by less than ``LoopSettings.settled`` mm and turns it by
+less than that many degrees, or after ``max_passes``. (Re-segmentation jitters the pose
+by a few hundredths of a mm / degree on real images, so a tighter threshold would only
+spend passes.) Given outlines (reviewed by the user) are matched once, as they are.
+
+Where part of the outline is too faint for Canny's default thresholds (a tibial keel in
+bone next to the tray and the femoral component), component_outline searches the
+uncovered runs again with lower thresholds instead of bridging them. Where another
+component overlaps this one (``occluded`` masks), its edges are left out of the
+segmentation and the matcher ignores the outline there.
+
+Everything that matches a component from images - the desktop app, the command line,
+tracking and scripts - goes through ``segment_and_match``, so the same frame and the
+same settings give the same pose everywhere.
 """
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass
 from typing import Sequence
 
 import numpy as np
@@ -18,9 +31,50 @@ from .edges import component_outline
 from .geometry import View
 from .matching import MatchProblem, MatchResult, MatchSettings, match
 from .mesh import PreparedMesh
-from .pose import rotation_matrix
+from .pose import motion_between, rotation_matrix
 from .silhouette import mesh_silhouette
-from .spline import OutlineSpline
+from .spline import OutlineError, OutlineSpline
+
+
+class SegmentationError(ValueError):
+    """No usable outline of a component in one view; ``view`` is its 0-based index and
+    ``reason`` the problem in plain words."""
+
+    def __init__(self, view: int, reason: str):
+        super().__init__(f"view {view + 1}: {reason}")
+        self.view = view
+        self.reason = reason
+
+
+@dataclass
+class LoopSettings:
+    """How automatic outlines are refined: passes and the stopping threshold."""
+
+    min_passes: int = 2
+    max_passes: int = 6
+    settled: float = 0.05  # a pass moving the centroid less (mm) and turning less (deg) ends the loop
+    search_px: int = 60  # first pass: how far the outline may sit from the prediction
+    later_search_px: int = 8  # later passes start from a matched pose
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict | None) -> "LoopSettings":
+        d = d or {}
+        known = {k: d[k] for k in cls.__dataclass_fields__ if k in d}
+        return cls(**known)
+
+
+@dataclass
+class LoopOutcome:
+    """The last pass's match (calls and seconds summed over passes), the outlines and
+    splines it used (outlines None when given ones were used) and the number of passes."""
+
+    result: MatchResult
+    outlines: list[np.ndarray] | None
+    splines: list[OutlineSpline]
+    passes: int
 
 
 def predicted_outline(mesh: PreparedMesh, pose, view: View, spacing_px: float = 2.0) -> np.ndarray:
@@ -29,33 +83,86 @@ def predicted_outline(mesh: PreparedMesh, pose, view: View, spacing_px: float = 
     return mesh_silhouette(mesh, rotation_matrix(*pose[3:]), pose[:3], view).resample(spacing_px=spacing_px).points_px
 
 
-def segment_outlines(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMesh, pose) -> list[np.ndarray]:
-    """Ordered sub-pixel outline of the component in every image, chosen along ``pose``."""
-    return [component_outline(image, predicted_outline(mesh, pose, view)) for image, view in zip(images, views)]
+def segment_outlines(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMesh, pose,
+                     occluded: Sequence | None = None, search_px: int = 60) -> list[np.ndarray]:
+    """Ordered sub-pixel outline of the component in every image, chosen along ``pose``.
+    Raises SegmentationError naming the view."""
+    out = []
+    for k, (image, view) in enumerate(zip(images, views)):
+        exclude = occluded[k] if occluded is not None and k < len(occluded) else None
+        try:
+            out.append(component_outline(image, predicted_outline(mesh, pose, view), exclude=exclude,
+                                         search_px=search_px))
+        except ValueError as exc:
+            raise SegmentationError(k, str(exc)) from None
+    return out
 
 
-def splines_from_images(images, views, mesh, pose) -> list[OutlineSpline]:
-    return [OutlineSpline.fit(o) for o in segment_outlines(images, views, mesh, pose)]
+def fit_splines(outlines: Sequence[np.ndarray]) -> list[OutlineSpline]:
+    """Splines through outlines; raises SegmentationError naming the view."""
+    splines = []
+    for k, points in enumerate(outlines):
+        try:
+            splines.append(OutlineSpline.fit(points))
+        except (OutlineError, ValueError) as exc:
+            raise SegmentationError(k, str(exc)) from None
+    return splines
+
+
+def splines_from_images(images, views, mesh, pose, occluded=None, search_px: int = 60) -> list[OutlineSpline]:
+    return fit_splines(segment_outlines(images, views, mesh, pose, occluded, search_px))
+
+
+def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchSettings | None = None,
+                      loop: LoopSettings | None = None, splines: list[OutlineSpline] | None = None,
+                      occluded: Sequence | None = None, progress=None, cancel=None) -> LoopOutcome:
+    """Match one component in one frame from ``start`` (mm, degrees).
+
+    With ``splines`` (reviewed outlines) one match on them. Without, segment along the
+    pose and match, again and again (at least ``loop.min_passes``, at most
+    ``loop.max_passes`` passes) until a pass moves the model by less than ``loop.settled``.
+    A segmentation failure in the first pass raises SegmentationError; in a later pass
+    the previous pass's result stands."""
+    settings = settings or MatchSettings()
+    loop = loop or LoopSettings()
+    pose = np.asarray(start, dtype=float)
+    given = splines is not None
+    outlines = None
+    total_calls, total_seconds, history = 0, 0.0, []
+    result, passes = None, 0
+    for k in range(1 if given else max(1, loop.max_passes)):
+        if not given:
+            try:
+                new_outlines = segment_outlines(images, views, mesh, pose, occluded,
+                                                loop.search_px if k == 0 else loop.later_search_px)
+                new_splines = fit_splines(new_outlines)
+            except SegmentationError:
+                if result is None:
+                    raise
+                break  # keep the previous pass
+            outlines, splines = new_outlines, new_splines
+        result = match(MatchProblem(mesh, views, splines, occluded), pose, settings, progress, cancel)
+        passes += 1
+        total_calls += result.calls
+        total_seconds += result.seconds
+        history += result.history
+        moved = max(motion_between(result.pose, pose, mesh.centroid))
+        pose = result.pose
+        if result.cancelled or (passes >= loop.min_passes and moved < loop.settled):
+            break
+    result.calls, result.seconds, result.history = total_calls, total_seconds, history
+    result.settings = dict(result.settings, loop=loop.to_dict(), passes=passes)
+    return LoopOutcome(result, outlines, splines, passes)
 
 
 def match_images(images, views, mesh: PreparedMesh, start, settings: MatchSettings | None = None,
-                 passes: int = 2, progress=None, cancel=None,
-                 splines: list[OutlineSpline] | None = None) -> tuple[MatchResult, list[OutlineSpline]]:
-    """Segment along the start pose and match; then ``passes - 1`` times segment along the
-    result and match again from it. ``splines``, when given, serve as the first pass's
-    outlines. Returns the last result and its splines."""
-    settings = settings or MatchSettings()
-    pose = np.asarray(start, dtype=float)
-    total_calls, total_seconds = 0, 0.0
-    result = None
-    for k in range(max(1, passes)):
-        if k > 0 or splines is None:
-            splines = splines_from_images(images, views, mesh, pose)
-        result = match(MatchProblem(mesh, views, splines), pose, settings, progress, cancel)
-        total_calls += result.calls
-        total_seconds += result.seconds
-        pose = result.pose
-        if result.cancelled:
-            break
-    result.calls, result.seconds = total_calls, total_seconds
-    return result, splines
+                 passes: int | None = None, progress=None, cancel=None,
+                 occluded=None) -> tuple[MatchResult, list[OutlineSpline]]:
+    """``segment_and_match`` on automatic outlines, returning (result, splines); ``passes``
+    caps the passes (and, if below the default minimum, lowers it)."""
+    loop = LoopSettings()
+    if passes is not None:
+        loop.max_passes = max(1, int(passes))
+        loop.min_passes = min(loop.min_passes, loop.max_passes)
+    out = segment_and_match(images, views, mesh, start, settings, loop, None, occluded, progress, cancel)
+    return out.result, out.splines

@@ -103,3 +103,14 @@ def pose_error(estimate, truth) -> np.ndarray:
     estimate, truth = np.asarray(estimate, dtype=float), np.asarray(truth, dtype=float)
     delta = rotation_matrix(*truth[3:]).T @ rotation_matrix(*estimate[3:])
     return np.r_[estimate[:3] - truth[:3], angles_from_matrix(delta)]
+
+
+def motion_between(pose_a, pose_b, point) -> tuple[float, float]:
+    """How far a body moves between two poses: the distance (mm) travelled by ``point``
+    (model frame, e.g. the mesh centroid) and the rotation angle (deg) between them."""
+    pose_a, pose_b = np.asarray(pose_a, dtype=float), np.asarray(pose_b, dtype=float)
+    Ra, Rb = rotation_matrix(*pose_a[3:]), rotation_matrix(*pose_b[3:])
+    point = np.asarray(point, dtype=float)
+    moved = (Ra @ point + pose_a[:3]) - (Rb @ point + pose_b[:3])
+    cos = np.clip((np.trace(Ra.T @ Rb) - 1.0) / 2.0, -1.0, 1.0)
+    return float(np.linalg.norm(moved)), float(np.degrees(np.arccos(cos)))

@@ -55,16 +55,17 @@ def _orientation(a, b, c) -> np.ndarray:
     return (b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1]) - (b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0])
 
 
-def first_self_intersection(points) -> int | None:
-    """Index of the first segment (points[i] -> points[i+1]) of the closed polygon that
-    touches or crosses a non-adjacent segment, or folds back onto its neighbour; else None.
+def self_intersections(points) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """Where the closed polygon ``points`` is not simple: the indices i of segments
+    (points[i] -> points[i+1]) that fold back onto the next one (spikes), and the pairs
+    (i, j), i < j, of non-adjacent segments that touch or cross.
 
     Sweep along u: segments are sorted by their left end and only pairs whose u-ranges
     overlap are tested, so typical outlines cost O(n log n)."""
     p = np.asarray(points, dtype=float)
     n = len(p)
     if n < 3:
-        return None
+        return np.zeros(0, dtype=int), []
     a, b = p, np.roll(p, -1, axis=0)
     # a segment reversing onto the next one (a spike) is a crossing as well
     d0, d1 = b - a, np.roll(b - a, -1, axis=0)
@@ -72,7 +73,6 @@ def first_self_intersection(points) -> int | None:
     dot = np.einsum("ij,ij->i", d0, d1)
     scale = np.linalg.norm(d0, axis=1) * np.linalg.norm(d1, axis=1)
     folds = np.flatnonzero((np.abs(cross) <= 1e-12 * scale) & (dot < 0))
-    hits = [int(folds[0])] if folds.size else []
     lo, hi = np.minimum(a, b), np.maximum(a, b)
     order = np.argsort(lo[:, 0], kind="stable")
     lo_sorted_u = lo[order, 0]
@@ -88,9 +88,41 @@ def first_self_intersection(points) -> int | None:
     o1, o2 = _orientation(a[i], b[i], a[j]), _orientation(a[i], b[i], b[j])
     o3, o4 = _orientation(a[j], b[j], a[i]), _orientation(a[j], b[j], b[i])
     crossing = (o1 * o2 <= 0) & (o3 * o4 <= 0)
-    if np.any(crossing):
-        hits.append(int(np.minimum(i[crossing], j[crossing]).min()))
+    pairs = sorted(zip(np.minimum(i[crossing], j[crossing]).tolist(), np.maximum(i[crossing], j[crossing]).tolist()))
+    return folds, pairs
+
+
+def first_self_intersection(points) -> int | None:
+    """Index of the first segment (points[i] -> points[i+1]) of the closed polygon that
+    touches or crosses a non-adjacent segment, or folds back onto its neighbour; else None."""
+    folds, pairs = self_intersections(points)
+    hits = ([int(folds[0])] if folds.size else []) + ([pairs[0][0]] if pairs else [])
     return min(hits) if hits else None
+
+
+def untangle_outline(points, max_rounds: int = 200) -> np.ndarray:
+    """A simple closed polygon from one with small loops and spikes: each crossing cuts
+    the polygon into two loops and the shorter one (fewer points) is dropped; a spike loses
+    its tip. Edge chains merged along a prediction can cross where two pieces overlap;
+    this repairs that instead of refusing the whole outline. Stops early (and returns what
+    it has) after ``max_rounds`` repairs or below 4 points."""
+    pts = _drop_repeated_points(np.asarray(points, dtype=float))
+    for _ in range(max_rounds):
+        if len(pts) < 4:
+            break
+        folds, pairs = self_intersections(pts)
+        if not pairs and not folds.size:
+            break
+        n = len(pts)
+        if folds.size:
+            pts = np.delete(pts, (int(folds[0]) + 1) % n, axis=0)
+        else:
+            i, j = pairs[0]
+            inner = np.arange(i + 1, j + 1)  # points between the two crossing segments
+            outer = np.r_[np.arange(j + 1, n), np.arange(0, i + 1)]
+            pts = np.delete(pts, inner if len(inner) <= len(outer) else outer, axis=0)
+        pts = _drop_repeated_points(pts)
+    return pts
 
 
 def validate_outline(points) -> np.ndarray:
