@@ -6,8 +6,12 @@ them relative to itself). Keys:
 
 * ``records[(frame, view_index, component)]`` - the reviewed image outline of one
   component in one view of one frame;
-* ``poses[(frame, component)]`` - the matched pose (mm, degrees, DESIGN.md convention)
-  with the record of the match that produced it.
+* ``poses[(frame, component)]`` - the pose (mm, degrees, DESIGN.md convention) with the
+  record of the match that produced it and its status: ``matched`` (every quality check
+  passed), ``needs_review`` (a check failed: never to be shown as matched), ``failed``
+  (no pose could be found; the pose is the prediction, kept as a start for the user) or
+  ``placed`` (set by hand or by *find implants*, not matched). ``reason`` says why a
+  frame needs review or failed, in the user's words.
 """
 from __future__ import annotations
 
@@ -19,6 +23,9 @@ import numpy as np
 from fluorogui.core.geometry import View
 
 OutlineKey = tuple[int, int, str]  # (frame, view index, component)
+
+PLACED, MATCHED, NEEDS_REVIEW, FAILED = "placed", "matched", "needs_review", "failed"
+POSE_STATUSES = (PLACED, MATCHED, NEEDS_REVIEW, FAILED)
 PoseKey = tuple[int, str]  # (frame, component)
 
 
@@ -84,9 +91,10 @@ class MatchRecord:
     converged: bool
     method: str
     settings: dict = field(default_factory=dict)
+    quality: dict = field(default_factory=dict)  # ``fluorogui.core.quality.Quality.to_dict()``
 
     @classmethod
-    def from_result(cls, result) -> "MatchRecord":
+    def from_result(cls, result, quality: dict | None = None) -> "MatchRecord":
         """The record of a ``fluorogui.core.matching.MatchResult`` (its stored fields)."""
         return cls(
             objective_mm=float(result.objective_mm),
@@ -96,26 +104,52 @@ class MatchRecord:
             converged=bool(result.converged),
             method=str(result.method),
             settings=dict(result.settings),
+            quality=dict(quality or {}),
         )
 
 
 @dataclass(eq=False)
 class PoseRecord:
-    """A component's pose in one frame (x, y, z mm; alpha, beta, gamma deg), its match and
-    whether the user has accepted it."""
+    """A component's pose in one frame (x, y, z mm; alpha, beta, gamma deg), its match,
+    its status (``POSE_STATUSES``; by default ``matched`` with a converged match record,
+    else ``placed``), why it needs review, and whether the user has accepted it."""
 
     pose: np.ndarray
     match: MatchRecord | None = None
     reviewed: bool = False
+    status: str = ""
+    reason: str = ""
 
     def __post_init__(self):
         self.pose = np.asarray(self.pose, dtype=float).reshape(6)
         self.reviewed = bool(self.reviewed)
+        if not self.status:
+            self.status = default_status(self.match)
+        if self.status not in POSE_STATUSES:
+            raise ValueError(f"unknown pose status {self.status!r} (use {', '.join(POSE_STATUSES)})")
+        self.reason = str(self.reason)
+
+    @property
+    def is_matched(self) -> bool:
+        """A pose that may be shown as matched: every check passed, or the user accepted it."""
+        return self.reviewed or self.status == MATCHED
+
+    @property
+    def needs_review(self) -> bool:
+        return not self.reviewed and self.status in (NEEDS_REVIEW, FAILED)
 
     def __eq__(self, other) -> bool:
         if not isinstance(other, PoseRecord):
             return NotImplemented
-        return _same_array(self.pose, other.pose) and self.match == other.match and self.reviewed == other.reviewed
+        return (_same_array(self.pose, other.pose) and self.match == other.match and self.reviewed == other.reviewed
+                and self.status == other.status and self.reason == other.reason)
+
+
+def default_status(match: MatchRecord | None) -> str:
+    """The status of a pose record that does not state one (files of schema 2 and older)."""
+    if match is None:
+        return PLACED
+    return MATCHED if match.converged else NEEDS_REVIEW
 
 
 @dataclass(eq=False)

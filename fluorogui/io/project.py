@@ -1,8 +1,8 @@
 """Project files (``.fluoro``): one JSON document holding a ``fluorogui.core.session.Project``.
 
-Layout (schema 2, the current one)::
+Layout (schema 3, the current one)::
 
-    {"format": "fluorogui-project", "schema_version": 2, "app_version": "...",
+    {"format": "fluorogui-project", "schema_version": 3, "app_version": "...",
      "views": [View.to_dict(), ...],
      "sequences": [{"paths": ["cam1/0001.tif", ...]}, ...],      # one per view
      "frames": [0, 20, ...],
@@ -12,7 +12,8 @@ Layout (schema 2, the current one)::
                   "spline": {"knots": [...], "coefficients": 2xn, "degree": 3,
                              "t_range": [t0, t1]} or null, "reviewed": true}],
      "poses": [{"frame": 0, "component": "femur", "pose": [x, y, z, a, b, g],
-                "match": {"objective_mm": ..., ...} or null, "reviewed": false}],  # reviewed: optional
+                "match": {"objective_mm": ..., ..., "quality": {...}} or null,   # quality: optional
+                "reviewed": false, "status": "matched", "reason": ""}],
      "settings": {...}}
 
 Arrays are nested lists of numbers; file paths are stored relative to the project file's
@@ -33,6 +34,7 @@ import numpy as np
 from fluorogui import __version__
 from fluorogui.core.geometry import GeometryError, View
 from fluorogui.core.session import (
+    POSE_STATUSES,
     ImageSequence,
     MatchRecord,
     ModelEntry,
@@ -45,7 +47,7 @@ from fluorogui.io.errors import InputError, atomic_write_text, describe_os_error
 
 PROJECT_FORMAT = "fluorogui-project"
 PROJECT_SUFFIX = ".fluoro"
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 
 
 class _Malformed(Exception):
@@ -76,7 +78,23 @@ def migrate_1_to_2(document: dict) -> dict:
     return upgraded
 
 
-MIGRATIONS = {1: migrate_1_to_2}
+def migrate_2_to_3(document: dict) -> dict:
+    """Schema 3 gives every pose a ``status`` (matched / needs_review / failed / placed) and
+    a ``reason``: a converged match was shown as matched, anything else was not."""
+    upgraded = dict(document)
+    poses = []
+    for i, raw in enumerate(_get(document, "poses", "", list)):
+        raw = dict(_object(raw, f"poses[{i}]"))
+        match = raw.get("match")
+        converged = isinstance(match, dict) and match.get("converged") is True
+        raw["status"] = "placed" if match is None else ("matched" if converged else "needs_review")
+        raw["reason"] = "" if match is None or converged else "the match did not converge"
+        poses.append(raw)
+    upgraded["poses"] = poses
+    return upgraded
+
+
+MIGRATIONS = {1: migrate_1_to_2, 2: migrate_2_to_3}
 
 
 def upgrade(document: dict) -> dict:
@@ -179,6 +197,8 @@ def project_to_document(project: Project, base: Path) -> dict:
                 "pose": record.pose.tolist(),
                 "match": None if record.match is None else _match_to_dict(record.match),
                 "reviewed": bool(record.reviewed),
+                "status": record.status,
+                "reason": record.reason,
             }
             for (frame, component), record in sorted(project.poses.items(), key=_sort_key)
         ],
@@ -208,6 +228,7 @@ def _match_to_dict(match: MatchRecord) -> dict:
         "converged": bool(match.converged),
         "method": str(match.method),
         "settings": match.settings,
+        "quality": match.quality,
     }
 
 
@@ -277,10 +298,15 @@ def project_from_document(document: dict, base: Path) -> Project:
         if key in poses:
             raise _Malformed(f"'{where}' repeats the pose of frame {key[0]}, {key[1]}")
         match = _get(raw, "match", where)
+        status = _get(raw, "status", where, str)
+        if status not in POSE_STATUSES:
+            raise _Malformed(f"'{where}.status' is {status!r}; it must be one of {', '.join(POSE_STATUSES)}")
         poses[key] = PoseRecord(
             pose=_array(_get(raw, "pose", where), f"{where}.pose", (6,)),
             match=None if match is None else _match_from_dict(_object(match, f"{where}.match"), f"{where}.match"),
             reviewed=_optional_bool(raw, "reviewed", where),
+            status=status,
+            reason=_get(raw, "reason", where, str),
         )
     return Project(
         views=views,
@@ -317,6 +343,7 @@ def _match_from_dict(raw: dict, where: str) -> MatchRecord:
         converged=_get(raw, "converged", where, bool),
         method=_get(raw, "method", where, str),
         settings=_get(raw, "settings", where, dict),
+        quality=_get(raw, "quality", where, dict) if "quality" in raw else {},
     )
 
 

@@ -222,3 +222,33 @@ def test_v1_with_bad_key(tmp_path):
     path = tmp_path / "old.fluoro"
     path.write_text(json.dumps(document))
     assert "cannot upgrade from schema 1: 'outlines[0].key' must start with two whole numbers" in load_error(path)
+
+
+def test_schema_2_poses_get_a_status_that_never_shows_unconverged_as_matched():
+    document = json.loads((FIXTURES / "project_v2.fluoro").read_text())
+    document["poses"][0]["match"]["converged"] = False
+    upgraded = project_io.upgrade(document)
+    statuses = {(p["frame"], p["status"], p["reason"]) for p in upgraded["poses"]}
+    assert statuses == {(0, "needs_review", "the match did not converge"), (1, "placed", "")}
+    project = load_project(FIXTURES / "project_v2.fluoro")
+    assert project.poses[(0, "femur")].status == "matched" and project.poses[(0, "femur")].is_matched
+    assert project.poses[(1, "tibia")].status == "placed" and not project.poses[(1, "tibia")].is_matched
+
+
+def test_status_reason_and_quality_round_trip(tmp_path):
+    project = full_project(tmp_path)
+    record = project.poses[(0, "femur")]
+    record.match.quality = {"edge_support": [0.99, 0.42], "jump_mm": 0.5}
+    project.poses[(0, "femur")] = PoseRecord(record.pose, record.match, status="needs_review",
+                                             reason="only 42 % of the model outline lies on image edges in view 2")
+    project.poses[(1, "tibia")] = PoseRecord(np.ones(6), None, status="failed", reason="view 2: image missing")
+    save_project(project, tmp_path / "p.fluoro")
+    again = load_project(tmp_path / "p.fluoro")
+    assert again == project
+    assert again.poses[(0, "femur")].needs_review and again.poses[(1, "tibia")].needs_review
+    assert again.poses[(0, "femur")].match.quality["edge_support"] == [0.99, 0.42]
+    text = (tmp_path / "p.fluoro").read_text()
+    bad = text.replace('"status": "failed"', '"status": "fine"')
+    (tmp_path / "bad.fluoro").write_text(bad)
+    with pytest.raises(InputError, match="status"):
+        load_project(tmp_path / "bad.fluoro")
