@@ -1,3 +1,35 @@
-"""fluorogui: six-degree-of-freedom pose of knee-implant components from biplane fluoroscopy."""
+"""fluorogui: six-degree-of-freedom pose of knee-implant components from biplane fluoroscopy.
+
+The public Python API (the same workflow the desktop app and the command line use)::
+
+    from fluorogui import Session
+    session = Session.open("knee.fluoro")
+    for result in session.track(components="both", autosave=True):
+        print(result.frame, result.component, result.status, result.pose)
+
+``Session``, ``FrameResult``, ``Placement``, ``WorkflowSettings`` and ``FrameState`` are
+imported on first use, so ``import fluorogui`` stays cheap.
+"""
 
 __version__ = "0.1.0"
+
+_PUBLIC = {
+    "Session": "fluorogui.workflow.session",
+    "FrameState": "fluorogui.workflow.session",
+    "FrameResult": "fluorogui.workflow.results",
+    "Placement": "fluorogui.workflow.results",
+    "WorkflowSettings": "fluorogui.workflow.settings",
+    "build_demo_project": "fluorogui.io.demo",
+    "import_folder": "fluorogui.io.importer",
+}
+__all__ = ["__version__", *_PUBLIC]
+
+
+def __getattr__(name):
+    if name in _PUBLIC:
+        import importlib
+
+        value = getattr(importlib.import_module(_PUBLIC[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'fluorogui' has no attribute {name!r}")

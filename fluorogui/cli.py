@@ -1,4 +1,5 @@
-"""Headless command line over the engine: match, validate, bench. Never imports Qt.
+"""Headless command line: match, validate, bench, and (``fluorogui.commands``) demo, import,
+find, track and batch over the workflow. Never imports Qt.
 
 Every failure ends in one line on stderr and a non-zero exit (2 for bad input, 1 for
 an internal error), never a traceback.
@@ -14,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from fluorogui import __version__
+from fluorogui.commands.common import UsageError
 
 
 class _Parser(argparse.ArgumentParser):
@@ -73,6 +75,10 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--seed", type=int, default=0)
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench)
+
+    from fluorogui.commands import add_parsers
+
+    add_parsers(sub)
     return p
 
 
@@ -410,7 +416,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             build_parser().print_help()
             return 0
         return args.func(args)
-    except _UsageError as exc:
+    except (_UsageError, UsageError) as exc:
         print(str(exc), file=sys.stderr)
         return 2
     except KeyboardInterrupt:
@@ -421,7 +427,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         from fluorogui.core.mesh import MeshError
         from fluorogui.io.errors import InputError
 
-        if isinstance(exc, (InputError, GeometryError, MeshError, ValueError)):
+        if isinstance(exc, (InputError, GeometryError, MeshError, ValueError, KeyError)):
+            if isinstance(exc, KeyError):
+                exc = exc.args[0] if exc.args else exc
             print(f"fluorogui: error: {exc}", file=sys.stderr)
             return 2
         print(f"fluorogui: internal error: {type(exc).__name__}: {' '.join(str(exc).split())}", file=sys.stderr)

@@ -59,12 +59,16 @@ def import_session(
     image_sources: Sequence[ImageSource] | None,
     models: dict[str, Path | str],
     pairs_csv: Path | str | None = None,
+    allow_unequal: bool = False,
 ) -> Project:
     """A new Project from calibration files, image sources (one per view) and models.
 
     ``models`` maps a component name ("femoral", "tibial") to its mesh file. With
     ``pairs_csv`` the frames and their images come from the CSV and ``image_sources`` is
-    ignored (it may be empty). Raises InputError naming the offending file.
+    ignored (it may be empty). Views with different numbers of images are refused unless
+    ``allow_unequal``: then the project has as many frames as the longest view, and the
+    frames a shorter view lacks are flagged when they are matched. Raises InputError
+    naming the offending file.
     """
     calibrations = [_absolute(p) for p in calibrations]
     if not calibrations:
@@ -79,14 +83,14 @@ def import_session(
             raise ValueError(f"{len(views)} calibrations need {len(views)} image sources, got {len(sources)}")
         paths = [resolve_image_source(source) for source in sources]
         counts = [len(p) for p in paths]
-        if len(set(counts)) > 1:
+        if len(set(counts)) > 1 and not allow_unequal:
             k = next(i for i, n in enumerate(counts) if n != counts[0])
             raise InputError(
                 _source_label(sources[k]),
                 f"has {counts[k]} images but {_source_label(sources[0])} has {counts[0]}; both views need the "
                 "same number of images (or give a pairs CSV saying which images go together)",
             )
-        frames = list(range(counts[0]))
+        frames = list(range(max(counts)))
 
     for view, sequence in zip(views, paths):
         check_image_size(view, read_image(sequence[0]).shape, sequence[0])
@@ -105,6 +109,19 @@ def import_session(
         frames=frames,
         models=entries,
     )
+
+
+def import_folder(folder, allow_unequal: bool = False) -> Project:
+    """A new Project from a folder laid out like ``data/biplane-tka`` (see
+    ``detect_biplane_folder``); raises InputError naming the folder when it is not one."""
+    found = detect_biplane_folder(folder)
+    if found is None:
+        raise InputError(folder, "not a biplane session folder: it needs calibration/ with one file per camera, "
+                                 "cam1/ and cam2/ image folders, and models/ with femoral and tibial meshes")
+    if not found["models"]:
+        raise InputError(Path(folder) / "models", "no femoral or tibial mesh found (names must contain fem / tib)")
+    return import_session(found["calibrations"], found["image_sources"], found["models"], found["pairs_csv"],
+                          allow_unequal=allow_unequal)
 
 
 def check_implant_model(path) -> tuple[np.ndarray, np.ndarray]:

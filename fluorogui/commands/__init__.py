@@ -1,0 +1,8 @@
+"""The workflow's command-line sub-commands, one module per group, each a thin layer over
+``fluorogui.workflow`` (the functions the desktop app calls too)."""
+from fluorogui.commands import sessions, tracking
+
+
+def add_parsers(sub) -> None:
+    sessions.add_parsers(sub)
+    tracking.add_parsers(sub)

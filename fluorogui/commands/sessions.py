@@ -1,0 +1,98 @@
+"""``fluorogui demo`` and ``fluorogui import``: make a project file to work on."""
+from __future__ import annotations
+
+import shutil
+import tempfile
+from pathlib import Path
+
+from fluorogui.commands.common import UsageError, warn
+
+
+def add_parsers(sub) -> None:
+    d = sub.add_parser("demo", help="write the built-in demo session (true poses included)")
+    d.add_argument("out", metavar="OUT.fluoro", help="project file to write; its data goes to OUT_data/ beside it")
+    d.add_argument("--frames", type=int, default=4, help="frames of the knee bend (default 4)")
+    d.add_argument("--force", action="store_true", help="replace an existing OUT.fluoro and OUT_data/")
+    d.set_defaults(func=run_demo)
+
+    i = sub.add_parser("import", help="make a project from a session folder or from explicit files")
+    i.add_argument("folder", nargs="?", metavar="FOLDER",
+                   help="a folder laid out like biplane-tka: calibration/, cam1/, cam2/, models/, pairs.csv")
+    i.add_argument("--out", required=True, metavar="PROJECT.fluoro")
+    i.add_argument("--camera", action="append", metavar="CAM", help="calibration file (twice)")
+    i.add_argument("--images1", metavar="DIR", help="images of camera 1 (folder, video or image)")
+    i.add_argument("--images2", metavar="DIR", help="images of camera 2")
+    i.add_argument("--pairs", metavar="CSV", help="frame,cam1,cam2 pairs (instead of --images1/--images2)")
+    i.add_argument("--model", action="append", metavar="NAME=MESH", help="femoral=MESH and tibial=MESH")
+    i.add_argument("--force", action="store_true", help="replace an existing project file")
+    i.set_defaults(func=run_import)
+
+
+def run_demo(args) -> int:
+    from fluorogui.io.demo import build_demo_project
+    from fluorogui.io.errors import InputError
+    from fluorogui.io.project import load_project, save_project
+
+    out = Path(args.out).absolute()
+    if out.suffix.lower() != ".fluoro":
+        raise UsageError(f"fluorogui: demo: {args.out}: the project file name must end in .fluoro")
+    data = out.with_name(out.stem + "_data")
+    if (out.exists() or data.exists()) and not args.force:
+        raise InputError(out if out.exists() else data, "already exists; use --force to replace it")
+    if args.frames < 1:
+        raise UsageError("fluorogui: demo: --frames must be at least 1")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    scratch = Path(tempfile.mkdtemp(prefix=".demo-", dir=out.parent))
+    try:
+        built = build_demo_project(scratch, frames=args.frames)
+        if data.exists():
+            shutil.rmtree(data)
+        scratch.rename(data)
+        project = load_project(data / built.name)
+        (data / built.name).unlink()
+        save_project(project, out)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+    print(f"wrote {out} ({len(project.frames)} frames; data in {data})")
+    return 0
+
+
+def run_import(args) -> int:
+    from fluorogui.io.errors import InputError
+    from fluorogui.io.importer import import_folder, import_session
+    from fluorogui.io.project import save_project
+
+    out = Path(args.out)
+    if out.suffix.lower() != ".fluoro":
+        raise UsageError(f"fluorogui: import: {args.out}: the project file name must end in .fluoro")
+    if out.exists() and not args.force:
+        raise InputError(out, "already exists; use --force to replace it")
+    if args.folder:
+        if args.camera or args.images1 or args.images2 or args.model or args.pairs:
+            raise UsageError("fluorogui: import: give a FOLDER or the explicit files, not both")
+        project = import_folder(args.folder, allow_unequal=True)
+    else:
+        if len(args.camera or []) != 2:
+            raise UsageError("fluorogui: import: give FOLDER, or two --camera files with --images1/--images2 "
+                             "(or --pairs) and --model femoral=MESH --model tibial=MESH")
+        models = {}
+        for item in args.model or []:
+            name, sep, path = item.partition("=")
+            if not sep or not name or not path:
+                raise UsageError(f"fluorogui: import: --model {item}: use NAME=MESH, e.g. femoral=femur.stl")
+            models[name] = path
+        if not models:
+            raise UsageError("fluorogui: import: give --model femoral=MESH and/or --model tibial=MESH")
+        if args.pairs is None and not (args.images1 and args.images2):
+            raise UsageError("fluorogui: import: give --images1 and --images2, or --pairs")
+        sources = None if args.pairs else [Path(args.images1), Path(args.images2)]
+        project = import_session(args.camera, sources, models, args.pairs, allow_unequal=True)
+    counts = [len(s.paths) for s in project.sequences]
+    if len(set(counts)) > 1:
+        short = min(range(len(counts)), key=lambda k: counts[k])
+        warn(f"camera {short + 1} has {counts[short]} images but the project has {len(project.frames)} frames; "
+             f"frames {project.frames[counts[short]]}..{project.frames[-1]} will be flagged when matched")
+    save_project(project, out)
+    print(f"wrote {out}: {len(project.frames)} frames, {len(project.views)} views, "
+          f"components {', '.join(m.component for m in project.models)}")
+    return 0

@@ -1,0 +1,235 @@
+"""Matching the components of one frame, with quality checks and recovery.
+
+This is the step tracking repeats and the app's *Match* runs: for each component, the
+one segment -> match loop (``core.pipeline.segment_and_match``) from a start pose, with
+the other components' current projections masked out where they overlap
+(``occlusion_masks``), then every quality check (``core.quality``). A frame that fails a
+check is not given up at once: other starts are tried - the last matched pose when the
+prediction extrapolated, the prediction turned by a few degrees about the recent motion
+axis and the model's axes, and finally a search near the prediction (*find implants*) -
+and the best result is kept. Whatever fails its checks in the end is returned as
+``needs_review``; a frame where no outline could be traced at all is ``failed``.
+
+Everything here reads only what it is given (images, views, meshes, outlines), so it
+runs in a worker thread or another process without touching the session.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import cv2
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from fluorogui.core.geometry import View
+from fluorogui.core.mesh import PreparedMesh
+from fluorogui.core.pipeline import SegmentationError, segment_and_match
+from fluorogui.core.pose import angles_from_matrix, motion_between, rotation_matrix
+from fluorogui.core.quality import FAILED, MATCHED, NEEDS_REVIEW, assess, judge
+from fluorogui.core.silhouette import mesh_silhouette
+from fluorogui.core.spline import OutlineSpline
+from fluorogui.workflow import messages
+from fluorogui.workflow.results import FrameResult
+from fluorogui.workflow.settings import WorkflowSettings
+
+_RANK = {MATCHED: 0, NEEDS_REVIEW: 1, FAILED: 2}
+
+
+class Cancelled(Exception):
+    """The caller's cancel flag was set."""
+
+
+@dataclass
+class ComponentInput:
+    """What matching one component in one frame needs besides the images."""
+
+    component: str
+    mesh: PreparedMesh
+    start: np.ndarray  # the predicted pose
+    fallback: np.ndarray | None = None  # the last matched pose, when the prediction extrapolated
+    given: list[OutlineSpline | None] | None = None  # reviewed outlines per view (None: segment)
+    typical_view_mm: float | None = None
+    axis: np.ndarray | None = None  # unit axis (world) of the recent rotation, for turned starts
+
+
+def occlusion_masks(views: Sequence[View], others: Sequence[tuple[PreparedMesh, np.ndarray]], near: np.ndarray | None,
+                    mesh: PreparedMesh | None, margin_px: int = 3) -> list[np.ndarray | None] | None:
+    """Per view, where the other components (mesh, pose) project, grown by ``margin_px``;
+    None for a view where they do not come near this component's projection at ``near``
+    (and None overall when no view needs a mask)."""
+    out: list[np.ndarray | None] = []
+    for view in views:
+        w, h = view.image_size
+        mask = np.zeros((h, w), np.uint8)
+        for other_mesh, pose in others:
+            try:
+                sil = mesh_silhouette(other_mesh, rotation_matrix(*pose[3:]), pose[:3], view, spacing_px=1.0)
+            except ValueError:
+                continue
+            cv2.fillPoly(mask, [np.round(sil.points_px * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
+        if not mask.any():
+            out.append(None)
+            continue
+        if margin_px > 0:
+            mask = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin_px + 1,) * 2))
+        if near is not None and mesh is not None:
+            try:
+                own = mesh_silhouette(mesh, rotation_matrix(*near[3:]), near[:3], view, spacing_px=2.0).points_px
+            except ValueError:
+                own = None
+            if own is not None:
+                lo = np.floor(own.min(0)).astype(int) - 20
+                hi = np.ceil(own.max(0)).astype(int) + 20
+                box = mask[max(lo[1], 0):max(hi[1], 0), max(lo[0], 0):max(hi[0], 0)]
+                if not box.any():
+                    out.append(None)
+                    continue
+        out.append(mask > 0)
+    return out if any(m is not None for m in out) else None
+
+
+def turned(pose: np.ndarray, centroid: np.ndarray, axis: np.ndarray, degrees: float) -> np.ndarray:
+    """``pose`` turned by ``degrees`` about a world ``axis`` through the model centroid."""
+    R = rotation_matrix(*pose[3:])
+    c = R @ centroid + pose[:3]
+    R2 = Rotation.from_rotvec(np.radians(degrees) * np.asarray(axis, float)).as_matrix() @ R
+    return np.array([*(c - R2 @ centroid), *angles_from_matrix(R2)])
+
+
+class FrameMatcher:
+    """Matches components in frames of one session set-up (views, settings, find)."""
+
+    def __init__(self, views: Sequence[View], settings: WorkflowSettings | None = None,
+                 find_near: Callable | None = None, live: Callable | None = None) -> None:
+        self.views = list(views)
+        self.settings = settings or WorkflowSettings()
+        self.find_near = find_near  # find_near(images, component, mesh, pose, cancel) -> pose or None
+        self.live = live  # live(component, calls, objective_mm, pose) at every step of a match
+
+    # -- one attempt ---------------------------------------------------------------------------
+    def attempt(self, images, job: ComponentInput, start, occluded, cancel) -> FrameResult:
+        """One segment -> match loop from ``start`` and the quality checks of its result."""
+        s = self.settings
+        t0 = time.perf_counter()
+        step = None
+        if self.live is not None:
+            def step(calls, objective, pose, _c=job.component):
+                self.live(_c, calls, objective, pose)
+        try:
+            out = segment_and_match(images, self.views, job.mesh, start, s.match, s.loop, job.given, occluded,
+                                    step, cancel)
+        except SegmentationError as exc:
+            return FrameResult(0, job.component, None, FAILED, messages.segmentation_failed(job.component, exc),
+                               seconds=time.perf_counter() - t0)
+        except ValueError as exc:  # e.g. the model behind the source at this start
+            return FrameResult(0, job.component, None, FAILED, messages.match_failed(job.component, exc),
+                               seconds=time.perf_counter() - t0)
+        result = out.result
+        if result.cancelled:
+            raise Cancelled
+        outlines = out.outlines if out.outlines is not None else [sp.sample(max(64, int(sp.length_px)))
+                                                                  for sp in out.splines]
+        quality = assess(images, self.views, job.mesh, result.pose, result.converged, result.per_view_mean_mm,
+                         outlines, job.start, occluded, s.quality.tol_px)
+        status, reason = judge(quality, s.quality, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))])
+        return FrameResult(0, job.component, result.pose, status, reason, result, quality,
+                           out.outlines, time.perf_counter() - t0)
+
+    # -- one component, with recovery ------------------------------------------------------------
+    def match_component(self, frame: int, images, job: ComponentInput, occluded=None,
+                        cancel: Callable[[], bool] | None = None) -> FrameResult:
+        """The best of the attempts from the prediction and, while none passes its checks,
+        from the recovery starts; ``frame`` is only recorded in the result."""
+        t0 = time.perf_counter()
+        best: FrameResult | None = None
+        tried = 0
+        for label, start in self._starts(images, job, cancel):
+            if cancel is not None and cancel():
+                raise Cancelled
+            candidate = self.attempt(images, job, start, occluded, cancel)
+            tried += 1
+            if best is None or _better(candidate, best):
+                best = candidate
+                best.recovered = label
+            if best.status == MATCHED:
+                break
+            if job.given is not None and all(g is not None for g in job.given) and best.status == FAILED:
+                break  # reviewed outlines that cannot be matched: other starts will not help
+        best.frame, best.attempts, best.seconds = frame, tried, time.perf_counter() - t0
+        if best.pose is None:
+            best.pose = np.asarray(job.start, dtype=float).copy()  # the prediction, as a start for the user
+        return best
+
+    def _starts(self, images, job: ComponentInput, cancel):
+        """(label, start) pairs, cheapest first; later ones are computed only when needed."""
+        yield "", np.asarray(job.start, dtype=float)
+        t = self.settings.tracking
+        if not t.recover:
+            return
+        if job.fallback is not None and np.abs(np.asarray(job.fallback) - job.start).max() > 0.5:
+            yield "last pose", np.asarray(job.fallback, dtype=float)
+        centroid = job.mesh.centroid
+        axes = []
+        if job.axis is not None and np.linalg.norm(job.axis) > 0:
+            axes.append(np.asarray(job.axis, float) / np.linalg.norm(job.axis))
+        R = rotation_matrix(*job.start[3:])
+        axes += [R[:, k] for k in range(3)]  # the model's own axes in the world
+        for axis in axes:
+            for sign in (1.0, -1.0):
+                yield "turned start", turned(job.start, centroid, axis, sign * t.rotated_start_deg)
+        if t.find_near and self.find_near is not None:
+            pose = self.find_near(images, job.component, job.mesh, job.start, cancel)
+            if pose is not None:
+                yield "find near the prediction", np.asarray(pose, dtype=float)
+
+    # -- all components of a frame ----------------------------------------------------------------
+    def match_frame(self, frame: int, images, jobs: Sequence[ComponentInput], fixed: dict | None = None,
+                    cancel: Callable[[], bool] | None = None) -> dict[str, FrameResult]:
+        """Match ``jobs`` in order, each with the others masked at their best known pose
+        in this frame (``fixed``: component -> (mesh, pose) of components not matched here,
+        e.g. accepted ones). When a component matched later moved far from the pose the
+        earlier ones were masked with, those are matched again."""
+        known = dict(fixed or {})
+        for job in jobs:
+            known.setdefault(job.component, (job.mesh, np.asarray(job.start, float)))
+        results: dict[str, FrameResult] = {}
+        masked_with: dict[str, dict[str, np.ndarray]] = {}
+        for job in jobs:
+            results[job.component] = self._match_masked(frame, images, job, known, masked_with, cancel)
+            if results[job.component].pose is not None and results[job.component].status != FAILED:
+                known[job.component] = (job.mesh, results[job.component].pose)
+        if self.settings.tracking.occlusion and len(jobs) > 1:
+            for job in jobs:  # a second round where a mask was placed far from where the other ended up
+                used = masked_with.get(job.component, {})
+                if any(_moved(known[o][0], used[o], known[o][1]) for o in used):
+                    results[job.component] = self._match_masked(frame, images, job, known, masked_with, cancel)
+                    if results[job.component].status != FAILED:
+                        known[job.component] = (job.mesh, results[job.component].pose)
+        return results
+
+    def _match_masked(self, frame, images, job, known, masked_with, cancel) -> FrameResult:
+        t = self.settings.tracking
+        occluded = None
+        if t.occlusion:
+            others = [(m, p) for name, (m, p) in known.items() if name != job.component]
+            occluded = occlusion_masks(self.views, others, job.start, job.mesh, t.occlusion_margin_px)
+            masked_with[job.component] = {name: p.copy() for name, (m, p) in known.items()
+                                          if name != job.component} if occluded is not None else {}
+        return self.match_component(frame, images, job, occluded, cancel)
+
+
+def _better(a: FrameResult, b: FrameResult) -> bool:
+    """Is ``a`` a better result than ``b``: a better status, then a lower objective."""
+    if _RANK[a.status] != _RANK[b.status]:
+        return _RANK[a.status] < _RANK[b.status]
+    oa = a.match.objective_mm if a.match is not None else np.inf
+    ob = b.match.objective_mm if b.match is not None else np.inf
+    return oa < ob
+
+
+def _moved(mesh: PreparedMesh, before: np.ndarray, after: np.ndarray, limit_mm: float = 1.0) -> bool:
+    """Did a mask's component end up more than ``limit_mm`` from where it was masked?"""
+    travel, turn = motion_between(before, after, mesh.centroid)
+    return travel > limit_mm or turn * np.pi / 180 * mesh.radius > limit_mm

@@ -1,0 +1,86 @@
+"""What a match, a search or a tracked frame produces, and how it becomes project records.
+
+``FrameResult`` is the one result type of the workflow: the app, the command line
+(``--json`` lines) and scripts all receive it. Its ``status`` is ``matched`` only when
+every quality check passed; otherwise ``needs_review`` (a pose was found but a check
+failed) or ``failed`` (no pose; ``pose`` is then the prediction, a start for the user).
+``kept`` marks a frame whose stored result was left as it was (accepted by the user, or
+already matched when a run resumes).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from fluorogui.core.matching import MatchResult
+from fluorogui.core.quality import Quality
+from fluorogui.core.session import FAILED, MATCHED, NEEDS_REVIEW, PLACED, MatchRecord, PoseRecord
+
+__all__ = ["FAILED", "MATCHED", "NEEDS_REVIEW", "PLACED", "FrameResult", "Placement"]
+
+
+@dataclass
+class FrameResult:
+    """One component in one frame."""
+
+    frame: int
+    component: str
+    pose: np.ndarray | None
+    status: str
+    reason: str = ""
+    match: MatchResult | None = None
+    quality: Quality | None = None
+    outlines: list[np.ndarray | None] | None = None  # automatic outlines to store, per view
+    seconds: float = 0.0
+    kept: bool = False
+    attempts: int = 0  # starts tried (1 when the prediction was right at once)
+    recovered: str = ""  # how a lost frame was recovered ("last pose", "rotated start", "find near")
+
+    @property
+    def is_matched(self) -> bool:
+        return self.status == MATCHED
+
+    def record(self) -> PoseRecord | None:
+        """The pose record to store (None when there is no pose at all)."""
+        if self.pose is None:
+            return None
+        match = None
+        if self.match is not None:
+            match = MatchRecord.from_result(self.match, self.quality.to_dict() if self.quality else None)
+        return PoseRecord(np.asarray(self.pose, dtype=float), match, reviewed=False, status=self.status,
+                          reason=self.reason)
+
+    def to_json(self) -> dict:
+        """The command line's per-frame JSON object (a contract: see the README)."""
+        m = self.match
+        return {
+            "frame": int(self.frame),
+            "component": self.component,
+            "pose": None if self.pose is None else [round(float(v), 6) for v in self.pose],
+            "objective_mm": None if m is None else round(float(m.objective_mm), 6),
+            "per_view_mean_mm": None if m is None else [round(float(v), 6) for v in m.per_view_mean_mm],
+            "converged": bool(m is not None and m.converged),
+            "status": self.status,
+            "reason": self.reason,
+            "seconds": round(float(self.seconds), 4),
+        }
+
+
+@dataclass
+class Placement:
+    """Where *find implants* put one component in one frame (``found`` only when confident)."""
+
+    component: str
+    frame: int
+    pose: np.ndarray | None
+    found: bool
+    iou: list[float] = field(default_factory=list)
+    reason: str = ""
+    seconds: float = 0.0
+
+    def describe(self) -> str:
+        overlap = f"overlap {100 * float(np.mean(self.iou)):.0f} %" if self.iou else "no overlap"
+        if self.found:
+            return f"{self.component}: found ({overlap})"
+        return f"{self.component}: not placed ({self.reason}; {overlap})"

@@ -1,0 +1,188 @@
+"""Tracking components through frames: a generator of per-frame results that never lies.
+
+``TrackJob`` is a snapshot of everything tracking needs (views, meshes, image files,
+reviewed outlines, the poses to start from and to keep), taken from a session on the
+caller's thread; ``run`` can then go on in a worker thread or another process. For each
+frame it predicts every component from the frames matched so far (``MotionModel``),
+matches all components together with each other's projections masked
+(``FrameMatcher``), checks every result and recovers what fails (other starts, a search
+near the prediction). A frame that still fails is yielded as ``needs_review`` (or
+``failed`` when no outline could be traced or an image is missing) and tracking goes on:
+the prediction then comes from the last frames that did match. A component with nothing
+to start from is searched for (*find implants*) in the frame, again in every following
+frame until it is found.
+
+Accepted poses, and on a resumed run poses already matched, are kept as they are
+(``kept``) and serve as the motion's anchors.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Iterator, Sequence
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from fluorogui.core.geometry import View
+from fluorogui.core.mesh import PreparedMesh
+from fluorogui.core.pose import rotation_matrix
+from fluorogui.core.quality import FAILED, MATCHED
+from fluorogui.core.session import PoseRecord
+from fluorogui.core.spline import OutlineSpline
+from fluorogui.io.errors import InputError
+from fluorogui.io.images import read_image
+from fluorogui.workflow import messages
+from fluorogui.workflow.framematch import Cancelled, ComponentInput, FrameMatcher
+from fluorogui.workflow.motion import MotionModel
+from fluorogui.workflow.results import FrameResult
+from fluorogui.workflow.settings import WorkflowSettings
+
+#: progress(done, total, frame, text)
+TrackProgress = Callable[[int, int, int, str], None]
+
+
+@dataclass
+class TrackJob:
+    """What tracking frames needs, captured from a session (plain data, picklable)."""
+
+    views: list[View]
+    meshes: dict[str, PreparedMesh]
+    frames: list[int]
+    image_paths: dict[int, list[Path | None]]
+    components: list[str]
+    settings: WorkflowSettings
+    anchors: dict[str, list[tuple[int, np.ndarray]]] = field(default_factory=dict)  # matched poses before
+    keep: dict[tuple[int, str], PoseRecord] = field(default_factory=dict)  # (frame, component) left as is
+    given: dict[tuple[int, str], list[OutlineSpline | None]] = field(default_factory=dict)  # reviewed outlines
+    residuals: dict[str, list[float]] = field(default_factory=dict)  # per-view residuals of matched frames
+    starts: dict[str, np.ndarray] = field(default_factory=dict)  # start poses for components without anchors
+    find: bool = True  # search for components with no anchor and no start
+
+    def run(self, progress: TrackProgress | None = None,
+            cancel: Callable[[], bool] | None = None) -> Iterator[FrameResult]:
+        """Yield one FrameResult per frame and component, frame by frame; stops quietly
+        when ``cancel()`` turns true (the frame in progress is not yielded)."""
+        s = self.settings
+        matcher = FrameMatcher(self.views, s, _near_search(self.views) if s.tracking.find_near else None)
+        motion = {c: MotionModel(self.meshes[c].centroid) for c in self.components}
+        for c, poses in self.anchors.items():
+            for frame, pose in poses:
+                motion[c].add(frame, pose)
+        residuals = {c: list(self.residuals.get(c, [])) for c in self.components}
+        starts = {c: np.asarray(p, float) for c, p in self.starts.items()}
+        total = len(self.frames)
+        t0 = time.perf_counter()
+        for done, frame in enumerate(self.frames):
+            if cancel is not None and cancel():
+                return
+            try:
+                results = self._frame(frame, matcher, motion, residuals, starts, cancel)
+            except Cancelled:
+                return
+            for c in self.components:
+                r = results[c]
+                if r.status == MATCHED or (r.kept and r.pose is not None and self._kept_is_matched(frame, c)):
+                    motion[c].add(frame, r.pose)
+                    if r.match is not None and not r.kept:
+                        residuals[c] = (residuals[c] + list(r.match.per_view_mean_mm))[-2 * s.tracking.typical_window:]
+                yield r
+            if progress is not None:
+                progress(done + 1, total, frame, f"frame {frame} done ({time.perf_counter() - t0:.1f} s)")
+
+    # -- one frame -----------------------------------------------------------------------------
+    def _kept_is_matched(self, frame: int, component: str) -> bool:
+        record = self.keep.get((frame, component))
+        return record is not None and record.is_matched
+
+    def _frame(self, frame, matcher, motion, residuals, starts, cancel) -> dict[str, FrameResult]:
+        t0 = time.perf_counter()
+        results: dict[str, FrameResult] = {}
+        todo = []
+        for c in self.components:
+            kept = self.keep.get((frame, c))
+            if kept is not None:
+                results[c] = FrameResult(frame, c, kept.pose.copy(), kept.status, kept.reason, kept=True)
+            else:
+                todo.append(c)
+        if not todo:
+            return results
+        try:
+            images = self._images(frame)
+        except InputError as exc:
+            for c in todo:
+                results[c] = FrameResult(frame, c, self._predicted(c, frame, motion, starts), FAILED,
+                                         f"{exc.path}: {exc.problem}", seconds=time.perf_counter() - t0)
+            return results
+        # components with nothing to start from: find them in this frame
+        lost = [c for c in todo if len(motion[c]) == 0 and c not in starts]
+        if lost and self.find:
+            from fluorogui.workflow.finding import SearchCancelled, find_in_frame
+
+            try:
+                placements = find_in_frame(frame, images, self.views, {c: self.meshes[c] for c in lost},
+                                           cancel=cancel)
+            except SearchCancelled:
+                raise Cancelled from None
+            for c in lost:
+                p = placements[c]
+                if p.found and p.pose is not None:
+                    starts[c] = p.pose
+                else:
+                    results[c] = FrameResult(frame, c, p.pose, FAILED, "find implants could not place it: "
+                                             f"{p.reason}", seconds=time.perf_counter() - t0)
+            todo = [c for c in todo if c not in results]
+        fixed = {c: (self.meshes[c], r.pose) for c, r in results.items() if r.kept and r.pose is not None}
+        jobs = [self._input(c, frame, motion, residuals, starts) for c in todo]
+        found = matcher.match_frame(frame, images, jobs, fixed, cancel)
+        for c in todo:
+            results[c] = found[c]
+            starts.pop(c, None)  # a start is used once; afterwards the motion predicts
+        return results
+
+    def _images(self, frame: int) -> list[np.ndarray]:
+        out = []
+        for view, path in enumerate(self.image_paths.get(frame, [])):
+            if path is None:
+                raise InputError(f"view {view + 1}", f"no image for frame {frame}")
+            out.append(read_image(path))
+        if len(out) < len(self.views):
+            raise InputError(f"view {len(out) + 1}", f"no image for frame {frame}")
+        return out
+
+    def _predicted(self, c, frame, motion, starts) -> np.ndarray | None:
+        p = motion[c].predict(frame)
+        return p if p is not None else starts.get(c)
+
+    def _input(self, c, frame, motion, residuals, starts) -> ComponentInput:
+        m = motion[c]
+        start = starts.get(c) if len(m) == 0 else m.predict(frame)
+        last = m.last(before=frame)
+        typical = None
+        if len(residuals[c]) >= 4:
+            typical = float(np.median(residuals[c]))
+        return ComponentInput(c, self.meshes[c], np.asarray(start, float), last, self.given.get((frame, c)),
+                              typical, _recent_axis(m, frame))
+
+
+def _near_search(views):
+    from fluorogui.workflow.finding import near_search
+
+    return near_search(views)
+
+
+def _recent_axis(m: MotionModel, frame: int) -> np.ndarray | None:
+    """Unit axis (world) of the rotation between the two latest matched frames before ``frame``."""
+    idx = [i for i, f in enumerate(m.frames) if f < frame]
+    if len(idx) < 2:
+        return None
+    p1, p2 = m.poses[idx[-2]], m.poses[idx[-1]]
+    w = Rotation.from_matrix(rotation_matrix(*p2[3:]) @ rotation_matrix(*p1[3:]).T).as_rotvec()
+    n = np.linalg.norm(w)
+    return w / n if n > 1e-6 else None
+
+
+def frames_between(frames: Sequence[int], first: int | None, last: int | None) -> list[int]:
+    """The project's frames from ``first`` to ``last``, both included (None: open end)."""
+    return [f for f in frames if (first is None or f >= first) and (last is None or f <= last)]

@@ -1,0 +1,226 @@
+"""The session's work: match a frame, find the implants, track frames.
+
+Each comes twice: as a job (``match_job``, ``find_job``, ``track_job``) - a snapshot of
+plain data taken on the caller's thread that can run anywhere (a worker thread, another
+process) and returns results without touching the session - and as a method that runs
+the job and stores its results (``match``, ``find``, ``track``). The desktop app runs the
+jobs in its worker thread and stores the results on the GUI thread; the command line and
+scripts call the methods. Same frame, same settings, same code: same pose.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Iterator, Sequence
+
+import numpy as np
+
+from fluorogui.core.geometry import View
+from fluorogui.core.mesh import PreparedMesh
+from fluorogui.io.errors import InputError
+from fluorogui.io.images import read_image
+from fluorogui.workflow.framematch import Cancelled, ComponentInput, FrameMatcher
+from fluorogui.workflow.results import FrameResult, Placement
+from fluorogui.workflow.settings import WorkflowSettings
+from fluorogui.workflow.tracking import TrackJob, TrackProgress, frames_between
+
+
+@dataclass
+class MatchJob:
+    """Match components in one frame from their current poses (plain data, picklable)."""
+
+    views: list[View]
+    frame: int
+    image_paths: list[Path | None]
+    inputs: list[ComponentInput]
+    fixed: dict = field(default_factory=dict)  # other components (mesh, pose) to mask
+    settings: WorkflowSettings = field(default_factory=WorkflowSettings)
+
+    def run(self, live: Callable | None = None,
+            cancel: Callable[[], bool] | None = None) -> list[FrameResult] | None:
+        """The results, or None when cancelled. ``live(component, calls, objective_mm, pose)``
+        follows every step of the matcher. Raises InputError for a missing image."""
+        images = []
+        for view, path in enumerate(self.image_paths):
+            if path is None:
+                raise InputError(f"view {view + 1}", f"no image for frame {self.frame}")
+            images.append(read_image(path))
+        matcher = FrameMatcher(self.views, self.settings, _near_search(self.views, self.settings), live)
+        try:
+            found = matcher.match_frame(self.frame, images, self.inputs, self.fixed, cancel)
+        except Cancelled:
+            return None
+        return [found[j.component] for j in self.inputs]
+
+
+@dataclass
+class FindJob:
+    """Find components in one frame with no start (plain data)."""
+
+    views: list[View]
+    frame: int
+    image_paths: list[Path | None]
+    meshes: dict[str, PreparedMesh]
+
+    def run(self, progress: Callable[[float, str], None] | None = None,
+            cancel: Callable[[], bool] | None = None) -> dict[str, Placement] | None:
+        from fluorogui.workflow.finding import SearchCancelled, find_in_frame
+
+        images = []
+        for view, path in enumerate(self.image_paths):
+            if path is None:
+                raise InputError(f"view {view + 1}", f"no image for frame {self.frame}")
+            images.append(read_image(path))
+        try:
+            return find_in_frame(self.frame, images, self.views, self.meshes, progress=progress, cancel=cancel)
+        except SearchCancelled:
+            return None
+
+
+def _near_search(views, settings: WorkflowSettings):
+    if not settings.tracking.find_near:
+        return None
+    from fluorogui.workflow.finding import near_search
+
+    return near_search(views)
+
+
+class WorkMixin:
+    """Match, find and track for ``Session`` (a mixin: uses its project and caches)."""
+
+    # -- helpers ---------------------------------------------------------------------------------
+    def _components(self, components) -> list[str]:
+        names = self.components()
+        if components is None or components == "both" or components == "all":
+            return names
+        wanted = [components] if isinstance(components, str) else list(components)
+        unknown = [c for c in wanted if c not in names]
+        if unknown:
+            raise KeyError(f"the project has no {', '.join(unknown)} component (it has {', '.join(names) or 'none'})")
+        return [c for c in names if c in wanted]
+
+    def _check_frame(self, frame: int) -> int:
+        if frame not in self.project.frames:
+            raise KeyError(f"frame {frame} is not in the project")
+        return int(frame)
+
+    def _residuals(self, component: str, before: int | None, window: int) -> list[float]:
+        """Per-view residuals of the component's matched frames (up to ``before``)."""
+        out = []
+        for f in self.project.frames:
+            if before is not None and f > before:
+                break
+            r = self.project.poses.get((f, component))
+            if r is not None and r.is_matched and r.match is not None:
+                out += list(r.match.per_view_mean_mm)
+        return out[-2 * window:]
+
+    @staticmethod
+    def _typical(values: Sequence[float]) -> float | None:
+        return float(np.median(values)) if len(values) >= 2 else None
+
+    # -- match -------------------------------------------------------------------------------------
+    def match_job(self, frame: int, components=None) -> MatchJob:
+        """Match components in ``frame`` from their current poses (``pose`` fallback), with
+        their reviewed outlines as they are and the others masked where they overlap."""
+        frame = self._check_frame(frame)
+        names = self._components(components)
+        settings = self.settings
+        inputs = [ComponentInput(c, self.mesh(c), self.pose(c, frame), None, self.given_splines(c, frame),
+                                 self._typical(self._residuals(c, None, settings.tracking.typical_window)))
+                  for c in names]
+        fixed = {}
+        for c in self.components():
+            if c not in names and (frame, c) in self.project.poses:
+                try:
+                    fixed[c] = (self.mesh(c), self.pose(c, frame))
+                except InputError:
+                    pass
+        return MatchJob(self.views, frame, self.image_paths(frame), inputs, fixed, settings)
+
+    def match(self, frame: int, components=None, live=None, cancel=None) -> list[FrameResult]:
+        """Match and store (one undoable step); returns the results ([] when cancelled)."""
+        results = self.match_job(frame, components).run(live, cancel)
+        if results:
+            self.store(results)
+        return results or []
+
+    # -- find --------------------------------------------------------------------------------------
+    def find_job(self, frame: int, components=None) -> FindJob:
+        frame = self._check_frame(frame)
+        return FindJob(self.views, frame, self.image_paths(frame), {c: self.mesh(c) for c in self._components(components)})
+
+    def store_placements(self, placements: dict[str, Placement]) -> None:
+        """Put the confidently found components at their poses (status ``placed``)."""
+        found = [p for p in placements.values() if p.found and p.pose is not None]
+        if not found:
+            return
+        self.history.begin_macro("Find implants")
+        try:
+            for p in found:
+                self.set_pose(p.component, p.frame, p.pose, text=f"Find {p.component}")
+        finally:
+            self.history.end_macro()
+
+    def find(self, frame: int, components=None, progress=None, cancel=None) -> dict[str, Placement]:
+        """Find and store the confident placements; returns every placement ({} when cancelled)."""
+        placements = self.find_job(frame, components).run(progress, cancel)
+        if placements:
+            self.store_placements(placements)
+        return placements or {}
+
+    # -- track -------------------------------------------------------------------------------------
+    def track_job(self, frames: Sequence[int] | None = None, components=None, redo: bool = False,
+                  first: int | None = None, last: int | None = None) -> TrackJob:
+        """Tracking of ``components`` through ``frames`` (default: ``first``..``last`` of the
+        project's frames, both included). Starts from the nearest matched frame at or before
+        the first; where there is none, from a pose placed in the first frame, else it
+        searches (*find implants*). Accepted poses are kept; with ``redo`` False, so are
+        poses already matched (a killed run resumes where it stopped)."""
+        names = self._components(components)
+        if frames is None:
+            frames = frames_between(self.project.frames, first, last)
+        frames = [self._check_frame(f) for f in frames]
+        settings = self.settings
+        window = settings.tracking.typical_window
+        start_frame = frames[0] if frames else None
+        anchors, starts, residuals = {}, {}, {}
+        for c in names:
+            before = [f for f in self.project.frames if start_frame is not None and f <= start_frame]
+            matched = [(f, self.project.poses[(f, c)].pose.copy()) for f in before
+                       if (f, c) in self.project.poses and self.project.poses[(f, c)].is_matched]
+            if redo and matched and matched[-1][0] == start_frame and not self.project.poses[(start_frame, c)].reviewed:
+                matched = matched[:-1]  # the first frame is matched again
+            anchors[c] = matched[-2:]
+            residuals[c] = self._residuals(c, start_frame, window)
+            record = self.project.poses.get((start_frame, c)) if start_frame is not None else None
+            if not matched and record is not None:
+                starts[c] = record.pose.copy()  # placed by hand or by find implants
+        keep, given = {}, {}
+        for f in frames:
+            for c in names:
+                record = self.project.poses.get((f, c))
+                if record is not None and (record.reviewed or (not redo and record.is_matched)):
+                    keep[(f, c)] = record
+                g = self.given_splines(c, f)
+                if g is not None:
+                    given[(f, c)] = g
+        meshes = {c: self.mesh(c) for c in names}
+        paths = {f: self.image_paths(f) for f in frames}
+        return TrackJob(self.views, meshes, frames, paths, names, settings, anchors, keep, given, residuals, starts)
+
+    def track(self, frames: Sequence[int] | None = None, components=None, redo: bool = False,
+              progress: TrackProgress | None = None, cancel: Callable[[], bool] | None = None,
+              autosave: bool = False, first: int | None = None, last: int | None = None) -> Iterator[FrameResult]:
+        """Track and store frame by frame, yielding every result; with ``autosave`` the
+        project is saved (atomically) after every frame."""
+        job = self.track_job(frames, components, redo, first, last)
+        pending: list[FrameResult] = []
+        for result in job.run(progress, cancel):
+            pending.append(result)
+            if len(pending) == len(job.components):  # a whole frame
+                self.store(pending, f"Track frame {pending[0].frame}")
+                if autosave and self.path is not None and any(not r.kept for r in pending):
+                    self.save()
+                yield from pending
+                pending = []
