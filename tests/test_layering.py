@@ -1,4 +1,5 @@
-"""fluorogui.core and fluorogui.io must import with Qt and the GUI package unavailable."""
+"""The engine, file formats, workflow and command line import with Qt unavailable, and the
+import-linter layer contracts hold."""
 from __future__ import annotations
 
 import subprocess
@@ -29,7 +30,7 @@ SCRIPT = textwrap.dedent(
     except ImportError:
         pass
     imported, failed = [], []
-    for package_name in ("fluorogui.core", "fluorogui.io"):
+    for package_name in ("fluorogui.core", "fluorogui.io", "fluorogui.workflow", "fluorogui.commands"):
         package = importlib.import_module(package_name)
         for info in pkgutil.walk_packages(package.__path__, package_name + "."):
             try:
@@ -52,3 +53,13 @@ def test_core_and_io_import_without_qt():
     assert result.returncode == 0, f"modules that fail to import with Qt blocked:\n{result.stderr}"
     imported = result.stdout.split()
     assert "fluorogui.io.project" in imported and "fluorogui.core.session" in imported
+
+
+def test_import_linter_contracts_hold():
+    """The contracts in pyproject.toml ([tool.importlinter]): no Qt outside fluorogui.gui,
+    core without file formats, io below the workflow, the workflow below its command line."""
+    lint = Path(sys.executable).with_name("lint-imports")
+    result = subprocess.run([str(lint), "--config", str(REPO / "pyproject.toml")], cwd=REPO,
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-2000:]
+    assert "4 kept, 0 broken" in result.stdout

@@ -6,3 +6,4 @@ from fluorogui.commands import sessions, tracking
 def add_parsers(sub) -> None:
     sessions.add_parsers(sub)
     tracking.add_parsers(sub)
+    tracking.add_batch_parser(sub)

@@ -16,32 +16,13 @@ class UsageError(Exception):
 
 
 def parse_frames(spec: str | None, frames: list[int]) -> list[int]:
-    """The project frames named by ``spec``: "A:B" (both ends included, either may be
-    left out), "N", or a comma-separated list of these; None means all frames."""
-    if spec is None or spec.strip() in ("", ":"):
-        return list(frames)
-    chosen: list[int] = []
-    for item in spec.split(","):
-        item = item.strip()
-        try:
-            if ":" in item:
-                a, b = item.split(":", 1)
-                lo = int(a) if a.strip() else None
-                hi = int(b) if b.strip() else None
-                if lo is not None and hi is not None and hi < lo:
-                    raise UsageError(f"fluorogui: --frames {spec}: {item} ends before it starts")
-                chosen += [f for f in frames if (lo is None or f >= lo) and (hi is None or f <= hi)]
-            else:
-                n = int(item)
-                if n not in frames:
-                    raise UsageError(f"fluorogui: --frames {spec}: frame {n} is not in the project")
-                chosen.append(n)
-        except ValueError:
-            raise UsageError(f"fluorogui: --frames {spec}: use A:B, N or a comma-separated list of these") from None
-    out = sorted(set(chosen))
-    if not out:
-        raise UsageError(f"fluorogui: --frames {spec}: no project frame lies in that range")
-    return out
+    """``workflow.tracking.select_frames`` with its mistakes as usage errors."""
+    from fluorogui.workflow.tracking import select_frames
+
+    try:
+        return select_frames(spec, frames)
+    except ValueError as exc:
+        raise UsageError(f"fluorogui: --frames {exc}") from None
 
 
 def components_arg(value: str) -> str | list[str]:

@@ -84,11 +84,16 @@ def predicted_outline(mesh: PreparedMesh, pose, view: View, spacing_px: float = 
 
 
 def segment_outlines(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMesh, pose,
-                     occluded: Sequence | None = None, search_px: int = 60) -> list[np.ndarray]:
-    """Ordered sub-pixel outline of the component in every image, chosen along ``pose``.
-    Raises SegmentationError naming the view."""
+                     occluded: Sequence | None = None, search_px: int = 60,
+                     only: Sequence[int] | None = None) -> list[np.ndarray | None]:
+    """Ordered sub-pixel outline of the component in every image (or only in the views
+    ``only``; None for the others), chosen along ``pose``. Raises SegmentationError naming
+    the view."""
     out = []
     for k, (image, view) in enumerate(zip(images, views)):
+        if only is not None and k not in only:
+            out.append(None)
+            continue
         exclude = occluded[k] if occluded is not None and k < len(occluded) else None
         try:
             out.append(component_outline(image, predicted_outline(mesh, pose, view), exclude=exclude,
@@ -98,10 +103,13 @@ def segment_outlines(images: Sequence[np.ndarray], views: Sequence[View], mesh: 
     return out
 
 
-def fit_splines(outlines: Sequence[np.ndarray]) -> list[OutlineSpline]:
-    """Splines through outlines; raises SegmentationError naming the view."""
+def fit_splines(outlines: Sequence[np.ndarray | None]) -> list[OutlineSpline | None]:
+    """Splines through outlines (None stays None); raises SegmentationError naming the view."""
     splines = []
     for k, points in enumerate(outlines):
+        if points is None:
+            splines.append(None)
+            continue
         try:
             splines.append(OutlineSpline.fit(points))
         except (OutlineError, ValueError) as exc:
@@ -114,34 +122,39 @@ def splines_from_images(images, views, mesh, pose, occluded=None, search_px: int
 
 
 def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchSettings | None = None,
-                      loop: LoopSettings | None = None, splines: list[OutlineSpline] | None = None,
+                      loop: LoopSettings | None = None, splines: Sequence[OutlineSpline | None] | None = None,
                       occluded: Sequence | None = None, progress=None, cancel=None) -> LoopOutcome:
     """Match one component in one frame from ``start`` (mm, degrees).
 
-    With ``splines`` (reviewed outlines) one match on them. Without, segment along the
-    pose and match, again and again (at least ``loop.min_passes``, at most
-    ``loop.max_passes`` passes) until a pass moves the model by less than ``loop.settled``.
-    A segmentation failure in the first pass raises SegmentationError; in a later pass
-    the previous pass's result stands."""
+    ``splines`` are given (reviewed) outlines, per view, None where a view has none. With
+    a given outline in every view: one match on them. Otherwise the missing views are
+    segmented along the pose and matched, again and again (at least ``loop.min_passes``,
+    at most ``loop.max_passes`` passes) until a pass moves the model by less than
+    ``loop.settled``. A segmentation failure in the first pass raises SegmentationError;
+    in a later pass the previous pass's result stands. ``LoopOutcome.outlines`` holds the
+    automatic outlines (None for given views, and None overall when all were given)."""
     settings = settings or MatchSettings()
     loop = loop or LoopSettings()
     pose = np.asarray(start, dtype=float)
-    given = splines is not None
+    given = list(splines) if splines is not None else [None] * len(views)
+    missing = [k for k, g in enumerate(given) if g is None]
     outlines = None
+    current = given
     total_calls, total_seconds, history = 0, 0.0, []
     result, passes = None, 0
-    for k in range(1 if given else max(1, loop.max_passes)):
-        if not given:
+    for k in range(max(1, loop.max_passes) if missing else 1):
+        if missing:
             try:
                 new_outlines = segment_outlines(images, views, mesh, pose, occluded,
-                                                loop.search_px if k == 0 else loop.later_search_px)
+                                                loop.search_px if k == 0 else loop.later_search_px, missing)
                 new_splines = fit_splines(new_outlines)
             except SegmentationError:
                 if result is None:
                     raise
                 break  # keep the previous pass
-            outlines, splines = new_outlines, new_splines
-        result = match(MatchProblem(mesh, views, splines, occluded), pose, settings, progress, cancel)
+            outlines = new_outlines
+            current = [g if g is not None else n for g, n in zip(given, new_splines)]
+        result = match(MatchProblem(mesh, views, current, occluded), pose, settings, progress, cancel)
         passes += 1
         total_calls += result.calls
         total_seconds += result.seconds
@@ -152,7 +165,7 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
             break
     result.calls, result.seconds, result.history = total_calls, total_seconds, history
     result.settings = dict(result.settings, loop=loop.to_dict(), passes=passes)
-    return LoopOutcome(result, outlines, splines, passes)
+    return LoopOutcome(result, outlines, list(current), passes)
 
 
 def match_images(images, views, mesh: PreparedMesh, start, settings: MatchSettings | None = None,

@@ -74,15 +74,16 @@ class ProjectLock:
     """``with ProjectLock(path, "fluorogui track"):`` - raises ProjectLocked when another
     live process holds the project; re-entrant for the same process."""
 
-    def __init__(self, project_path, program: str = "fluorogui") -> None:
+    def __init__(self, project_path, program: str = "fluorogui", token: str | None = None) -> None:
         self.project_path = Path(project_path)
         self.path = lock_path(project_path)
         self.program = program
+        self.token = token  # a retried batch task takes over a lock its own run left (another host)
         self.held = False
 
     def acquire(self) -> "ProjectLock":
         me = {"program": self.program, "pid": os.getpid(), "host": socket.gethostname(),
-              "user": _user(), "since": time.time()}
+              "user": _user(), "since": time.time(), "token": self.token}
         for _ in range(3):
             try:
                 fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
@@ -93,7 +94,8 @@ class ProjectLock:
                     _HELD[self.path.absolute()] += 1  # this process already holds it
                     self.held = True
                     return self
-                if not _is_stale(holder):
+                ours = self.token is not None and holder is not None and holder.get("token") == self.token
+                if not ours and not _is_stale(holder):
                     raise ProjectLocked(self.project_path, holder) from None
                 try:
                     os.unlink(self.path)  # stale: the holder is gone

@@ -14,7 +14,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from fluorogui.core.geometry import View
-from fluorogui.core.initialise import SearchCancelled, find_components
+from fluorogui.core.initialise import SearchCancelled
 from fluorogui.core.mesh import PreparedMesh
 from fluorogui.workflow.results import Placement
 
@@ -24,6 +24,8 @@ def find_in_frame(frame: int, images: Sequence[np.ndarray], views: Sequence[View
                   cancel: Callable[[], bool] | None = None) -> dict[str, Placement]:
     """Placements of ``meshes`` (name -> mesh) in one frame; ``near`` limits the search to
     around predicted poses. Raises ``SearchCancelled`` when cancelled."""
+    from fluorogui.core.initialise import find_components
+
     t0 = time.perf_counter()
     found = find_components(list(images), list(views), meshes, near=near, progress=progress, cancel=cancel)
     out = {}
@@ -43,6 +45,8 @@ def near_search(views: Sequence[View]):
     recovery: the search limited to around the predicted pose."""
 
     def find_near(images, component: str, mesh: PreparedMesh, pose, cancel=None):
+        from fluorogui.core.initialise import find_components
+
         try:
             found = find_components(list(images), list(views), {component: mesh}, near={component: pose},
                                     cancel=cancel)

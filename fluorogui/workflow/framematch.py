@@ -129,8 +129,9 @@ class FrameMatcher:
         result = out.result
         if result.cancelled:
             raise Cancelled
-        outlines = out.outlines if out.outlines is not None else [sp.sample(max(64, int(sp.length_px)))
-                                                                  for sp in out.splines]
+        automatic = out.outlines or [None] * len(out.splines)
+        outlines = [o if o is not None else sp.sample(max(64, int(sp.length_px)))
+                    for o, sp in zip(automatic, out.splines)]
         quality = assess(images, self.views, job.mesh, result.pose, result.converged, result.per_view_mean_mm,
                          outlines, job.start, occluded, s.quality.tol_px)
         status, reason = judge(quality, s.quality, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))])

@@ -59,6 +59,7 @@ class TrackJob:
     residuals: dict[str, list[float]] = field(default_factory=dict)  # per-view residuals of matched frames
     starts: dict[str, np.ndarray] = field(default_factory=dict)  # start poses for components without anchors
     find: bool = True  # search for components with no anchor and no start
+    image_counts: list[int] = field(default_factory=list)  # images per camera, for messages
 
     def run(self, progress: TrackProgress | None = None,
             cancel: Callable[[], bool] | None = None) -> Iterator[FrameResult]:
@@ -142,13 +143,14 @@ class TrackJob:
         return results
 
     def _images(self, frame: int) -> list[np.ndarray]:
+        paths = list(self.image_paths.get(frame, []))
+        paths += [None] * (len(self.views) - len(paths))
         out = []
-        for view, path in enumerate(self.image_paths.get(frame, [])):
+        for view, path in enumerate(paths):
             if path is None:
-                raise InputError(f"view {view + 1}", f"no image for frame {frame}")
+                count = f" (this camera has {self.image_counts[view]} images)" if view < len(self.image_counts) else ""
+                raise InputError(f"view {view + 1}", f"no image for frame {frame}{count}")
             out.append(read_image(path))
-        if len(out) < len(self.views):
-            raise InputError(f"view {len(out) + 1}", f"no image for frame {frame}")
         return out
 
     def _predicted(self, c, frame, motion, starts) -> np.ndarray | None:
@@ -186,3 +188,33 @@ def _recent_axis(m: MotionModel, frame: int) -> np.ndarray | None:
 def frames_between(frames: Sequence[int], first: int | None, last: int | None) -> list[int]:
     """The project's frames from ``first`` to ``last``, both included (None: open end)."""
     return [f for f in frames if (first is None or f >= first) and (last is None or f <= last)]
+
+
+def select_frames(spec: str | None, frames: Sequence[int]) -> list[int]:
+    """The frames named by ``spec``: "A:B" (both ends included, either may be left out),
+    "N", or a comma-separated list of these; None or "" means all. Raises ValueError
+    ("SPEC: what is wrong")."""
+    frames = list(frames)
+    if spec is None or str(spec).strip() in ("", ":"):
+        return frames
+    chosen: list[int] = []
+    for item in str(spec).split(","):
+        item = item.strip()
+        try:
+            if ":" in item:
+                a, b = item.split(":", 1)
+                lo = int(a) if a.strip() else None
+                hi = int(b) if b.strip() else None
+            else:
+                lo = hi = int(item)
+        except ValueError:
+            raise ValueError(f"{spec}: use A:B, N or a comma-separated list of these") from None
+        if lo is not None and hi is not None and hi < lo:
+            raise ValueError(f"{spec}: {item} ends before it starts")
+        if ":" not in item and lo not in frames:
+            raise ValueError(f"{spec}: frame {lo} is not in the project")
+        chosen += frames_between(frames, lo, hi)
+    out = sorted(set(chosen))
+    if not out:
+        raise ValueError(f"{spec}: no project frame lies in that range")
+    return out

@@ -171,12 +171,13 @@ class WorkMixin:
 
     # -- track -------------------------------------------------------------------------------------
     def track_job(self, frames: Sequence[int] | None = None, components=None, redo: bool = False,
-                  first: int | None = None, last: int | None = None) -> TrackJob:
+                  first: int | None = None, last: int | None = None, run: str | None = None) -> TrackJob:
         """Tracking of ``components`` through ``frames`` (default: ``first``..``last`` of the
         project's frames, both included). Starts from the nearest matched frame at or before
         the first; where there is none, from a pose placed in the first frame, else it
         searches (*find implants*). Accepted poses are kept; with ``redo`` False, so are
-        poses already matched (a killed run resumes where it stopped)."""
+        poses already matched (a killed run resumes where it stopped); with ``run``, so are
+        poses this same run (a retried batch task) already matched, even with ``redo``."""
         names = self._components(components)
         if frames is None:
             frames = frames_between(self.project.frames, first, last)
@@ -200,23 +201,31 @@ class WorkMixin:
         for f in frames:
             for c in names:
                 record = self.project.poses.get((f, c))
-                if record is not None and (record.reviewed or (not redo and record.is_matched)):
+                same_run = (run is not None and record is not None and record.match is not None
+                            and record.match.settings.get("run") == run)
+                if record is not None and (record.reviewed or same_run or (not redo and record.is_matched)):
                     keep[(f, c)] = record
                 g = self.given_splines(c, f)
                 if g is not None:
                     given[(f, c)] = g
         meshes = {c: self.mesh(c) for c in names}
         paths = {f: self.image_paths(f) for f in frames}
-        return TrackJob(self.views, meshes, frames, paths, names, settings, anchors, keep, given, residuals, starts)
+        counts = [len(seq.paths) for seq in self.project.sequences]
+        return TrackJob(self.views, meshes, frames, paths, names, settings, anchors, keep, given, residuals, starts,
+                        image_counts=counts)
 
     def track(self, frames: Sequence[int] | None = None, components=None, redo: bool = False,
               progress: TrackProgress | None = None, cancel: Callable[[], bool] | None = None,
-              autosave: bool = False, first: int | None = None, last: int | None = None) -> Iterator[FrameResult]:
+              autosave: bool = False, first: int | None = None, last: int | None = None,
+              run: str | None = None) -> Iterator[FrameResult]:
         """Track and store frame by frame, yielding every result; with ``autosave`` the
-        project is saved (atomically) after every frame."""
-        job = self.track_job(frames, components, redo, first, last)
+        project is saved (atomically) after every frame. ``run`` names this run in the
+        stored match records (see ``track_job``)."""
+        job = self.track_job(frames, components, redo, first, last, run)
         pending: list[FrameResult] = []
         for result in job.run(progress, cancel):
+            if run is not None and result.match is not None:
+                result.match.settings = dict(result.match.settings, run=run)
             pending.append(result)
             if len(pending) == len(job.components):  # a whole frame
                 self.store(pending, f"Track frame {pending[0].frame}")
