@@ -5,11 +5,13 @@ likes (only the latest payload is forwarded, at most every ``interval`` seconds,
 GUI thread is never flooded), ``reporter.emit(payload)`` for items that must all arrive
 (a batch's per-frame results), and polls ``reporter.cancelled()``. The runner re-emits, on
 the GUI thread: ``progress`` (latest payload), ``item`` (every emitted payload), then
-exactly one of ``finished(result)``, ``cancelled()`` or ``failed(message)``. Tasks never
-touch widgets or VTK; they receive numpy arrays and return plain objects.
+exactly one of ``finished(result)``, ``cancelled()`` or ``failed(message)``; the message
+is a plain sentence for the user (``describe_error``), never an exception's class name.
+Tasks never touch widgets or VTK; they receive numpy arrays and return plain objects.
 """
 from __future__ import annotations
 
+import sys
 import threading
 import time
 import traceback
@@ -18,6 +20,24 @@ from typing import Any, Callable
 from PySide6.QtCore import QObject, QThread, Signal
 
 from fluorogui.io.errors import InputError
+
+
+def describe_error(exc: BaseException) -> str:
+    """An exception as a sentence for the user (its message, never its class name).
+    Unexpected kinds also go to stderr in full, for a bug report."""
+    if isinstance(exc, InputError):
+        return str(exc)
+    if isinstance(exc, ImportError):
+        traceback.print_exception(type(exc), exc, exc.__traceback__, file=sys.stderr)
+        return (f"A part of fluorogui this needs is not available in this installation ({exc.name or exc}). "
+                "Update fluorogui, or work around it (e.g. place the models by hand).")
+    text = str(exc).strip()
+    if not isinstance(exc, (ValueError, RuntimeError, OSError)):
+        traceback.print_exception(type(exc), exc, exc.__traceback__, file=sys.stderr)
+    if not text:
+        text = "something went wrong inside fluorogui (the details went to the terminal)"
+    text = text[0].upper() + text[1:]
+    return text if text.endswith((".", "!", "?")) else text + "."
 
 
 class TaskCancelled(Exception):
@@ -76,15 +96,11 @@ class _TaskThread(QThread):
         except TaskCancelled:
             self.stopped.emit()
             return
-        except InputError as exc:
-            self.error.emit(str(exc))
-            return
         except Exception as exc:  # noqa: BLE001 (reported to the user, never a crash)
-            if self.reporter.cancelled():  # the task's own cancellation exception
+            if self.reporter.cancelled() and not isinstance(exc, InputError):  # its own cancellation
                 self.stopped.emit()
                 return
-            detail = traceback.format_exception_only(type(exc), exc)[-1].strip()
-            self.error.emit(detail)
+            self.error.emit(describe_error(exc))
             return
         if self.reporter.cancelled() or getattr(result, "cancelled", False):
             self.stopped.emit()

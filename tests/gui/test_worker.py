@@ -82,11 +82,22 @@ def test_an_exception_becomes_a_failure_message(qtbot):
 
     with qtbot.waitSignal(runner.failed, timeout=10000) as blocker:
         runner.start(task)
-    assert "outline has 2 points" in blocker.args[0]
+    assert blocker.args[0] == "Outline has 2 points."  # a sentence, no class name
     assert [n for n, _ in seen] == ["failed"]
     assert runner.start(lambda r: 1)  # usable again
     with qtbot.waitSignal(runner.finished, timeout=10000):
         pass
+
+
+def test_error_messages_never_name_a_class():
+    from fluorogui.core.spline import OutlineError
+    from fluorogui.gui.worker import describe_error
+    from fluorogui.io.errors import InputError
+
+    assert describe_error(OutlineError("outline crosses itself at point 5")) == "Outline crosses itself at point 5."
+    assert describe_error(InputError("a.tif", "not an image")) == "a.tif: not an image"
+    text = describe_error(ImportError("cannot import name 'find_components'", name="fluorogui.core.initialise"))
+    assert "ImportError" not in text and "not available" in text
 
 
 def test_only_one_task_at_a_time(qtbot):
