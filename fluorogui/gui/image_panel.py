@@ -5,12 +5,14 @@ Scene coordinates are pixel coordinates (u, v) = (column, row) with the origin a
 centre of the top-left pixel (the image item is offset by -0.5, -0.5), so a point of an
 outline is drawn at its own (u, v). The geometry of every edit lives in
 ``fluorogui.core.outline_edit``; this widget turns mouse gestures into those calls and
-every outline or edge edit into a QUndoCommand on ``undo_stack``.
+every outline or edge edit into one undoable step.
 
-A command carries the outline *key* it was made for (e.g. a frame and view) and applies
-itself through ``outline_sink(key, component, points)``, so undoing after the panel has
-moved on to another frame changes the right outline. Without a sink the panel simply
-shows the outline again (``set_outline``).
+In the app an edit goes to ``edit_sink(text, (key, points) or None, steps)``: the session
+stores the outline under the *key* it was made for (frame, view, component), so undoing
+after the panel has moved on to another frame changes the right outline, and the panel
+shows it when the app tells it to (``set_outline``); ``steps`` are (do, undo) pairs of the
+panel's own state (erased edges) that belong to the same step. A standalone panel (no
+sink) pushes its edits onto its own ``undo_stack`` instead.
 """
 from __future__ import annotations
 
@@ -19,7 +21,6 @@ from collections.abc import Callable
 import numpy as np
 from PySide6.QtCore import QPointF, QRectF, Qt, Signal
 from PySide6.QtGui import (
-    QBrush,
     QColor,
     QFont,
     QFontMetrics,
@@ -48,6 +49,7 @@ from fluorogui.gui.panel_items import (
     DEFAULT_COLOURS,
     EDGE_RGBA,
     EXTRA_COLOURS,
+    FLAGGED_COLOUR,
     HIGHLIGHT,
     MAX_SCALE,
     MIN_SCALE,
@@ -59,7 +61,9 @@ from fluorogui.gui.panel_items import (
     Tool,
     cosmetic_pen,
     distance_colours,
+    draw_label,
     polygon,
+    quantise,
 )
 from fluorogui.gui.panel_tools import PanelInteraction
 
@@ -79,8 +83,8 @@ class ImagePanel(PanelInteraction, QGraphicsView):
         self.view_index = int(view_index)
         self.title = f"View {self.view_index + 1}"
         self.undo_stack = undo_stack if undo_stack is not None else QUndoStack(self)
-        #: called by commands as outline_sink(key, component, points or None); None: show it here
-        self.outline_sink: Callable[[object, str, np.ndarray | None], None] | None = None
+        #: edit_sink(text, (key, points or None) or None, [(do, undo), ...]); None: use undo_stack
+        self.edit_sink: Callable[[str, tuple | None, list], None] | None = None
         self.pick_tolerance_px = PICK_TOLERANCE_PX
 
         self._scene = QGraphicsScene(self)
@@ -193,7 +197,7 @@ class ImagePanel(PanelInteraction, QGraphicsView):
                 del self._erased[stale]
             key = AnonymousImage()
         self._image_key = key
-        self._quantise(arr)
+        self._index, self._index_values = quantise(arr)
         stride = max(1, int(np.sqrt(arr.size / 250_000)))  # percentiles of a regular subsample: fast
         sample = arr[::stride, ::stride]
         finite = sample[np.isfinite(sample)] if arr.dtype.kind == "f" else sample.ravel()
@@ -217,25 +221,6 @@ class ImagePanel(PanelInteraction, QGraphicsView):
 
     def image_key(self):
         return self._image_key
-
-    def _quantise(self, arr: np.ndarray) -> None:
-        """Map the image to indices of a value table once, so that window / level is a LUT."""
-        if arr.dtype == np.uint8:
-            self._index, self._index_values = arr, np.arange(256, dtype=float)
-            return
-        if arr.dtype.kind in "iu" and arr.dtype.itemsize <= 2:
-            lo = int(arr.min())
-            self._index = (arr.astype(np.int32) - lo).astype(np.uint16)
-            self._index_values = lo + np.arange(int(arr.max()) - lo + 1, dtype=float)
-            return
-        data = np.asarray(arr, dtype=np.float64)
-        finite = np.isfinite(data)
-        lo = float(data[finite].min()) if finite.any() else 0.0
-        hi = float(data[finite].max()) if finite.any() else 1.0
-        span = hi - lo if hi > lo else 1.0
-        scaled = np.where(finite, (data - lo) * (65535.0 / span), 0.0)
-        self._index = np.clip(np.rint(scaled), 0, 65535).astype(np.uint16)
-        self._index_values = lo + np.arange(65536, dtype=float) * (span / 65535.0)
 
     def _render_image(self) -> None:
         if self._index is None:
@@ -458,13 +443,19 @@ class ImagePanel(PanelInteraction, QGraphicsView):
             line.setAlpha(170)
         comp.spline.setPen(cosmetic_pen(line, 2.2 if active else 1.5))
         comp.dots.set_style(size_px=5.0 if active else 3.0, colour=comp.colour, halo=active)
-        comp.model_line.setPen(cosmetic_pen(QColor(255, 255, 255, 80), 1.0))
-        # the model outline takes a light tint of its component's colour unless coloured by distance
-        comp.model_dots.set_style(colour=QColor(comp.colour).lighter(135))
+        if comp.flagged:  # a pose that needs review: a red dashed outline on top, never the matched look
+            comp.model_line.setPen(cosmetic_pen(FLAGGED_COLOUR, 2.2, Qt.PenStyle.DashLine))
+            comp.model_line.setZValue(6.5)
+            comp.model_dots.set_style(colour=FLAGGED_COLOUR)
+        else:
+            comp.model_line.setPen(cosmetic_pen(QColor(255, 255, 255, 80), 1.0))
+            comp.model_line.setZValue(2)
+            # the model outline takes a light tint of its component's colour unless coloured by distance
+            comp.model_dots.set_style(colour=QColor(comp.colour).lighter(135))
 
     def set_outline(self, component: str, points: np.ndarray | None, key=None) -> None:
         """Show a component's outline (closed, (K, 2) of (u, v); None or empty clears it)
-        with its spline; ``key`` names the outline (it is handed back to ``outline_sink``)."""
+        with its spline; ``key`` names the outline (it is handed back to ``edit_sink``)."""
         comp = self._component(component)
         comp.key = key
         if self._active is None:
@@ -547,6 +538,18 @@ class ImagePanel(PanelInteraction, QGraphicsView):
         comp.model_line.setPath(path)
         self.viewport().update()
 
+    def set_model_flagged(self, component: str, flagged: bool) -> None:
+        """Draw a component's model outline as needing review (red, dashed) or not."""
+        comp = self._component(component)
+        if comp.flagged != bool(flagged):
+            comp.flagged = bool(flagged)
+            self._style_component(component)
+            self.viewport().update()
+
+    def model_flagged(self, component: str) -> bool:
+        comp = self._components.get(component)
+        return bool(comp is not None and comp.flagged)
+
     def model_outline(self, component: str) -> np.ndarray | None:
         comp = self._components.get(component)
         return None if comp is None or comp.model_points is None else comp.model_points.copy()
@@ -575,44 +578,19 @@ class ImagePanel(PanelInteraction, QGraphicsView):
         font = QFont(self.font())
         font.setPointSizeF(max(font.pointSizeF(), 9.0))
         font.setBold(True)
-        self._label(painter, font, QPointF(8, 8), [(None, self.title)])
+        draw_label(painter, font, QPointF(8, 8), [(None, self.title)])
         font.setBold(False)
         legend = [(self._components[n].colour, n + ("  ✎" if n == self._active else "")
                    + ("  (no spline)" if self._components[n].points is not None and not self._components[n].spline_ok
-                      else ""))
+                      else "") + ("  — needs review" if self._components[n].flagged else ""))
                   for n in self._components if self._components[n].points is not None
                   or self._components[n].model_points is not None or n == self._active]
         if legend:
             fm = QFontMetrics(font)
             width = max(fm.horizontalAdvance(text) for _, text in legend) + 30
-            self._label(painter, font, QPointF(self.viewport().width() - width - 8, 8), legend)
+            draw_label(painter, font, QPointF(self.viewport().width() - width - 8, 8), legend)
         if self._tool != Tool.NAVIGATE:
             text = self._tool.value + (f"  (brush {self._brush_radius:g} px)" if self._tool == Tool.ERASE else "")
             fm = QFontMetrics(font)
-            self._label(painter, font, QPointF(8, self.viewport().height() - fm.height() - 16), [(None, text)])
+            draw_label(painter, font, QPointF(8, self.viewport().height() - fm.height() - 16), [(None, text)])
         painter.restore()
-
-    @staticmethod
-    def _label(painter: QPainter, font: QFont, corner: QPointF, lines) -> None:
-        """A rounded, translucent box with lines of text (optionally a colour swatch each)."""
-        fm = QFontMetrics(font)
-        swatch = any(colour is not None for colour, _ in lines)
-        pad, gap = 6, 2
-        width = max(fm.horizontalAdvance(text) for _, text in lines) + 2 * pad + (18 if swatch else 0)
-        height = len(lines) * fm.height() + (len(lines) - 1) * gap + 2 * pad
-        box = QRectF(corner.x(), corner.y(), width, height)
-        painter.setPen(Qt.PenStyle.NoPen)
-        painter.setBrush(QColor(0, 0, 0, 150))
-        painter.drawRoundedRect(box, 5, 5)
-        painter.setFont(font)
-        y = box.top() + pad
-        for colour, text in lines:
-            x = box.left() + pad
-            if colour is not None:
-                painter.setPen(Qt.PenStyle.NoPen)
-                painter.setBrush(QBrush(colour))
-                painter.drawRoundedRect(QRectF(x, y + fm.height() / 2 - 5, 12, 10), 2, 2)
-                x += 18
-            painter.setPen(QColor(235, 235, 235))
-            painter.drawText(QPointF(x, y + fm.ascent()), text)
-            y += fm.height() + gap

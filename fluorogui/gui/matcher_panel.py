@@ -1,9 +1,14 @@
-"""The matcher panel: method and densities, Run / Cancel / Track, a live objective plot, results.
+"""The matcher panel: method and densities, Match / Track (active component or both), Find
+implants, Cancel, a live objective plot, the pose status of the frame on screen, progress
+and the summary of the last task.
 
-The panel only collects settings and shows progress; the main window runs the work.
+The panel only collects settings and shows what it is told; the main window runs the
+work. ``describe_pose`` puts a pose record's status and reason in plain words.
 """
 from __future__ import annotations
 
+import dataclasses
+import html
 import math
 
 import numpy as np
@@ -12,10 +17,13 @@ from PySide6.QtGui import QColor, QPainter, QPainterPath, QPen
 from PySide6.QtWidgets import (
     QComboBox,
     QFormLayout,
+    QFrame,
     QGridLayout,
+    QHBoxLayout,
     QLabel,
     QProgressBar,
     QPushButton,
+    QScrollArea,
     QSizePolicy,
     QSpinBox,
     QVBoxLayout,
@@ -23,8 +31,33 @@ from PySide6.QtWidgets import (
 )
 
 from fluorogui.core.matching import MatchSettings
+from fluorogui.core.session import FAILED, MATCHED, NEEDS_REVIEW, PoseRecord
 
 DENSITIES = ((3500, "3 500 points (quick look)"), (15000, "15 000 points (paper)"), (25000, "25 000 points (fine)"))
+LEVEL_COLOURS = {"ok": "#3cb45a", "bad": "#e12d2d", "warn": "#e6aa28", "": None}
+
+
+def describe_pose(component: str, record: PoseRecord | None) -> tuple[str, str]:
+    """One line on a component's pose in a frame, and its level: "ok" (matched or
+    accepted), "bad" (needs review or failed: never shown as matched) or ""."""
+    if record is None:
+        return f"{component}: not placed or matched in this frame", ""
+    numbers = ""
+    if record.match is not None:
+        m = record.match
+        numbers = f", {m.objective_mm:.3f} mm ({m.calls} calls, {m.seconds:.1f} s)"
+    if record.reviewed:
+        flagged = f"; it had been flagged: {record.reason}" if record.status != MATCHED and record.reason else ""
+        return f"{component}: accepted{numbers}{flagged}", "ok"
+    if record.status == MATCHED:
+        return f"{component}: matched{numbers}", "ok"
+    if record.status == NEEDS_REVIEW:
+        why = record.reason or "a quality check failed"
+        return f"{component}: needs review — {why}{numbers}", "bad"
+    if record.status == FAILED:
+        why = record.reason or "no pose could be found"
+        return f"{component}: failed — {why}", "bad"
+    return f"{component}: placed, not matched yet (F5 matches it)", ""
 
 
 class ObjectivePlot(QWidget):
@@ -33,7 +66,7 @@ class ObjectivePlot(QWidget):
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.values: list[float] = []
-        self.setMinimumHeight(110)
+        self.setMinimumHeight(64)
         self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Expanding)
         self.setToolTip("Objective (sum of the views' mean outline distances, mm) per call")
 
@@ -96,10 +129,13 @@ class MatcherPanel(QWidget):
     """Settings and controls of the matcher, with live feedback."""
 
     run_requested = Signal()
+    run_both_requested = Signal()
     cancel_requested = Signal()
     track_requested = Signal()
+    track_both_requested = Signal()
     accept_requested = Signal()
     place_requested = Signal()
+    settings_edited = Signal()  # the user changed method, density or outline points
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -117,60 +153,121 @@ class MatcherPanel(QWidget):
         self.outline_points.setSpecialValueText("auto")
         self.outline_points.setValue(0)
         self.outline_points.setToolTip("Model outline points per view (auto: one every 2 px; paper: 60)")
+        self.method.currentIndexChanged.connect(lambda _i: self.settings_edited.emit())
+        self.density.currentIndexChanged.connect(lambda _i: self.settings_edited.emit())
+        self.outline_points.valueChanged.connect(lambda _v: self.settings_edited.emit())
         form = QFormLayout()
         form.addRow("Method", self.method)
-        form.addRow("Model density", self.density)
-        form.addRow("Outline points", self.outline_points)
+        sizes = QHBoxLayout()
+        sizes.addWidget(self.density, 3)
+        sizes.addWidget(QLabel("outline"))
+        sizes.addWidget(self.outline_points, 1)
+        form.addRow("Model points", sizes)
 
         self.place_button = QPushButton("Find implants")
-        self.place_button.setToolTip("Locate every component in both images automatically")
+        self.place_button.setToolTip("Locate every component in both images automatically (Ctrl+F)")
         self.run_button = QPushButton("Match")
         self.run_button.setObjectName("matchButton")
         self.run_button.setToolTip("Match the active component in this frame (F5)")
+        self.run_both_button = QPushButton("Match both")
+        self.run_both_button.setToolTip("Match every component in this frame, each masked where the other "
+                                        "overlaps it (Ctrl+F5)")
         self.cancel_button = QPushButton("Cancel")
-        self.cancel_button.setToolTip("Stop the running match and keep the previous pose (Esc)")
+        self.cancel_button.setToolTip("Stop the running task; the poses stay as they were (Esc)")
         self.cancel_button.setEnabled(False)
-        self.track_button = QPushButton("Track following frames")
-        self.track_button.setToolTip("Match the active component in this and every later frame")
-        self.accept_button = QPushButton("Accept pose")
-        self.accept_button.setToolTip("Mark the active component's pose in this frame as reviewed (Ctrl+Return)")
+        self.track_button = QPushButton("Track")
+        self.track_button.setToolTip("Track the active component through the frames after this one (Shift+F5)")
+        self.track_both_button = QPushButton("Track both")
+        self.track_both_button.setToolTip("Track every component through the frames after this one "
+                                          "(Ctrl+Shift+F5)")
+        self.accept_button = QPushButton("Accept")
+        self.accept_button.setToolTip("Accept the active component's pose in this frame (even a flagged one: "
+                                      "you have checked it), or reopen it (Ctrl+Return)")
         for button, signal in ((self.place_button, self.place_requested), (self.run_button, self.run_requested),
+                               (self.run_both_button, self.run_both_requested),
                                (self.cancel_button, self.cancel_requested), (self.track_button, self.track_requested),
+                               (self.track_both_button, self.track_both_requested),
                                (self.accept_button, self.accept_requested)):
             button.clicked.connect(signal)
         buttons = QGridLayout()
         buttons.addWidget(self.run_button, 0, 0)
-        buttons.addWidget(self.cancel_button, 0, 1)
-        buttons.addWidget(self.place_button, 1, 0)
-        buttons.addWidget(self.accept_button, 1, 1)
-        buttons.addWidget(self.track_button, 2, 0, 1, 2)
+        buttons.addWidget(self.run_both_button, 0, 1)
+        buttons.addWidget(self.place_button, 0, 2)
+        buttons.addWidget(self.track_button, 1, 0)
+        buttons.addWidget(self.track_both_button, 1, 1)
+        buttons.addWidget(self.accept_button, 1, 2)
 
         self.plot = ObjectivePlot()
         self.status = QLabel("Ready")
         self.status.setObjectName("matchStatus")
         self.status.setWordWrap(True)
+        self.status.setTextFormat(Qt.TextFormat.RichText)
         self.status.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.summary = QLabel("")
+        self.summary.setObjectName("taskSummary")
+        self.summary.setWordWrap(True)
+        self.summary.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.summary.setVisible(False)
+        texts = QWidget()
+        column = QVBoxLayout(texts)
+        column.setContentsMargins(0, 0, 4, 0)
+        column.addWidget(self.status)
+        column.addWidget(self.summary)
+        column.addStretch(1)
+        self.texts = QScrollArea()  # long reasons scroll instead of growing the window
+        self.texts.setWidget(texts)
+        self.texts.setWidgetResizable(True)
+        self.texts.setFrameShape(QFrame.Shape.NoFrame)
+        self.texts.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        self.texts.setMinimumHeight(48)
         self.progress = QProgressBar()
         self.progress.setVisible(False)
         self.progress.setTextVisible(True)
+        running = QHBoxLayout()
+        running.addWidget(self.progress, 1)
+        running.addStretch(0)
+        running.addWidget(self.cancel_button)
         layout = QVBoxLayout(self)
         layout.addLayout(form)
         layout.addLayout(buttons)
-        layout.addWidget(self.plot, 1)
-        layout.addWidget(self.progress)
-        layout.addWidget(self.status)
+        layout.addLayout(running)
+        layout.addWidget(self.plot, 3)
+        layout.addWidget(self.texts, 2)
 
-    def settings(self) -> MatchSettings:
+    # -- settings ------------------------------------------------------------------------------
+    def settings(self, base: MatchSettings | None = None) -> MatchSettings:
+        """``base`` (default: the defaults) with the panel's method, density and outline points."""
         n = self.outline_points.value()
         method = self.method.currentData()
         if method == "paper" and n == 0:
             n = 60
-        return MatchSettings(method=method, model_points=int(self.density.currentData()),
-                             outline_points=n or None)
+        return dataclasses.replace(base or MatchSettings(), method=method, model_points=int(self.density.currentData()),
+                                   outline_points=n or None)
 
+    def set_settings(self, settings: MatchSettings) -> None:
+        """Show a session's match settings (no ``settings_edited``)."""
+        widgets = (self.method, self.density, self.outline_points)
+        for w in widgets:
+            w.blockSignals(True)
+        try:
+            i = self.method.findData(settings.method)
+            self.method.setCurrentIndex(max(i, 0))
+            i = self.density.findData(int(settings.model_points))
+            if i < 0:
+                self.density.addItem(f"{int(settings.model_points):,} points".replace(",", " "),
+                                     int(settings.model_points))
+                i = self.density.count() - 1
+            self.density.setCurrentIndex(i)
+            n = settings.outline_points or 0
+            self.outline_points.setValue(0 if settings.method == "paper" and n == 60 else int(n))
+        finally:
+            for w in widgets:
+                w.blockSignals(False)
+
+    # -- running ---------------------------------------------------------------------------------
     def set_running(self, running: bool) -> None:
-        for w in (self.run_button, self.track_button, self.place_button, self.accept_button, self.method,
-                  self.density, self.outline_points):
+        for w in (self.run_button, self.run_both_button, self.track_button, self.track_both_button,
+                  self.place_button, self.accept_button, self.method, self.density, self.outline_points):
             w.setEnabled(not running)
         self.cancel_button.setEnabled(running)
         if running:
@@ -180,24 +277,54 @@ class MatcherPanel(QWidget):
 
     def show_live(self, calls: int, objective_mm: float, history) -> None:
         self.plot.set_values(history)
-        self.status.setText(f"Matching… call {calls}, objective {objective_mm:.4f} mm")
+        self.status.setText(html.escape(f"Matching… call {calls}, objective {objective_mm:.4f} mm"))
+
+    def show_message(self, text: str) -> None:
+        self.status.setText(html.escape(text))
+
+    def show_poses(self, lines) -> None:
+        """The pose status of the frame on screen: (text, level, active) per component."""
+        rows = []
+        for text, level, active in lines:
+            row = html.escape(text)
+            colour = LEVEL_COLOURS.get(level)
+            if colour:
+                row = f'<span style="color:{colour}">&#9679;</span> ' + row
+            rows.append(f"<b>{row}</b>" if active else row)
+        self.status.setText("<br>".join(rows) or "No components")
 
     def show_result(self, record, history=None, label: str = "") -> None:
         """Summarise a MatchRecord (or say there is none)."""
         if history is not None:
             self.plot.set_values(history)
         if record is None:
-            self.status.setText(label or "Not matched in this frame")
+            self.show_message(label or "Not matched in this frame")
             return
         views = ", ".join(f"{v:.3f}" for v in record.per_view_mean_mm)
-        state = "converged" if record.converged else "NOT converged"
-        self.status.setText(
-            f"{label}{record.method}: objective {record.objective_mm:.4f} mm (views {views}), "
-            f"{record.calls} calls, {record.seconds:.2f} s, {state}")
+        state = "converged" if record.converged else "did not converge"
+        self.show_message(f"{label}{record.method}: objective {record.objective_mm:.4f} mm (views {views}), "
+                          f"{record.calls} calls, {record.seconds:.2f} s, {state}")
+
+    def show_summary(self, text: str) -> None:
+        """What the last task did (kept until the next task ends)."""
+        self.summary.setText(text)
+        self.summary.setVisible(bool(text))
+
+    def show_progress(self, fraction: float, text: str) -> None:
+        """A task's progress as a fraction (0..1) with a few words."""
+        self.progress.setVisible(True)
+        self.progress.setRange(0, 1000)
+        self.progress.setValue(int(round(1000 * min(max(fraction, 0.0), 1.0))))
+        self.progress.setFormat(f"{text} (%p %)" if text else "%p %")
 
     def show_batch(self, done: int, total: int, seconds: float) -> None:
+        """Frames done of ``total`` and the time left at the average time per frame so far."""
         self.progress.setVisible(True)
-        self.progress.setRange(0, total)
+        self.progress.setRange(0, max(total, 1))
         self.progress.setValue(done)
-        eta = seconds / done * (total - done) if done else float("nan")
-        self.progress.setFormat(f"%v / %m frames, about {eta:.0f} s left" if done else "%v / %m frames")
+        if done:
+            eta = seconds / done * (total - done)
+            left = f"about {eta:.0f} s left" if eta >= 1 or done == total else "under a second left"
+            self.progress.setFormat(f"%v / %m frames, {left}")
+        else:
+            self.progress.setFormat("%v / %m frames")

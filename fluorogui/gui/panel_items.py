@@ -1,5 +1,6 @@
 """Pieces of the image panel: the tool enum, colours, the scene items that draw outlines and
-markers at a fixed screen size, and the undo command of an edit."""
+markers at a fixed screen size, the undo command of an edit, the image's value table and
+the labels drawn over the image."""
 from __future__ import annotations
 
 import enum
@@ -10,7 +11,10 @@ from collections.abc import Callable
 import numpy as np
 from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import (
+    QBrush,
     QColor,
+    QFont,
+    QFontMetrics,
     QPainter,
     QPen,
     QPolygonF,
@@ -45,6 +49,7 @@ EXTRA_COLOURS = (QColor(255, 160, 60), QColor(200, 120, 255), QColor(60, 210, 22
 EDGE_RGBA = (255, 190, 0, 170)  # Canny edges: amber, semi-transparent
 MODEL_COLOUR = QColor(255, 95, 205)  # projected model outline before its component has a colour
 HIGHLIGHT = QColor(255, 255, 255)
+FLAGGED_COLOUR = QColor(255, 70, 50)  # the model outline of a pose that needs review
 PLACE_COLOUR = QColor(255, 235, 60)
 
 #: distance (px) -> colour stops of the projected model outline: green, yellow, red
@@ -213,6 +218,7 @@ class ComponentItems:
         self.spline_ok = False
         self.model_points: np.ndarray | None = None
         self.model_distances: np.ndarray | None = None
+        self.flagged = False  # the model's pose needs review
         self.spline = QGraphicsPathItem()
         self.spline.setZValue(4)
         self.dots = DotsItem(5.0, colour, min_gap_px=6.0)
@@ -244,3 +250,45 @@ class EditCommand(QUndoCommand):
 
 class AnonymousImage:
     """Key of an image set without a key (its erased-edge mask lives until the next one)."""
+
+
+def quantise(arr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """An image as indices into a table of its values (computed once), so that window /
+    level is a lookup table: (index image, value of each index)."""
+    if arr.dtype == np.uint8:
+        return arr, np.arange(256, dtype=float)
+    if arr.dtype.kind in "iu" and arr.dtype.itemsize <= 2:
+        lo = int(arr.min())
+        return (arr.astype(np.int32) - lo).astype(np.uint16), lo + np.arange(int(arr.max()) - lo + 1, dtype=float)
+    data = np.asarray(arr, dtype=np.float64)
+    finite = np.isfinite(data)
+    lo = float(data[finite].min()) if finite.any() else 0.0
+    hi = float(data[finite].max()) if finite.any() else 1.0
+    span = hi - lo if hi > lo else 1.0
+    scaled = np.where(finite, (data - lo) * (65535.0 / span), 0.0)
+    return np.clip(np.rint(scaled), 0, 65535).astype(np.uint16), lo + np.arange(65536, dtype=float) * (span / 65535.0)
+
+
+def draw_label(painter: QPainter, font: QFont, corner: QPointF, lines) -> None:
+    """A rounded, translucent box with lines of text (optionally a colour swatch each)."""
+    fm = QFontMetrics(font)
+    swatch = any(colour is not None for colour, _ in lines)
+    pad, gap = 6, 2
+    width = max(fm.horizontalAdvance(text) for _, text in lines) + 2 * pad + (18 if swatch else 0)
+    height = len(lines) * fm.height() + (len(lines) - 1) * gap + 2 * pad
+    box = QRectF(corner.x(), corner.y(), width, height)
+    painter.setPen(Qt.PenStyle.NoPen)
+    painter.setBrush(QColor(0, 0, 0, 150))
+    painter.drawRoundedRect(box, 5, 5)
+    painter.setFont(font)
+    y = box.top() + pad
+    for colour, text in lines:
+        x = box.left() + pad
+        if colour is not None:
+            painter.setPen(Qt.PenStyle.NoPen)
+            painter.setBrush(QBrush(colour))
+            painter.drawRoundedRect(QRectF(x, y + fm.height() / 2 - 5, 12, 10), 2, 2)
+            x += 18
+        painter.setPen(QColor(235, 235, 235))
+        painter.drawText(QPointF(x, y + fm.ascent()), text)
+        y += fm.height() + gap

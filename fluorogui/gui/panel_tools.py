@@ -1,8 +1,10 @@
 """How the image panel answers the mouse and keyboard: navigation (zoom, pan, window/level)
-and the outline tools, each edit pushed as an undoable command.
+and the outline tools, each edit one undoable step.
 
 ``PanelInteraction`` is a mixin of ``ImagePanel``; it uses the panel's image, outline and
-undo state (``_components``, ``_active``, ``undo_stack``, ``outline_sink`` ...)."""
+undo state (``_components``, ``_active``, ``undo_stack``, ``edit_sink`` ...). An edit goes
+to ``edit_sink`` when the panel has one (the app: the session stores the outline and
+the panel shows it when told), else onto the panel's own ``undo_stack``."""
 from __future__ import annotations
 
 import numpy as np
@@ -75,22 +77,32 @@ class PanelInteraction:
 
     # -- commands ------------------------------------------------------------------------------------------------
     def _apply_outline(self, key, component: str, points: np.ndarray | None) -> None:
-        points = None if points is None else points.copy()
-        if self.outline_sink is None:
-            self.set_outline(component, points, key)
-        else:
-            self.outline_sink(key, component, points)
+        """Show an outline again (a standalone panel's undo and redo)."""
+        self.set_outline(component, None if points is None else points.copy(), key)
         self.outline_edited.emit(key, component)
 
-    def _outline_steps(self, component: str, before, after):
-        key = self._components[component].key
-        before = None if before is None or len(before) == 0 else oe.as_points(before)
-        after = None if after is None or len(after) == 0 else oe.as_points(after)
-        return [(lambda: self._apply_outline(key, component, after), lambda: self._apply_outline(key, component, before))]
+    def _push_edit(self, text: str, component: str | None = None, before=None, after=None, steps=()) -> None:
+        """One undoable edit: ``component``'s outline from ``before`` to ``after`` (when a
+        component is given) together with ``steps``, (do, undo) pairs of the panel's own
+        state (erased edges)."""
+        steps = list(steps)
+        key = None
+        if component is not None:
+            key = self._components[component].key
+            before = None if before is None or len(before) == 0 else oe.as_points(before)
+            after = None if after is None or len(after) == 0 else oe.as_points(after)
+        if self.edit_sink is not None and (component is None or key is not None):
+            self.edit_sink(text, None if component is None else (key, after), steps)
+            if component is not None:
+                self.outline_edited.emit(key, component)
+            return
+        if component is not None:
+            steps.append((lambda: self._apply_outline(key, component, after),
+                          lambda: self._apply_outline(key, component, before)))
+        self.undo_stack.push(EditCommand(text, steps))
 
     def _push_outline_edit(self, text: str, before, after) -> None:
-        component = self._active
-        self.undo_stack.push(EditCommand(text, self._outline_steps(component, before, after)))
+        self._push_edit(text, self._active, before, after)
 
     def _set_erased_pixels(self, key, shape, flat: np.ndarray, value: bool) -> None:
         mask = self._erased_for(key, shape)
@@ -303,17 +315,20 @@ class PanelInteraction:
                 if canny is not None and canny.flat[flat].any():
                     parts.append("edges")
         n = int(drag["removed"].sum())
+        after = None
         if n:
             after = oe.delete_points(drag["before"], drag["removed"])
-            steps.extend(self._outline_steps(drag["component"], drag["before"], after))
             parts.append(f"{n} point{'s' if n != 1 else ''}")
-        if not steps:
+        if not steps and not n:
             self._refresh_edges()
             return
         self._selected = None
         self._gap_first = None
         text = "Erase " + (" and ".join(parts) if parts else "edges")
-        self.undo_stack.push(EditCommand(text, steps))
+        if n:
+            self._push_edit(text, drag["component"], drag["before"], after, steps)
+        else:
+            self._push_edit(text, steps=steps)
 
     def _draw_lasso(self, path) -> None:
         qpath = QPainterPath()

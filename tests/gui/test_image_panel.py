@@ -286,29 +286,41 @@ def test_erase_removes_edges_and_points_in_one_undo_step(panel, qtbot):
     assert not any(points_near_path(c, stroke, 3.0).any() for c in panel.edge_contours())
 
 
-def test_undo_applies_to_the_key_the_edit_was_made_for(panel, qtbot):
+def test_edits_go_to_the_sink_with_the_key_they_were_made_for(panel, qtbot):
     calls = []
 
-    def sink(key, component, points):
-        calls.append((key, component, None if points is None else points.copy()))
-        panel.set_outline(component, points, key)
+    def sink(text, outline, steps):
+        for do, _undo in steps:
+            do()
+        calls.append((text, outline, steps))
+        if outline is not None:  # the app stores it and tells the panel to show it
+            panel.set_outline("femoral", outline[1], outline[0])
 
-    panel.outline_sink = sink
+    panel.edit_sink = sink
     edited = []
     panel.outline_edited.connect(lambda key, component: edited.append((key, component)))
     original = circle()
     panel.set_outline("femoral", original, key=("frame0", "view0"))
     panel.set_tool(Tool.DELETE)
     click(qtbot, panel, *original[2])
-    assert calls[-1][0] == ("frame0", "view0") and len(calls[-1][2]) == len(original) - 1
-    assert edited == [(("frame0", "view0"), "femoral")]
-    # the panel moves on to another frame's outline; undo still restores frame 0's
-    panel.set_outline("femoral", circle(radius=30), key=("frame1", "view0"))
-    panel.undo_stack.undo()
-    key, component, points = calls[-1]
-    assert (key, component) == (("frame0", "view0"), "femoral")
-    np.testing.assert_array_equal(points, original)
-    assert edited[-1] == (("frame0", "view0"), "femoral")
+    text, (key, points), steps = calls[-1]
+    assert text == "Delete point" and key == ("frame0", "view0") and len(points) == len(original) - 1
+    assert steps == [] and edited == [(("frame0", "view0"), "femoral")]
+    assert panel.undo_stack.count() == 0  # the sink keeps the history, not the panel
+    # erasing edges only: the panel's own state travels as a (do, undo) step
+    panel.set_image(disc_image(), key="frame0")
+    panel.set_edges_visible(True)
+    panel.set_tool(Tool.ERASE)
+    panel.set_brush_radius(4)
+    angle = np.radians(7.5)  # between two outline points, across the disc's edge
+    stroke = [tuple(CENTRE + r * np.array([np.cos(angle), np.sin(angle)])) for r in (34.0, 46.0)]
+    edges_before = panel.edge_mask().copy()
+    drag(qtbot, panel, stroke)
+    text, outline, steps = calls[-1]
+    assert text == "Erase edges" and outline is None and len(steps) == 1
+    assert (panel.edge_mask() != edges_before).any()
+    steps[0][1]()  # its undo restores the edges
+    np.testing.assert_array_equal(panel.edge_mask(), edges_before)
 
 
 def test_only_the_active_component_is_edited(panel, qtbot):

@@ -5,10 +5,12 @@ import pytest
 pytest.importorskip("pytestqt")
 from PySide6.QtCore import QPoint, Qt  # noqa: E402
 
-from fluorogui.gui.controller import FrameState  # noqa: E402
-from fluorogui.gui.matcher_panel import MatcherPanel  # noqa: E402
+from fluorogui.core.matching import MatchSettings  # noqa: E402
+from fluorogui.core.session import FAILED, MATCHED, NEEDS_REVIEW, MatchRecord, PoseRecord  # noqa: E402
+from fluorogui.gui.matcher_panel import MatcherPanel, describe_pose  # noqa: E402
 from fluorogui.gui.pose_editor import PoseEditor  # noqa: E402
-from fluorogui.gui.timeline import Timeline  # noqa: E402
+from fluorogui.gui.timeline import STATE_COLOURS, Timeline, TimelineLegend  # noqa: E402
+from fluorogui.workflow.session import FrameState  # noqa: E402
 
 
 def test_pose_editor_emits_on_user_edits_only(qtbot):
@@ -31,18 +33,46 @@ def test_matcher_panel_settings_and_buttons(qtbot):
     panel = MatcherPanel()
     qtbot.addWidget(panel)
     assert panel.settings().method == "fast" and panel.settings().model_points == 15000
-    panel.method.setCurrentIndex(1)
+    with qtbot.waitSignal(panel.settings_edited):
+        panel.method.setCurrentIndex(1)
     assert panel.settings().method == "paper" and panel.settings().outline_points == 60
-    with qtbot.waitSignal(panel.run_requested):
-        qtbot.mouseClick(panel.run_button, Qt.MouseButton.LeftButton)
+    base = MatchSettings(max_calls=123)
+    assert panel.settings(base).max_calls == 123  # the session's other settings are kept
+    with qtbot.assertNotEmitted(panel.settings_edited):
+        panel.set_settings(MatchSettings(method="fast", model_points=3500))
+    assert panel.settings().method == "fast" and panel.settings().model_points == 3500
+    for button, signal in ((panel.run_button, panel.run_requested), (panel.run_both_button, panel.run_both_requested),
+                           (panel.track_button, panel.track_requested),
+                           (panel.track_both_button, panel.track_both_requested)):
+        with qtbot.waitSignal(signal):
+            qtbot.mouseClick(button, Qt.MouseButton.LeftButton)
     panel.set_running(True)
-    assert not panel.run_button.isEnabled() and panel.cancel_button.isEnabled()
+    assert not panel.run_button.isEnabled() and not panel.track_both_button.isEnabled()
+    assert panel.cancel_button.isEnabled()
     with qtbot.waitSignal(panel.cancel_requested):
         qtbot.mouseClick(panel.cancel_button, Qt.MouseButton.LeftButton)
     panel.show_live(12, 0.5, [2.0, 1.0, 0.5])
     assert panel.plot.values == [2.0, 1.0, 0.5] and "call 12" in panel.status.text()
+    panel.show_batch(2, 8, 10.0)
+    assert "about 30 s left" in panel.progress.text()  # the average so far (5 s a frame), six to go
     panel.set_running(False)
-    assert panel.run_button.isEnabled()
+    assert panel.run_button.isEnabled() and not panel.progress.isVisible()
+
+
+def test_pose_status_in_plain_words():
+    match = MatchRecord(0.2, [0.1, 0.1], 30, 0.5, True, "fast")
+    assert describe_pose("femoral", None)[0] == "femoral: not placed or matched in this frame"
+    text, level = describe_pose("tibial", PoseRecord(np.zeros(6), match, status=MATCHED))
+    assert text == "tibial: matched, 0.200 mm (30 calls, 0.5 s)" and level == "ok"
+    reason = "view 1: the tibial outline could not be traced, it crosses itself — edit it or re-run Find implants"
+    text, level = describe_pose("tibial", PoseRecord(np.zeros(6), match, status=NEEDS_REVIEW, reason=reason))
+    assert text.startswith("tibial: needs review — " + reason) and level == "bad"
+    text, level = describe_pose("tibial", PoseRecord(np.zeros(6), None, status=FAILED, reason=reason))
+    assert text == "tibial: failed — " + reason and level == "bad"
+    text, level = describe_pose("tibial", PoseRecord(np.zeros(6), match, reviewed=True, status=NEEDS_REVIEW,
+                                                     reason="too far"))
+    assert text.startswith("tibial: accepted") and "flagged: too far" in text and level == "ok"
+    assert "Error" not in text and "placed" in describe_pose("femoral", PoseRecord(np.zeros(6)))[0]
 
 
 def test_timeline_click_and_keys_select_frames(qtbot):
@@ -53,10 +83,30 @@ def test_timeline_click_and_keys_select_frames(qtbot):
                                           FrameState.REVIEWED])
     with qtbot.waitSignal(timeline.frame_selected) as blocker:
         qtbot.mouseClick(timeline, Qt.MouseButton.LeftButton, pos=QPoint(360, 17))
-    assert blocker.args == [3]
-    timeline.set_current(1)
+    assert blocker.args == [30]  # frame numbers, not positions
+    timeline.set_current(10)
+    assert timeline.current_frame == 10
     with qtbot.waitSignal(timeline.frame_selected) as blocker:
         qtbot.keyClick(timeline, Qt.Key.Key_Right)
-    assert blocker.args == [2]
+    assert blocker.args == [20]
     image = timeline.grab().toImage()
     assert image.pixelColor(380, 17) != image.pixelColor(20, 17)  # reviewed vs empty colours
+
+
+def test_needs_review_has_its_own_colour_and_legend(qtbot):
+    timeline = Timeline()
+    qtbot.addWidget(timeline)
+    timeline.resize(400, 34)
+    timeline.set_frames([3, 4], [FrameState.MATCHED, FrameState.MATCHED])
+    timeline.set_state(4, FrameState.NEEDS_REVIEW)
+    timeline.set_note(4, "tibial: needs review — view 2: too far")
+    assert timeline.state(4) == FrameState.NEEDS_REVIEW and "too far" in timeline.notes[4]
+    colours = {c.rgb() for c in STATE_COLOURS.values()}
+    assert len(colours) == len(STATE_COLOURS)  # every state its own colour
+    image = timeline.grab().toImage()
+    centre = timeline.cell_rect(4).center()
+    assert image.pixelColor(int(centre.x()) + 30, int(centre.y())) == STATE_COLOURS[FrameState.NEEDS_REVIEW]
+    assert "needs review (red)" in timeline.toolTip()
+    legend = TimelineLegend()
+    qtbot.addWidget(legend)
+    assert "needs review" in legend.toolTip()
