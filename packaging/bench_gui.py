@@ -103,10 +103,10 @@ def main() -> int:
     for times in (cold, warm):
         for i in list(range(1, n)) + [0]:
             t = time.perf_counter()
-            c.set_frame_index(i)
+            c.set_frame(c.frames[i])
             app.processEvents()
             times.append(time.perf_counter() - t)
-    shape = c.images()[0].shape
+    shape = c.session.image(c.frame, 0).shape
     rows.append((f"frame switch, first visit ({shape[1]}x{shape[0]} pair)", statistics.median(cold), max(cold)))
     rows.append(("frame switch, cached", statistics.median(warm), max(warm)))
 
@@ -116,8 +116,9 @@ def main() -> int:
     meter = StallMeter()
     stalls, shows, durations = [], [], []
     for _ in range(args.repeats):
-        c.undo_stack.undo() if c.undo_stack.canUndo() and c.pose_record(c.component) and \
-            c.pose_record(c.component).match else None
+        record = c.session.pose_record(c.component, c.frame)
+        if c.undo_stack.canUndo() and record is not None and record.match is not None:
+            c.undo_stack.undo()  # back to the unmatched start
         meter.start()
         durations.append(wait_for([window.runner.finished, window.runner.failed], window.run_match))
         QTimerWait(300)
@@ -157,7 +158,7 @@ def main() -> int:
     print(f"{'measure':<62} {'median s':>9} {'max s':>9}")
     for name, med, worst in rows:
         print(f"{name:<62} {med:9.4f} {worst:9.4f}")
-    c.undo_stack.setClean()
+    c.session.history.set_clean()
     window.close()
     return 0
 

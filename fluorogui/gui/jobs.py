@@ -1,32 +1,26 @@
-"""Tasks the GUI runs in its worker thread: one match, a batch over frames, automatic placement.
+"""The workflow's jobs as tasks of the GUI's worker thread.
 
-Each builder takes plain inputs gathered on the GUI thread (numpy arrays, Views, prepared
-meshes, file paths) and returns ``task(reporter)`` for ``worker.TaskRunner``. Nothing here
-touches Qt objects; the payloads are plain dataclasses.
+A job (``Session.match_job`` / ``find_job`` / ``track_job``) is plain data taken from the
+session on the GUI thread; it runs anywhere and never touches the session. Each builder
+here wraps one into ``task(reporter)`` for ``worker.TaskRunner``: the job's progress
+becomes throttled ``reporter.report`` payloads, tracked frames become ``reporter.emit``
+items (every one arrives, in order), and the cancel flag is the reporter's. The GUI
+thread stores what comes back with ``Session.store`` / ``store_placements``. There is
+no matching loop of the GUI's own: the app, the command line and scripts run the same
+code on the same frame and get the same pose.
 """
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
-from fluorogui.core.geometry import View
-from fluorogui.core.initialise import assign_blobs, dark_blobs
-from fluorogui.core.matching import MatchProblem, MatchResult, MatchSettings, match
-from fluorogui.core.mesh import PreparedMesh
-from fluorogui.core.pipeline import predicted_outline, segment_outlines
-from fluorogui.core.spline import OutlineSpline
-from fluorogui.io.images import read_image
+from fluorogui.core.pipeline import predicted_outline
+from fluorogui.gui.worker import TaskCancelled
+from fluorogui.workflow.results import FAILED, MATCHED, NEEDS_REVIEW, FrameResult, Placement
 
 OVERLAY_SPACING_PX = 3.0
-#: a batch stops (tracking lost) when a frame's mean outline distance exceeds this (mm)
-LOST_TRACK_MM = 1.5
-#: automatic outlines are re-segmented until a pass moves the pose less than this (mm, deg)
-SETTLED = 0.02
-MAX_PASSES = 8
 
 
 @dataclass
@@ -43,130 +37,127 @@ class LiveUpdate:
 
 @dataclass
 class MatchOutcome:
-    """A finished match of one component in one frame, with the outlines it used."""
+    """The results of matching components in one frame (one per component)."""
 
-    component: str
     frame: int
-    result: MatchResult
-    outlines_px: list[np.ndarray] | None  # auto-segmented outlines (None: the given ones were used)
+    results: list[FrameResult]
 
 
 @dataclass
-class BatchProgress:
+class FindProgress:
+    fraction: float
+    text: str
+
+
+@dataclass
+class FindOutcome:
+    frame: int
+    placements: dict[str, Placement]
+
+
+@dataclass
+class TrackedFrame:
+    """The results of one tracked frame (one per component), with the run's progress."""
+
+    frame: int
+    results: list[FrameResult]
     done: int
     total: int
-    frame: int
-    seconds: float
+    elapsed_s: float
+    next_frame: int | None = None
+
+    @property
+    def eta_s(self) -> float:
+        """Time left at the average time per frame so far."""
+        return self.elapsed_s / self.done * (self.total - self.done) if self.done else float("nan")
 
 
 @dataclass
-class BatchOutcome:
-    component: str
-    frames_done: list[int]
-    stopped_at: int | None = None
-    reason: str = ""
+class TrackOutcome:
+    done: int
+    total: int
+    elapsed_s: float
 
 
-def _segment_and_match(images, views, mesh, start, settings, splines, passes, progress, cancel):
-    """Match from ``start``. Without ``splines``, segment the outlines along the pose and
-    match, again and again (at least twice, at most ``passes`` times) until a pass moves
-    the pose by less than ``SETTLED``: a start several mm / degrees off leaves parts of the
-    true edge outside the first segmentation band, and each pass brings more of it in."""
-    pose = np.asarray(start, dtype=float)
-    outlines = None
-    calls, seconds, result = 0, 0.0, None
-    for k in range(max(1, passes) if splines is None else 1):
-        if splines is None or k > 0:
-            outlines = segment_outlines(images, views, mesh, pose)
-            splines = [OutlineSpline.fit(o) for o in outlines]
-        result = match(MatchProblem(mesh, views, splines), pose, settings, progress, cancel)
-        calls += result.calls
-        seconds += result.seconds
-        moved = np.abs(result.pose - pose)
-        pose = result.pose
-        if result.cancelled or (k >= 1 and moved.max() < SETTLED):
-            break
-    result.calls, result.seconds = calls, seconds
-    return result, outlines
+def frame_status(results) -> str:
+    """The worst status among a frame's new results: failed, needs review or matched
+    (kept results were accepted or already matched)."""
+    statuses = {r.status for r in results if not r.kept}
+    for status in (FAILED, NEEDS_REVIEW):
+        if status in statuses:
+            return status
+    return MATCHED
 
 
-def match_task(component: str, frame: int, images: Sequence[np.ndarray], views: Sequence[View],
-               mesh: PreparedMesh, start, settings: MatchSettings, splines: list[OutlineSpline] | None,
-               passes: int = MAX_PASSES):
-    """One component in one frame; live updates carry the model outline for the overlays."""
+def match_task(job):
+    """Match the components of ``job`` (a ``MatchJob``); live updates carry the model
+    outline for the overlays, throttled by the runner."""
+    meshes = {i.component: i.mesh for i in job.inputs}
 
     def task(reporter) -> MatchOutcome:
-        history: list[float] = []
+        histories = {name: [] for name in meshes}
 
-        def progress(calls, objective, pose):
-            history.append(float(objective))
-            if reporter.due():
-                outlines = [predicted_outline(mesh, pose, view, OVERLAY_SPACING_PX) for view in views]
-                reporter.report(LiveUpdate(component, int(calls), float(objective), np.array(pose), outlines,
-                                           list(history)))
-
-        result, outlines = _segment_and_match(images, views, mesh, start, settings, splines, passes,
-                                              progress, reporter.cancelled)
-        result.history = history or result.history  # every pass, not just the last
-        return MatchOutcome(component, frame, result, outlines)
-
-    return task
-
-
-def batch_task(component: str, frames: Sequence[int], image_paths: Sequence[Sequence[Path]],
-               views: Sequence[View], mesh: PreparedMesh, start, settings: MatchSettings,
-               reviewed_outlines: dict[int, list[np.ndarray]]):
-    """Track a component through ``frames`` (image_paths[k] = the frame's file per view), each
-    starting from the previous result. Reviewed outlines are used as they are; other frames
-    are segmented automatically. Every frame's MatchOutcome is emitted as an item."""
-
-    def task(reporter) -> BatchOutcome:
-        pose = np.asarray(start, dtype=float)
-        done: list[int] = []
-        t0 = time.perf_counter()
-        for k, (frame, paths) in enumerate(zip(frames, image_paths)):
-            reporter.check()
-            images = [read_image(p) for p in paths]
-            given = reviewed_outlines.get(frame)
-            splines = [OutlineSpline.fit(o) for o in given] if given else None
+        def live(component, calls, objective_mm, pose):
+            histories[component].append(float(objective_mm))
+            if not reporter.due():
+                return
             try:
-                result, outlines = _segment_and_match(images, views, mesh, pose, settings, splines, MAX_PASSES, None,
-                                                      reporter.cancelled)
-            except ValueError as exc:  # no usable edges along the predicted outline
-                return BatchOutcome(component, done, frame, f"frame {frame}: {exc}")
-            if result.cancelled:
-                break
-            reporter.emit(MatchOutcome(component, frame, result, outlines))
-            done.append(frame)
-            reporter.report(BatchProgress(k + 1, len(frames), frame, time.perf_counter() - t0), force=True)
-            worst = max(result.per_view_mean_mm) if result.per_view_mean_mm else np.inf
-            if not result.converged or worst > LOST_TRACK_MM:
-                why = "did not converge" if not result.converged else f"outline distance {worst:.2f} mm"
-                return BatchOutcome(component, done, frame, f"frame {frame}: {why}; check its outlines")
-            pose = result.pose
-        return BatchOutcome(component, done)
+                outlines = [predicted_outline(meshes[component], pose, view, OVERLAY_SPACING_PX)
+                            for view in job.views]
+            except ValueError:  # e.g. a start behind the source: nothing to draw yet
+                return
+            reporter.report(LiveUpdate(component, int(calls), float(objective_mm), np.array(pose, dtype=float),
+                                       outlines, list(histories[component])))
+
+        results = job.run(live, reporter.cancelled)
+        if results is None or reporter.cancelled():
+            raise TaskCancelled()
+        return MatchOutcome(job.frame, results)
 
     return task
 
 
-@dataclass
-class PlacementOutcome:
-    poses: dict[str, np.ndarray]
-    iou: dict[str, float]
+def find_task(job):
+    """Find the components of ``job`` (a ``FindJob``) with progress (fraction, text)."""
+
+    def task(reporter) -> FindOutcome:
+        reporter.report(FindProgress(0.0, "Looking for the implants…"), force=True)
+
+        def progress(fraction, text):
+            reporter.report(FindProgress(float(fraction), str(text)))
+
+        try:
+            placements = job.run(progress, reporter.cancelled)
+        except ImportError as exc:
+            raise RuntimeError("Find implants is not available in this installation (its search engine is "
+                               f"missing: {exc}); place the models by hand with the Place model tool") from None
+        if placements is None or reporter.cancelled():
+            raise TaskCancelled()
+        return FindOutcome(job.frame, placements)
+
+    return task
 
 
-def placement_task(images: Sequence[np.ndarray], views: Sequence[View], meshes: dict[str, PreparedMesh]):
-    """Find every component automatically: dark blobs, which blob is which, pose search."""
+def track_task(job):
+    """Track ``job`` (a ``TrackJob``) frame by frame: every frame's results arrive as a
+    ``TrackedFrame`` item; a cancel stops after the frame in progress (not stored)."""
 
-    def task(reporter) -> PlacementOutcome:
-        reporter.report("Finding implants in the images…", force=True)
-        blobs = [dark_blobs(image) for image in images]
-        if not all(blobs):
-            raise ValueError("no implant-like dark region found in one of the views")
-        found = assign_blobs(meshes, views, blobs, progress=lambda text: reporter.report(text, force=True),
-                             cancel=reporter.cancelled)
-        reporter.check()
-        return PlacementOutcome({n: a.result.pose for n, a in found.items()},
-                                {n: a.result.mean_iou for n, a in found.items()})
+    def task(reporter) -> TrackOutcome:
+        per_frame = len(job.components)
+        total = len(job.frames)
+        t0 = time.perf_counter()
+        pending: list[FrameResult] = []
+        done = 0
+        for result in job.run(None, reporter.cancelled):
+            pending.append(result)
+            if len(pending) < per_frame:
+                continue
+            done += 1
+            following = job.frames[done] if done < total else None
+            reporter.emit(TrackedFrame(pending[0].frame, pending, done, total, time.perf_counter() - t0, following))
+            pending = []
+        if reporter.cancelled():
+            raise TaskCancelled()
+        return TrackOutcome(done, total, time.perf_counter() - t0)
 
     return task

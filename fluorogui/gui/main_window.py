@@ -1,44 +1,45 @@
 """The main window: two image panels, the 3D fluoroscope, docks, menus and what they show.
 
-Thin by design: every change to the project goes through ``SessionController`` (undoable,
-announced by signals); long work goes through ``TaskRunner`` with the tasks in ``jobs``.
-This module wires them to the widgets and keeps the views in step; the session files
-(``session_files``) and the long tasks (``match_control``) are mixins of their own.
+Thin by design: the project lives in the workflow's ``Session`` (``controller.session``);
+every change goes through it (undoable, announced by the ``SessionController``'s
+signals, the Qt undo stack only mirrors its history); long work runs the session's jobs
+in ``TaskRunner``. This module builds the window and wires it up; showing the session
+(``session_view``), the session files (``session_files``) and the long tasks
+(``match_control``) are mixins of their own.
 """
 from __future__ import annotations
 
 from PySide6.QtCore import QSettings, Qt, QTimer, Signal
-from PySide6.QtGui import QAction, QActionGroup, QColor, QKeySequence
+from PySide6.QtGui import QAction, QActionGroup, QKeySequence
 from PySide6.QtWidgets import (
     QApplication,
     QComboBox,
     QDockWidget,
+    QHBoxLayout,
     QLabel,
     QMainWindow,
     QMessageBox,
     QSlider,
     QSplitter,
     QTreeWidget,
-    QTreeWidgetItem,
     QWidget,
 )
 
 from fluorogui import __version__
-from fluorogui.core.pipeline import predicted_outline
-from fluorogui.core.spline import OutlineError
-from fluorogui.gui import jobs, theme
+from fluorogui.gui import theme
 from fluorogui.gui.controller import SessionController
 from fluorogui.gui.image_panel import ImagePanel, Tool
 from fluorogui.gui.match_control import MatchControl
 from fluorogui.gui.matcher_panel import MatcherPanel
 from fluorogui.gui.pose_editor import PoseEditor
 from fluorogui.gui.session_files import SessionFiles
-from fluorogui.gui.timeline import Timeline
+from fluorogui.gui.session_view import COMPONENT_COLOURS, SessionView
+from fluorogui.gui.timeline import Timeline, TimelineLegend
 from fluorogui.gui.worker import TaskRunner
 from fluorogui.io.errors import InputError
+from fluorogui.workflow.session import ORIENTATION_PRESETS
 
 AUTOSAVE_MS = 3 * 60 * 1000
-COMPONENT_COLOURS = {"femoral": QColor(90, 170, 255), "tibial": QColor(110, 220, 120)}
 TOOLS = (
     (Tool.NAVIGATE, "navigate", "Navigate", "N", "Pan and zoom (wheel zooms at the cursor, right-drag sets window/level)"),
     (Tool.PICK_CONTOUR, "pick", "Pick contour", "P", "Click an edge contour to take it as the outline (Shift adds one)"),
@@ -50,19 +51,12 @@ TOOLS = (
     (Tool.CLOSE_GAP, "close_gap", "Close gap", "G", "Click two outline points to bridge the gap between them"),
     (Tool.PLACE, "place", "Place model", "C", "Click the component in view 1 and view 2 to place the model there"),
 )
-ORIENTATION_PRESETS = (
-    ("Upright (all angles 0)", (0.0, 0.0, 0.0)),
-    ("Flexed 30°", (30.0, 0.0, 0.0)),
-    ("Flexed 60°", (60.0, 0.0, 0.0)),
-    ("Flexed 90°", (90.0, 0.0, 0.0)),
-    ("Turned 180° about y", (0.0, 180.0, 0.0)),
-)
 
 
-class MainWindow(SessionFiles, MatchControl, QMainWindow):
+class MainWindow(SessionFiles, SessionView, MatchControl, QMainWindow):
     """The fluorogui main window."""
 
-    frame_shown = Signal(int)  # emitted after a frame's images and overlays are on screen
+    frame_shown = Signal(int)  # frame number, emitted after its images and overlays are on screen
 
     def __init__(self, settings: QSettings | None = None, with_3d: bool = True,
                  parent: QWidget | None = None) -> None:
@@ -72,7 +66,7 @@ class MainWindow(SessionFiles, MatchControl, QMainWindow):
         self.runner = TaskRunner(self)
         self.place_clicks: dict[int, tuple[float, float]] = {}
         self.last_error = ""
-        self._live_component: str | None = None
+        self._init_tasks()
         self.last_cancel_latency: float | None = None
         self._last_live_3d = 0.0
         self._deferred_overlay = False
@@ -81,10 +75,10 @@ class MainWindow(SessionFiles, MatchControl, QMainWindow):
         self.setAcceptDrops(True)
         self.setDockNestingEnabled(True)
 
-        self.panels = [ImagePanel(i, self.controller.undo_stack) for i in range(2)]
+        self.panels = [ImagePanel(i) for i in range(2)]
         splitter = QSplitter(Qt.Orientation.Horizontal)
         for panel in self.panels:
-            panel.outline_sink = self.controller.outline_sink
+            panel.edit_sink = self.controller.apply_edit
             panel.point_clicked.connect(self._place_click)
             panel.cursor_moved.connect(self._show_cursor)
             for name, colour in COMPONENT_COLOURS.items():
@@ -99,7 +93,8 @@ class MainWindow(SessionFiles, MatchControl, QMainWindow):
             self.scene_widget = Scene3DWidget(self)
             self.scene_widget.rays_button.setChecked(False)  # rays on demand: they hide the models
             self.scene_widget.pose_dragged.connect(
-                lambda name, pose: self.controller.set_pose(name, pose, text="Drag model", mergeable=True))
+                lambda name, pose: self.session.set_pose(name, self.controller.frame, pose, text="Drag model",
+                                                         mergeable=True))
         self.pose_editor = PoseEditor()
         self.matcher = MatcherPanel()
         self.timeline = Timeline()
@@ -137,8 +132,13 @@ class MainWindow(SessionFiles, MatchControl, QMainWindow):
         self.tabifyDockWidget(self.matcher_dock, self.pose_dock)
         self.tabifyDockWidget(self.pose_dock, self.session_dock)
         self.matcher_dock.raise_()
-        self.timeline_dock = self._dock("Frames", self.timeline, Qt.DockWidgetArea.BottomDockWidgetArea,
-                                        "timelineDock")
+        frames = QWidget()
+        row = QHBoxLayout(frames)
+        row.setContentsMargins(0, 0, 0, 0)
+        row.addWidget(self.timeline, 1)
+        self.timeline_legend = TimelineLegend()
+        row.addWidget(self.timeline_legend)
+        self.timeline_dock = self._dock("Frames", frames, Qt.DockWidgetArea.BottomDockWidgetArea, "timelineDock")
         self.timeline_dock.setFeatures(QDockWidget.DockWidgetFeature.DockWidgetMovable)
 
     def _action(self, text: str, slot, shortcut=None, icon: str | None = None, tip: str = "") -> QAction:
@@ -227,7 +227,8 @@ class MainWindow(SessionFiles, MatchControl, QMainWindow):
             action.triggered.connect(lambda _=False, a=angles: self._orient(a))
             self.orient_menu.addAction(action)
         model_menu.addAction(self.tool_actions[Tool.PLACE])
-        self.find_action = self._action("&Find implants automatically", self.find_implants, "Ctrl+F")
+        self.find_action = self._action("&Find implants automatically", lambda: self.find_implants(), "Ctrl+F",
+                                        tip="Locate every component in this frame's images (Ctrl+F)")
         model_menu.addAction(self.find_action)
         nudges = ((Qt.Key.Key_Left, 0, -1), (Qt.Key.Key_Right, 0, 1), (Qt.Key.Key_Down, 1, -1),
                   (Qt.Key.Key_Up, 1, 1), (Qt.Key.Key_PageDown, 2, -1), (Qt.Key.Key_PageUp, 2, 1))
@@ -240,15 +241,24 @@ class MainWindow(SessionFiles, MatchControl, QMainWindow):
                          QKeySequence(Qt.KeyboardModifier.ControlModifier | Qt.KeyboardModifier.ShiftModifier | key))
 
         match_menu = menu.addMenu("M&atch")
-        self.run_action = self._action("&Match active component", self.run_match, "F5", "match")
-        self.cancel_action = self._action("&Cancel", self.runner.cancel, "Esc", "cancel")
+        self.run_action = self._action("&Match active component", lambda: self.run_match(), "F5", "match",
+                                       "Match the active component in this frame (F5)")
+        self.run_both_action = self._action("Match &both components", lambda: self.match_both(), "Ctrl+F5",
+                                            "match_both", "Match every component in this frame (Ctrl+F5)")
+        self.cancel_action = self._action("&Cancel", self.runner.cancel, "Esc", "cancel",
+                                          "Stop the running task (Esc)")
         self.cancel_action.setEnabled(False)
-        self.track_action = self._action("&Track following frames", self.track_frames, "Shift+F5")
-        self.accept_action = self._action("&Accept pose", self.accept_pose, "Ctrl+Return", "accept")
+        self.track_action = self._action("&Track following frames", lambda: self.track_frames(), "Shift+F5",
+                                         tip="Track the active component through the following frames (Shift+F5)")
+        self.track_both_action = self._action("Track &both through following frames", lambda: self.track_both(),
+                                              "Ctrl+Shift+F5", "track_both",
+                                              "Track every component through the following frames (Ctrl+Shift+F5)")
+        self.accept_action = self._action("&Accept pose", self.accept_pose, "Ctrl+Return", "accept",
+                                          "Accept the active component's pose, or reopen it (Ctrl+Return)")
         self.next_action = self._action("&Next frame", lambda: self.step_frame(1), "PgDown")
         self.prev_action = self._action("&Previous frame", lambda: self.step_frame(-1), "PgUp")
-        for a in (self.run_action, self.cancel_action, self.track_action, self.accept_action, self.next_action,
-                  self.prev_action):
+        for a in (self.run_action, self.run_both_action, self.cancel_action, self.track_action,
+                  self.track_both_action, self.accept_action, self.next_action, self.prev_action):
             match_menu.addAction(a)
 
         help_menu = menu.addMenu("&Help")
@@ -283,7 +293,8 @@ class MainWindow(SessionFiles, MatchControl, QMainWindow):
             slider.valueChanged.connect(self._thresholds_changed)
             bar.addWidget(slider)
         bar.addSeparator()
-        for a in (self.run_action, self.cancel_action, self.accept_action):
+        for a in (self.run_action, self.run_both_action, self.track_both_action, self.cancel_action,
+                  self.accept_action):
             bar.addAction(a)
 
     def _build_status_bar(self) -> None:
@@ -295,21 +306,24 @@ class MainWindow(SessionFiles, MatchControl, QMainWindow):
     def _connect(self) -> None:
         c = self.controller
         c.project_replaced.connect(self._project_replaced)
-        c.frame_changed.connect(lambda _i: self.show_frame())
+        c.frame_changed.connect(lambda _frame: self.show_frame())
         c.component_changed.connect(self._component_changed)
         c.pose_changed.connect(self._pose_changed)
         c.outline_changed.connect(self._outline_changed)
         c.dirty_changed.connect(lambda dirty: self.setWindowModified(dirty))
         c.path_changed.connect(lambda _p: self._refresh_title())
         self.pose_editor.pose_edited.connect(
-            lambda pose: c.set_pose(c.component, pose, text="Edit pose", mergeable=True))
-        self.timeline.frame_selected.connect(c.set_frame_index)
+            lambda pose: c.session.set_pose(c.component, c.frame, pose, text="Edit pose", mergeable=True))
+        self.timeline.frame_selected.connect(c.set_frame)
         m = self.matcher
-        m.run_requested.connect(self.run_match)
+        m.run_requested.connect(lambda: self.run_match())
+        m.run_both_requested.connect(lambda: self.match_both())
         m.cancel_requested.connect(self.runner.cancel)
-        m.track_requested.connect(self.track_frames)
+        m.track_requested.connect(lambda: self.track_frames())
+        m.track_both_requested.connect(lambda: self.track_both())
         m.accept_requested.connect(self.accept_pose)
-        m.place_requested.connect(self.find_implants)
+        m.place_requested.connect(lambda: self.find_implants())
+        m.settings_edited.connect(self._settings_edited)
         r = self.runner
         r.running_changed.connect(self._running_changed)
         r.progress.connect(self._task_progress)
@@ -348,6 +362,8 @@ class MainWindow(SessionFiles, MatchControl, QMainWindow):
         name = path.name if path else "untitled"
         if self.controller.project.settings.get("demo"):
             name += " (demo)"
+        if self.controller.read_only:
+            name += " (read-only)"
         self.setWindowTitle(f"{name}[*] — fluorogui")
         self.setWindowModified(self.controller.dirty)
 
@@ -365,183 +381,10 @@ class MainWindow(SessionFiles, MatchControl, QMainWindow):
             self.runner.wait(5000)
         self._save_layout()
         self.recovery_path().unlink(missing_ok=True)
+        self.controller.close()
         if self.scene_widget is not None:
             self.scene_widget.close()
         event.accept()
-
-    # -- showing the session ---------------------------------------------------------------
-    def _project_replaced(self) -> None:
-        c = self.controller
-        self.place_clicks.clear()
-        names = c.components()
-        self.component_combo.blockSignals(True)
-        self.component_combo.clear()
-        self.component_combo.addItems(names)
-        if c.component in names:
-            self.component_combo.setCurrentText(c.component)
-        self.component_combo.blockSignals(False)
-        self.component_menu.clear()
-        for name in names:
-            action = QAction(name, self, checkable=True)
-            action.setChecked(name == c.component)
-            action.triggered.connect(lambda _=False, n=name: c.set_component(n))
-            self.component_actions.addAction(action)
-            self.component_menu.addAction(action)
-        if self.scene_widget is not None:
-            scene = self.scene_widget.scene
-            scene.set_views(c.project.views)
-            for name in names:
-                try:
-                    vertices, faces = c.raw_mesh(name)
-                except InputError as exc:
-                    self._warn("Cannot load a model", str(exc))
-                    continue
-                scene.set_model(name, vertices, faces, COMPONENT_COLOURS.get(name, QColor(200, 200, 200)).getRgbF()[:3])
-        self._camera_pending = True
-        self._refresh_tree()
-        self._refresh_title()
-        self.timeline.set_frames(c.frames, c.frame_states())
-        self._component_changed(c.component)
-        saved_index = c.project.settings.get("gui", {}).get("frame_index", 0)
-        if isinstance(saved_index, int) and 0 < saved_index < len(c.frames):
-            c.set_frame_index(saved_index)
-
-    def _refresh_tree(self) -> None:
-        c = self.controller
-        self.tree.clear()
-        root = QTreeWidgetItem([c.path.name if c.path else "Untitled session"])
-        views = QTreeWidgetItem(root, ["Views"])
-        for i, v in enumerate(c.project.views):
-            QTreeWidgetItem(views, [f"View {i + 1}: {v.name or 'calibrated'} ({v.image_size[0]}×{v.image_size[1]})"])
-        models = QTreeWidgetItem(root, ["Components"])
-        for name in c.components():
-            item = QTreeWidgetItem(models, [f"{name}  ({c.project.model(name).mesh_path.name})"])
-            item.setData(0, Qt.ItemDataRole.UserRole, ("component", name))
-        frames = QTreeWidgetItem(root, [f"Frames ({len(c.frames)})"])
-        for i, f in enumerate(c.frames[:500]):
-            item = QTreeWidgetItem(frames, [f"Frame {f}"])
-            item.setData(0, Qt.ItemDataRole.UserRole, ("frame", i))
-        self.tree.addTopLevelItem(root)
-        root.setExpanded(True)
-        views.setExpanded(True)
-        models.setExpanded(True)
-
-    def _tree_activated(self, item, _column=0) -> None:
-        data = item.data(0, Qt.ItemDataRole.UserRole)
-        if not data:
-            return
-        kind, value = data
-        if kind == "component":
-            self.controller.set_component(value)
-        elif kind == "frame":
-            self.controller.set_frame_index(value)
-
-    def show_frame(self) -> None:
-        """Show the current frame: images, outlines, overlays, pose, match summary."""
-        c = self.controller
-        if c.frame is None:
-            return
-        try:
-            images = c.images()
-        except InputError as exc:
-            self._warn("Cannot read an image", str(exc))
-            images = [None] * c.n_views()
-        for view, panel in enumerate(self.panels):
-            panel.set_image(images[view] if view < len(images) else None, key=(c.frame, view))
-            for name in c.components():
-                key = c.outline_key(view, name)
-                panel.set_outline(name, c.outline_points(key), key)
-        if self.scene_widget is not None:
-            self.scene_widget.scene.set_images(images)
-        for name in c.components():
-            self._show_pose(name)
-        self._show_rays()
-        if self.scene_widget is not None and getattr(self, "_camera_pending", False):
-            self._camera_pending = False
-            self.scene_widget.scene.camera_preset("implant")
-        self._show_match_summary()
-        self.timeline.set_current(c.frame_index)
-        self.frame_label.setText(f"Frame {c.frame} ({c.frame_index + 1}/{len(c.frames)})")
-        self.frame_shown.emit(c.frame_index)
-
-    def _show_rays(self) -> None:
-        """Rays in the 3D scene through the active component's image outline."""
-        if self.scene_widget is None:
-            return
-        c = self.controller
-        for view in range(c.n_views()):
-            self.scene_widget.scene.set_rays(view, c.outline_points(c.outline_key(view)))
-
-    def _show_pose(self, component: str) -> None:
-        """Overlays and 3D model of one component at its current pose."""
-        c = self.controller
-        pose = c.pose(component)
-        self._show_model_outline(component, pose)
-        if self.scene_widget is not None:
-            self.scene_widget.scene.set_pose(component, pose)
-            self.scene_widget.scene.render()
-        if component == c.component:
-            self.pose_editor.set_pose(pose)
-
-    def _show_model_outline(self, component: str, pose, outlines=None) -> None:
-        c = self.controller
-        try:
-            mesh = c.mesh(component)
-        except (InputError, KeyError):
-            return
-        splines = c.splines(component)
-        for view, panel in enumerate(self.panels[:c.n_views()]):
-            points = outlines[view] if outlines is not None else predicted_outline(
-                mesh, pose, c.project.views[view], jobs.OVERLAY_SPACING_PX)
-            distances = None
-            if splines is not None:
-                try:
-                    distances = splines[view].closest(points)[0]
-                except (OutlineError, ValueError):
-                    distances = None
-            panel.set_model_outline(component, points, distances)
-
-    def _show_match_summary(self) -> None:
-        record = self.controller.pose_record(self.controller.component)
-        if record is None or record.match is None:
-            self.matcher.show_result(None)
-        else:
-            self.matcher.show_result(record.match, label="Reviewed. " if record.reviewed else "")
-
-    def _component_changed(self, name: str) -> None:
-        self.component_combo.blockSignals(True)
-        self.component_combo.setCurrentText(name)
-        self.component_combo.blockSignals(False)
-        for action in self.component_actions.actions():
-            action.setChecked(action.text() == name)
-        for panel in self.panels:
-            panel.set_active_component(name)
-        self.pose_editor.set_component(name if name in self.controller.components() else None)
-        if name in self.controller.components() and self.controller.frame is not None:
-            self.pose_editor.set_pose(self.controller.pose(name))
-            self._show_match_summary()
-        if self.scene_widget is not None and name in self.controller.components():
-            self.scene_widget.enable_gizmo(name)
-            self._show_rays()
-
-    def _pose_changed(self, frame: int, component: str) -> None:
-        c = self.controller
-        if frame == c.frame:
-            self._show_pose(component)
-            if component == c.component:
-                self._show_match_summary()
-        self.timeline.set_states(c.frame_states())
-
-    def _outline_changed(self, key, component: str) -> None:
-        c = self.controller
-        frame, view, _ = key
-        if frame == c.frame and view < len(self.panels):
-            self.panels[view].set_outline(component, c.outline_points(key), key)
-            if not self._deferred_overlay:
-                self._show_model_outline(component, c.pose(component))
-            if component == c.component:
-                self._show_rays()
-        self.timeline.set_states(c.frame_states())
 
     def _show_cursor(self, u: float, v: float, value: float) -> None:
         self.cursor_label.setText(f"u {u:.1f}  v {v:.1f}  value {value:.0f}")
@@ -576,11 +419,16 @@ class MainWindow(SessionFiles, MatchControl, QMainWindow):
                 panel.set_canny_thresholds(low, high)
 
     def clear_outlines(self) -> None:
-        c = self.controller
-        c.undo_stack.beginMacro(f"Clear {c.component} outlines")
-        for view in range(c.n_views()):
-            c.set_outline(c.outline_key(view), None)
-        c.undo_stack.endMacro()
+        c, s = self.controller, self.controller.session
+        if c.frame is None:
+            return
+        s.history.begin_macro(f"Clear {c.component} outlines")
+        try:
+            for view in range(s.n_views):
+                if s.outline_record(c.outline_key(view)) is not None:
+                    s.set_outline(c.outline_key(view), None, f"Clear {c.component} outline")
+        finally:
+            s.history.end_macro()
 
     def _place_click(self, view: int, u: float, v: float) -> None:
         c = self.controller
@@ -594,7 +442,7 @@ class MainWindow(SessionFiles, MatchControl, QMainWindow):
         for panel in self.panels:
             panel.clear_place_marker()
         try:
-            miss = c.place_at(c.component, pixels)
+            miss = c.session.place_at(c.component, c.frame, pixels)
         except (InputError, KeyError, ValueError) as exc:
             self._warn("Cannot place the model", str(exc))
             return
@@ -604,21 +452,32 @@ class MainWindow(SessionFiles, MatchControl, QMainWindow):
         self.last_place_miss = miss
 
     def _orient(self, angles) -> None:
+        c = self.controller
         try:
-            self.controller.orient(self.controller.component, angles)
+            c.session.orient(c.component, c.frame, angles)
         except (InputError, KeyError) as exc:
             self._warn("Cannot orient the model", str(exc))
 
     def step_frame(self, step: int) -> None:
-        self.controller.set_frame_index(self.controller.frame_index + step)
+        self.controller.step_frame(step)
 
     def accept_pose(self) -> None:
-        c = self.controller
-        record = c.pose_record(c.component)
-        if record is None or record.match is None:
-            self.statusBar().showMessage("Match the component first (F5)", 5000)
+        """Accept the active component's pose in this frame (flagged or not: the user has
+        looked at it), or reopen an accepted one."""
+        c, s = self.controller, self.controller.session
+        if c.frame is None or self.runner.is_running():
             return
-        c.set_reviewed(c.component, not record.reviewed)
+        record = s.pose_record(c.component, c.frame)
+        if record is None or (record.match is None and record.status == "placed"):
+            self.statusBar().showMessage(f"Match the {c.component} component first (F5); then accept it", 8000)
+            return
+        s.set_reviewed(c.component, c.frame, not record.reviewed)
+        if record.reviewed:
+            text = f"Reopened the {c.component} pose in frame {c.frame}"
+        else:
+            text = f"Accepted the {c.component} pose in frame {c.frame}" + (
+                " although it was flagged" if record.needs_review else "")
+        self.statusBar().showMessage(text, 8000)
 
     # -- help ------------------------------------------------------------------------------
     def show_shortcuts(self) -> None:

@@ -1,98 +1,194 @@
-"""Running the long tasks from the main window: a match, tracking over frames and finding the
-implants in the worker thread, with live overlays, and storing what comes back.
+"""Running the workflow's jobs from the main window: match (the active component or both),
+track the following frames (the active component or both) and find the implants, in the
+worker thread with live overlays, progress and cancel; then storing what comes back
+through the session and saying what happened in plain words.
 
 ``MatchControl`` is a mixin of ``MainWindow``; it uses the window's controller, runner,
-panels, matcher panel and 3D scene."""
+panels, matcher panel and 3D scene. The jobs come from ``Session.match_job`` /
+``find_job`` / ``track_job`` (see ``jobs``): no matching loop or tracking rule of its own.
+"""
 from __future__ import annotations
 
 import time
 
-from fluorogui.core.session import MatchRecord
+from PySide6.QtCore import QTimer
+
 from fluorogui.gui import jobs
 from fluorogui.io.errors import InputError
+from fluorogui.workflow.results import FAILED, NEEDS_REVIEW
 
 LIVE_3D_INTERVAL_S = 0.4  # the 3D model follows a live match at most this often
 LIVE_3D_MAX_RENDER_S = 0.03  # and not at all where a render takes longer
 
 
+def frame_list(frames) -> str:
+    """Frame numbers as short text: "1–3, 7, 9"."""
+    frames = sorted(frames)
+    parts, i = [], 0
+    while i < len(frames):
+        j = i
+        while j + 1 < len(frames) and frames[j + 1] == frames[j] + 1:
+            j += 1
+        parts.append(str(frames[i]) if j == i else f"{frames[i]}{'–' if j > i + 1 else ', '}{frames[j]}")
+        i = j + 1
+    return ", ".join(parts)
+
+
+class TrackSummary:
+    """What a tracking run has done so far, frame by frame."""
+
+    def __init__(self, frames, components) -> None:
+        self.frames = list(frames)
+        self.components = list(components)
+        self.matched: list[int] = []
+        self.review: list[int] = []
+        self.failed: list[int] = []
+        self.elapsed_s = 0.0
+
+    def add(self, frame: int, results) -> None:
+        status = jobs.frame_status(results)
+        {FAILED: self.failed, NEEDS_REVIEW: self.review}.get(status, self.matched).append(frame)
+
+    @property
+    def done(self) -> int:
+        return len(self.matched) + len(self.review) + len(self.failed)
+
+    def counts(self) -> str:
+        return (f"{len(self.matched)} matched, {len(self.review)} need{'s' if len(self.review) == 1 else ''} review, "
+                f"{len(self.failed)} failed")
+
+    def text(self, ending: str = "") -> str:
+        what = " and ".join(self.components)
+        head = (f"Tracked {what} through {self.done} of {len(self.frames)} frame"
+                f"{'s' if len(self.frames) != 1 else ''}" + (f" ({frame_list(self.frames)})" if self.frames else "")
+                + f" in {self.elapsed_s:.1f} s: {self.counts()}.")
+        if self.review:
+            head += f" Needs review: frame {frame_list(self.review)}."
+        if self.failed:
+            head += f" Failed: frame {frame_list(self.failed)}."
+        return head + (f" {ending}" if ending else "")
+
+
 class MatchControl:
     """Task handling of ``MainWindow`` (a mixin)."""
 
-    # -- matching --------------------------------------------------------------------------
-    def _inputs_or_warn(self, title: str):
-        """(images, views, mesh of the active component) for a task, or None after telling the
-        user why not (None without a word while another task runs)."""
+    def _init_tasks(self) -> None:
+        self._live_components: list[str] = []
+        self._task_kind = ""
+        self._track: TrackSummary | None = None
+        self._follow_frame: int | None = None
+        self._follow_timer = QTimer(self)
+        self._follow_timer.setSingleShot(True)
+        self._follow_timer.setInterval(0)
+        self._follow_timer.timeout.connect(self._follow)
+
+    # -- starting work -----------------------------------------------------------------------------
+    def _ready(self, title: str) -> bool:
+        """Whether a task can start now (else the user is told why, or nothing while
+        another task runs)."""
         if self.runner.is_running():
-            return None
-        c = self.controller
+            return False
+        c, s = self.controller, self.controller.session
+        if c.frame is None or s.n_views < 2 or not s.components():
+            self._warn(title, "Open a session with two views and a model first.")
+            return False
+        return True
+
+    def _settings_edited(self) -> None:
+        """The matcher panel's method / density / outline points go into the session's
+        settings, so the app and a script on the same project match alike."""
+        s = self.controller.session
+        settings = s.settings
+        settings.match = self.matcher.settings(settings.match)
+        s.set_settings(settings)
+
+    def run_match(self, components=None) -> bool:
+        """Match the active component (or ``components``, e.g. "both") in the frame on screen."""
+        if not self._ready("Cannot match"):
+            return False
+        c, s = self.controller, self.controller.session
+        names = s.components() if components in ("both", "all") else [components or c.component]
+        todo = [n for n in names if not ((r := s.pose_record(n, c.frame)) is not None and r.reviewed)]
+        if not todo:
+            what = "poses are" if len(names) > 1 else f"{names[0]} pose is"
+            self.statusBar().showMessage(f"The {what} accepted in frame {c.frame}; Ctrl+Return reopens the active "
+                                         "component's pose to match it again", 10000)
+            return False
         try:
-            if c.frame is None or c.n_views() < 2 or c.component not in c.components():
-                raise ValueError("open a session with two views and a model first")
-            images = c.images()
-            if any(image is None for image in images):
-                raise ValueError("an image of this frame is missing")
-            return images, c.project.views[:2], c.mesh(c.component)
-        except (InputError, ValueError) as exc:
-            self._warn(title, str(exc))
-            return None
-
-    def run_match(self) -> bool:
-        """Match the active component in the current frame in the worker thread."""
-        c = self.controller
-        inputs = self._inputs_or_warn("Cannot match")
-        if inputs is None:
+            job = s.match_job(c.frame, todo)
+        except (InputError, KeyError, ValueError) as exc:
+            self._warn("Cannot match", str(exc).strip("'\""))
             return False
-        images, views, mesh = inputs
-        self._live_component = c.component
-        task = jobs.match_task(c.component, c.frame, images, views, mesh, c.pose(c.component),
-                               self.matcher.settings(), c.splines(c.component))
-        return self.runner.start(task, f"Matching the {c.component} component")
+        self._live_components = todo
+        self._task_kind = "match"
+        skipped = [n for n in names if n not in todo]
+        label = f"Matching {' and '.join(todo)} in frame {c.frame}" + (
+            f" (the accepted {' and '.join(skipped)} pose is kept)" if skipped else "")
+        return self.runner.start(jobs.match_task(job), label)
 
-    def track_frames(self) -> bool:
-        """Match the active component in this and every later frame, each from the last."""
-        c = self.controller
-        inputs = self._inputs_or_warn("Cannot track")
-        if inputs is None:
+    def match_both(self) -> bool:
+        return self.run_match("both")
+
+    def track_frames(self, components=None) -> bool:
+        """Track the active component (or "both") through the frames after the one on
+        screen - from this frame itself when a component is not matched in it yet.
+        Accepted poses are kept, others are matched again; a frame that fails its checks
+        is flagged and tracking goes on."""
+        if not self._ready("Cannot track"):
             return False
-        _, views, mesh = inputs
-        frames = c.frames[c.frame_index:]
-        paths = [[c.image_path(v, c.frame_index + k) for v in range(2)] for k in range(len(frames))]
-        reviewed = {}
-        for f in frames:
-            records = [c.outline_record(c.outline_key(v, c.component, f)) for v in range(2)]
-            if all(r is not None and r.reviewed for r in records):
-                reviewed[f] = [r.points for r in records]
-        self._live_component = c.component
-        task = jobs.batch_task(c.component, frames, paths, views, mesh, c.pose(c.component),
-                               self.matcher.settings(), reviewed)
-        return self.runner.start(task, f"Tracking the {c.component} component")
+        c, s = self.controller, self.controller.session
+        names = s.components() if components in ("both", "all") else [components or c.component]
+        frames = s.frames
+        here = s.index_of(c.frame)
+        unmatched = any(not ((r := s.pose_record(n, c.frame)) is not None and r.is_matched) for n in names)
+        todo = frames[here:] if unmatched else frames[here + 1:]
+        if not todo:
+            self.statusBar().showMessage("This is the last frame: no frame follows it to track", 8000)
+            return False
+        try:
+            job = s.track_job(frames=todo, components=names, redo=True)
+        except (InputError, KeyError, ValueError) as exc:
+            self._warn("Cannot track", str(exc).strip("'\""))
+            return False
+        self._track = TrackSummary(todo, names)
+        self._live_components = []
+        self._task_kind = "track"
+        self.matcher.show_batch(0, len(todo), 0.0)
+        return self.runner.start(jobs.track_task(job), f"Tracking {' and '.join(names)} from frame {todo[0]}")
+
+    def track_both(self) -> bool:
+        return self.track_frames("both")
 
     def find_implants(self) -> bool:
-        """Locate every component in the current frame's images (global search, in the worker)."""
-        c = self.controller
-        inputs = self._inputs_or_warn("Cannot search")
-        if inputs is None:
+        """Locate every component in the frame on screen (a global search, in the worker)."""
+        if not self._ready("Cannot search"):
             return False
-        images, views, _ = inputs
+        c, s = self.controller, self.controller.session
         try:
-            meshes = {name: c.mesh(name) for name in c.components()}
-        except InputError as exc:
-            self._warn("Cannot search", str(exc))
+            job = s.find_job(c.frame, "both")
+        except (InputError, KeyError, ValueError) as exc:
+            self._warn("Cannot search", str(exc).strip("'\""))
             return False
-        return self.runner.start(jobs.placement_task(images, views, meshes), "Finding the implants")
+        self._live_components = []
+        self._task_kind = "find"
+        self.matcher.show_progress(0.0, "Looking for the implants")
+        return self.runner.start(jobs.find_task(job), f"Finding the implants in frame {c.frame}")
 
+    # -- while it runs -------------------------------------------------------------------------------
     def _running_changed(self, running: bool) -> None:
         self.matcher.set_running(running)
         self.cancel_action.setEnabled(running)
-        for a in (self.run_action, self.track_action, self.find_action, self.open_action, self.import_action,
-                  self.demo_action):
+        for a in (self.run_action, self.run_both_action, self.track_action, self.track_both_action,
+                  self.find_action, self.accept_action, self.open_action, self.import_action, self.demo_action):
             a.setEnabled(not running)
         if running:
+            self.matcher.show_summary("")
             self.statusBar().showMessage(self.runner.label + "…")
 
     def _task_progress(self, payload) -> None:
         if isinstance(payload, jobs.LiveUpdate):
-            self.matcher.show_live(payload.calls, payload.objective_mm, payload.history)
+            if payload.component == self.controller.component or len(self._live_components) == 1:
+                self.matcher.show_live(payload.calls, payload.objective_mm, payload.history)
             self._show_model_outline(payload.component, payload.pose, payload.outlines_px)
             now = time.perf_counter()
             if (self.scene_widget is not None and now - self._last_live_3d > LIVE_3D_INTERVAL_S
@@ -103,67 +199,116 @@ class MatchControl:
                 self._last_live_3d = now
                 self.scene_widget.scene.set_pose(payload.component, payload.pose)
                 self.scene_widget.scene.render()
-        elif isinstance(payload, jobs.BatchProgress):
-            self.matcher.show_batch(payload.done, payload.total, payload.seconds)
-            self.statusBar().showMessage(f"{self.runner.label}: frame {payload.frame} done")
-        elif isinstance(payload, str):
-            self.statusBar().showMessage(payload)
+        elif isinstance(payload, jobs.FindProgress):
+            self.matcher.show_progress(payload.fraction, payload.text)
+            self.statusBar().showMessage(f"{self.runner.label}: {payload.text}")
 
-    def _store_outcome(self, outcome: jobs.MatchOutcome) -> None:
-        c = self.controller
-        c.undo_stack.beginMacro(f"Match {outcome.component} in frame {outcome.frame}")
+    def _store(self, results, text: str | None = None) -> None:
+        """Results into the session (one undoable step), with one overlay refresh."""
         self._deferred_overlay = True  # one overlay refresh (by the pose change) instead of one per outline
         try:
-            if outcome.outlines_px is not None:
-                for view, points in enumerate(outcome.outlines_px):
-                    c.set_outline(c.outline_key(view, outcome.component, outcome.frame), points,
-                                  text="Automatic outline", reviewed=False)
+            self.controller.session.store(results, text)
         finally:
             self._deferred_overlay = False
-        c.set_pose(outcome.component, outcome.result.pose, frame=outcome.frame,
-                   match=MatchRecord.from_result(outcome.result), text="Match")
-        c.undo_stack.endMacro()
 
     def _task_item(self, payload) -> None:
-        if isinstance(payload, jobs.MatchOutcome):
-            self._store_outcome(payload)
+        if not isinstance(payload, jobs.TrackedFrame) or self._track is None:
+            return
+        self._store(payload.results, f"Track frame {payload.frame}")
+        self._track.add(payload.frame, payload.results)
+        self._track.elapsed_s = payload.elapsed_s
+        self.matcher.show_batch(payload.done, payload.total, payload.elapsed_s)
+        self._follow_frame = payload.frame  # the view follows, at most once per event-loop pass
+        self._follow_timer.start()
+        shown = next((r for r in payload.results if r.component == self.controller.component), payload.results[0])
+        self._track_history = shown.match.history if shown.match is not None else []
+        following = f"; now frame {payload.next_frame}" if payload.next_frame is not None else ""
+        self.statusBar().showMessage(f"{self.runner.label}: frame {payload.frame} done ({payload.done}/"
+                                     f"{payload.total}{following}) — {self._track.counts()}")
+
+    def _follow(self) -> None:
+        frame, self._follow_frame = self._follow_frame, None
+        if frame is None:
+            return
+        self.matcher.plot.set_values(getattr(self, "_track_history", []))  # that frame's objective
+        self.controller.set_frame(frame)
 
     def _task_finished(self, result) -> None:
-        c = self.controller
+        c, s = self.controller, self.controller.session
         if isinstance(result, jobs.MatchOutcome):
-            self._store_outcome(result)
-            self.matcher.show_result(MatchRecord.from_result(result.result), history=result.result.history)
-            state = "converged" if result.result.converged else "did NOT converge - check the outlines"
-            self.statusBar().showMessage(
-                f"Matched the {result.component} component in {result.result.seconds:.2f} s: "
-                f"objective {result.result.objective_mm:.3f} mm, {state}. Ctrl+Return accepts.", 15000)
-        elif isinstance(result, jobs.BatchOutcome):
-            n = len(result.frames_done)
-            message = f"Tracked the {result.component} component through {n} frame(s)"
-            if result.stopped_at is not None:
-                message += f"; stopped at {result.reason}"
-                if result.stopped_at in c.frames:
-                    c.set_frame_index(c.frames.index(result.stopped_at))
-            elif result.frames_done:
-                c.set_frame_index(c.frames.index(result.frames_done[-1]))
-            self.statusBar().showMessage(message, 20000)
-        elif isinstance(result, jobs.PlacementOutcome):
-            c.undo_stack.beginMacro("Find implants")
-            for name, pose in result.poses.items():
-                c.set_pose(name, pose, text=f"Find {name}")
-            c.undo_stack.endMacro()
-            found = ", ".join(f"{n} (overlap {100 * iou:.0f} %)" for n, iou in result.iou.items())
-            self.statusBar().showMessage(f"Found {found}. Press F5 to match.", 15000)
+            self._store(result.results)
+            self._show_results(result.results)
+        elif isinstance(result, jobs.TrackOutcome):
+            self._end_tracking()
+        elif isinstance(result, jobs.FindOutcome):
+            s.store_placements(result.placements)
+            found = [p for p in result.placements.values() if p.found]
+            text = "; ".join(p.describe() for p in result.placements.values())
+            text = f"Find implants in frame {result.frame}: {text}." + (
+                " Press Ctrl+F5 to match both." if found else " Place the models by hand (Place model, C).")
+            self.matcher.show_summary(text)
+            self.statusBar().showMessage(text, 20000)
+        self._live_components = []
+
+    def _show_results(self, results) -> None:
+        """A finished match in plain words: status and reason of every component."""
+        c = self.controller
+        shown = next((r for r in results if r.component == c.component), results[0] if results else None)
+        if shown is not None and shown.match is not None:
+            self.matcher.plot.set_values(shown.match.history)
+        self._show_pose_status()
+        parts = []
+        for r in results:
+            took = f" in {r.seconds:.1f} s" if r.seconds else ""
+            if r.status == NEEDS_REVIEW:
+                parts.append(f"{r.component} needs review{took}: {r.reason}")
+            elif r.status == FAILED:
+                parts.append(f"{r.component} failed: {r.reason}")
+            else:
+                objective = f", objective {r.match.objective_mm:.3f} mm" if r.match is not None else ""
+                parts.append(f"{r.component} matched{took}{objective}")
+        flagged = any(r.status != "matched" for r in results)
+        advice = (" Check the outlines and match again (F5), or accept the pose as it is (Ctrl+Return)."
+                  if flagged else " Ctrl+Return accepts.")
+        text = f"Frame {results[0].frame if results else c.frame}: " + "; ".join(parts) + "." + advice
+        self.matcher.show_summary(text)
+        self.statusBar().showMessage(text, 20000)
+
+    def _end_tracking(self, ending: str = "") -> None:
+        track, self._track = self._track, None
+        self._follow_timer.stop()
+        if self._follow_frame is not None:
+            self._follow()
+        if track is None:
+            return
+        flagged = sorted(track.review + track.failed)
+        if flagged and not ending:
+            ending = f"Showing frame {flagged[0]}, the first to review."
+            self.controller.set_frame(flagged[0])
+        text = track.text(ending)
+        self.matcher.show_summary(text)
+        self.statusBar().showMessage(text, 30000)
 
     def _task_cancelled(self) -> None:
         latency = (time.perf_counter() - self.runner.cancel_requested_at) if self.runner.cancel_requested_at else None
         self.last_cancel_latency = latency
-        if self._live_component is not None:
-            self._show_pose(self._live_component)  # back to the stored pose
-        self.matcher.show_result(None, label="Cancelled; the pose is unchanged")
-        self.statusBar().showMessage("Cancelled; the pose is unchanged", 8000)
+        for name in self._live_components:
+            self._show_pose(name)  # back to the stored pose
+        self._live_components = []
+        if self._task_kind == "track":
+            self._end_tracking("Cancelled: the frames tracked so far are kept (Ctrl+Z undoes them frame by frame); "
+                               "the frame in progress is unchanged.")
+            return
+        text = ("Find implants cancelled; nothing changed" if self._task_kind == "find"
+                else "Cancelled; the poses are unchanged")
+        self.matcher.show_message(text)
+        self.matcher.show_summary(text)
+        self.statusBar().showMessage(text, 8000)
 
     def _task_failed(self, message: str) -> None:
-        if self._live_component is not None:
-            self._show_pose(self._live_component)
+        for name in self._live_components:
+            self._show_pose(name)
+        self._live_components = []
+        if self._task_kind == "track":
+            self._end_tracking(f"Stopped: {message}")
         self._warn("The task failed", message)

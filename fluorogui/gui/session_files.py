@@ -1,6 +1,11 @@
 """The session life cycle of the main window: open, save, the demo, import, recent files,
 autosave and crash recovery, and dropped files.
 
+An open project file is locked (``fluorogui.io.lock``) so that the command line or a
+second app cannot write it at the same time. A file another live program holds is not
+opened behind its back: a dialog says who holds it and offers to open it read-only
+(look, and save a copy with Save As).
+
 ``SessionFiles`` is a mixin of ``MainWindow``; it works through the window's controller,
 settings, status bar and ``_warn`` / ``_refresh_title``."""
 from __future__ import annotations
@@ -14,6 +19,7 @@ from PySide6.QtCore import QStandardPaths, Qt
 from PySide6.QtWidgets import QApplication, QFileDialog, QMessageBox
 
 from fluorogui.io.errors import InputError
+from fluorogui.io.lock import ProjectLocked
 from fluorogui.io.meshes import MESH_SUFFIXES
 
 PROJECT_FILTER = "fluorogui projects (*.fluoro);;All files (*)"
@@ -63,9 +69,11 @@ class SessionFiles:
             return self.save()
         return answer == QMessageBox.StandardButton.Discard
 
-    def open_project(self, path=None, ask: bool = True) -> bool:
+    def open_project(self, path=None, ask: bool = True, quiet_read_only: bool = False) -> bool:
         """Open a project file (asks for one when ``path`` is None). A failure shows a
-        dialog naming the file and leaves the open project as it was."""
+        dialog naming the file and leaves the open project as it was; a file another
+        program holds opens read-only if the user says so (without asking when
+        ``quiet_read_only``)."""
         if self.runner.is_running():
             self.statusBar().showMessage("Wait for the running task to end (or cancel it) first", 5000)
             return False
@@ -76,14 +84,34 @@ class SessionFiles:
             if not name:
                 return False
             path = name
+        read_only = False
         try:
-            self.controller.open(path)
+            try:
+                self.controller.open(path)
+            except ProjectLocked as exc:
+                if not quiet_read_only and not self._ask_read_only(exc):
+                    return False
+                read_only = True
+                self.controller.open(path, read_only=True)
         except InputError as exc:
             self._warn("Cannot open project", str(exc))
             return False
         self._add_recent(Path(path).resolve())
         self.settings.setValue("last_dir", str(Path(path).resolve().parent))
-        self.statusBar().showMessage(f"Opened {path}", 5000)
+        self.statusBar().showMessage(f"Opened {path}" + (" read-only" if read_only else ""), 5000)
+        return True
+
+    def _ask_read_only(self, exc: ProjectLocked) -> bool:
+        """Tell the user who holds a project; True if they want it read-only anyway."""
+        self.last_error = str(exc)
+        answer = QMessageBox.question(
+            self, "Project in use",
+            f"{exc}.\n\nOpen it read-only? You can look at it and save a copy with Save As, but not save over "
+            "the file while the other program has it.",
+            QMessageBox.StandardButton.Open | QMessageBox.StandardButton.Cancel, QMessageBox.StandardButton.Cancel)
+        if answer != QMessageBox.StandardButton.Open:
+            self.statusBar().showMessage(f"Not opened: {exc}", 10000)
+            return False
         return True
 
     def _last_dir(self) -> Path:
@@ -105,7 +133,7 @@ class SessionFiles:
             self._warn("Cannot build the demo", str(exc))
             return False
         QApplication.restoreOverrideCursor()
-        opened = self.open_project(path, ask=False)
+        opened = self.open_project(path, ask=False, quiet_read_only=True)  # another window may show it
         if opened:
             self.controller.project.settings["demo"] = True
             self._refresh_title()
@@ -114,7 +142,8 @@ class SessionFiles:
         return opened
 
     def save(self) -> bool:
-        if self.controller.path is None or self.controller.project.settings.get("demo"):
+        c = self.controller
+        if c.path is None or c.project.settings.get("demo") or c.read_only:
             return self.save_as()
         return self._save_to(self.controller.path)
 
@@ -154,7 +183,7 @@ class SessionFiles:
         if dialog.exec() != ImportDialog.DialogCode.Accepted or dialog.project is None:
             return False
         self.controller.set_project(dialog.project, None)
-        self.controller.undo_stack.resetClean()  # never saved: closing asks
+        self.controller.session.history.reset_clean()  # never saved: closing asks
         self.statusBar().showMessage("Imported. Save the session to keep it (Ctrl+S)", 8000)
         return True
 
@@ -200,14 +229,18 @@ class SessionFiles:
             path.unlink(missing_ok=True)
             return False
         try:
-            self.controller.open(path)
+            self.controller.open(path, read_only=True)  # the recovery file is this app's own
         except InputError as exc:
             self._warn("Cannot recover the session", str(exc))
             return False
-        self.controller.path = Path(origin) if origin else None
-        self.controller.undo_stack.resetClean()
+        held = self.controller.claim(origin) if origin else ""
+        if not origin:
+            self.controller.session.path = None
+            self.controller.read_only = False
+        self.controller.session.history.reset_clean()
         self._refresh_title()
-        self.statusBar().showMessage("Recovered; save to keep it", 8000)
+        self.statusBar().showMessage("Recovered; save to keep it" + (
+            f" (read-only: {held}; save a copy with Save As)" if held else ""), 8000)
         return True
 
     # -- drag and drop ---------------------------------------------------------------------

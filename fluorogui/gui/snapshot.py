@@ -3,10 +3,14 @@
 Used for the README's pictures, the Xvfb pixel test and start-up timing::
 
     python -m fluorogui.gui.snapshot OUT.png [--project FILE | --import-folder DIR]
-        [--size 1280x800] [--frame INDEX] [--match] [--component NAME] [--theme light|dark]
+        [--size 1280x800] [--frame N] [--find] [--match | --match-both] [--track-both]
+        [--show-frame N] [--component NAME] [--theme light|dark]
 
-The screen grab (not ``QWidget.grab``) is used so OpenGL content is included. Prints one
-JSON line: the seconds to a usable window, to the first frame on screen, and per match.
+Frames are frame numbers. The steps run in this order: find, match, track (from
+``--frame`` through the following frames), then ``--show-frame`` picks the frame on
+screen for the picture. The screen grab (not ``QWidget.grab``) is used so OpenGL content
+is included. Prints one JSON line: the seconds to a usable window, to the first frame on
+screen and per task, the frame states after the work and the panel regions.
 """
 from __future__ import annotations
 
@@ -24,10 +28,13 @@ def main(argv=None) -> int:
     parser.add_argument("--project", type=Path)
     parser.add_argument("--import-folder", type=Path)
     parser.add_argument("--size", default="1280x800")
-    parser.add_argument("--frame", type=int, default=0)
+    parser.add_argument("--frame", type=int, help="frame number to start on (default: the first)")
     parser.add_argument("--find", action="store_true", help="find the implants automatically first")
     parser.add_argument("--match", action="store_true", help="match the active component")
-    parser.add_argument("--match-all", action="store_true", help="match every component")
+    parser.add_argument("--match-both", "--match-all", dest="match_both", action="store_true",
+                        help="match every component (Match both)")
+    parser.add_argument("--track-both", action="store_true", help="Track both through the following frames")
+    parser.add_argument("--show-frame", type=int, help="frame number on screen for the picture")
     parser.add_argument("--component")
     parser.add_argument("--theme", default="system")
     parser.add_argument("--settings", type=Path, help="QSettings ini file (default: a temporary one)")
@@ -75,7 +82,8 @@ def main(argv=None) -> int:
         return 2
     if args.component:
         window.controller.set_component(args.component)
-    window.controller.set_frame_index(args.frame)
+    if args.frame is not None:
+        window.controller.set_frame(args.frame)
     window.fit_images()
     app.processEvents()
     t_first = time.perf_counter() - t0
@@ -85,22 +93,28 @@ def main(argv=None) -> int:
         loop = QEventLoop()
         window.runner.finished.connect(loop.quit)
         window.runner.failed.connect(loop.quit)
+        window.runner.cancelled.connect(loop.quit)
         t = time.perf_counter()
         if start():
             loop.exec()
         window.runner.finished.disconnect(loop.quit)
         window.runner.failed.disconnect(loop.quit)
+        window.runner.cancelled.disconnect(loop.quit)
         return round(time.perf_counter() - t, 3)
 
     if args.find:
         timings["find_s"] = run(window.find_implants)
-    if args.match or args.match_all:
-        active = window.controller.component
-        names = window.controller.components() if args.match_all else [active]
-        for name in names:
-            window.controller.set_component(name)
-            timings[f"match_{name}_s"] = run(window.run_match)
-        window.controller.set_component(active)
+    if args.match_both:
+        timings["match_both_s"] = run(window.match_both)
+    elif args.match:
+        timings[f"match_{window.controller.component}_s"] = run(window.run_match)
+    if args.track_both:
+        timings["track_both_s"] = run(window.track_both)
+    if args.show_frame is not None:
+        window.controller.set_frame(args.show_frame)
+    session = window.controller.session
+    timings["frame_states"] = {str(f): s.name for f, s in zip(session.frames, session.frame_states())}
+    timings["summary"] = window.matcher.summary.text()
     timings["error"] = window.last_error
     wait(600)
     window.fit_images()
@@ -123,7 +137,7 @@ def main(argv=None) -> int:
         timings["regions"]["scene"] = region(window.scene_widget)
         timings["scene_interactive"] = window.scene_widget.interactive
     print(json.dumps(timings))
-    window.controller.undo_stack.setClean()
+    session.history.set_clean()
     window.close()
     QApplication.processEvents()
     return 0

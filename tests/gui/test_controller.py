@@ -1,112 +1,171 @@
-"""The session controller: undoable pose and outline changes, dirty state, frame states."""
+"""The session controller: a thin Qt adapter over the workflow's Session. Its signals carry
+frame numbers, its QUndoStack mirrors the session's history both ways, panel edits enter
+that history as single steps, and an open project file is locked."""
+import json
+import os
+import socket
+
 import numpy as np
 import pytest
 
 pytest.importorskip("pytestqt")
 
-from fluorogui.core.phantoms import femoral_component_mesh  # noqa: E402
-from fluorogui.core.session import ImageSequence, ModelEntry, Project  # noqa: E402
-from fluorogui.core.validation import dual_orthogonal_views  # noqa: E402
-from fluorogui.gui.controller import FrameState, SessionController  # noqa: E402
 import pyvista as pv  # noqa: E402
+
+from fluorogui.core.phantoms import femoral_component_mesh  # noqa: E402
+from fluorogui.core.session import MATCHED, NEEDS_REVIEW, ImageSequence, MatchRecord, ModelEntry, PoseRecord, \
+    Project  # noqa: E402
+from fluorogui.core.validation import dual_orthogonal_views  # noqa: E402
+from fluorogui.gui.controller import SessionController  # noqa: E402
+from fluorogui.io.lock import ProjectLocked, lock_path, read_holder  # noqa: E402
+from fluorogui.workflow.session import FrameState  # noqa: E402
+
+SQUARE = np.array([[10, 10], [50, 10], [50, 50], [10, 50.0]])
 
 
 @pytest.fixture()
-def controller(qtbot, tmp_path):
+def project(tmp_path):
     vertices, faces = femoral_component_mesh()
     mesh_path = tmp_path / "femur.stl"
     pv.PolyData(vertices, np.hstack([np.full((len(faces), 1), 3), faces]).ravel()).save(str(mesh_path))
     views = list(dual_orthogonal_views(image_size=(256, 256)))
-    project = Project(views=views, sequences=[ImageSequence([tmp_path / f"v{k}_{i}.png" for i in range(3)])
-                                               for k in range(2)],
-                      frames=[0, 5, 10], models=[ModelEntry("femoral", mesh_path)])
+    return Project(views=views, sequences=[ImageSequence([tmp_path / f"v{k}_{i}.png" for i in range(3)])
+                                           for k in range(2)],
+                   frames=[0, 5, 10], models=[ModelEntry("femoral", mesh_path)])
+
+
+@pytest.fixture()
+def controller(qtbot, project):
     c = SessionController()
     c.set_project(project, None)
     return c
 
 
-def test_pose_edits_undo_redo_and_dirty(controller, qtbot):
+def test_frame_signals_carry_frame_numbers(controller, qtbot):
     c = controller
-    assert not c.dirty
-    start = c.pose("femoral")
-    target = start + np.array([1, 2, 3, 4, 5, 6.0])
+    assert c.frame == 0
+    with qtbot.waitSignal(c.frame_changed) as blocker:
+        c.set_frame(10)
+    assert blocker.args == [10] and c.frame == 10 and c.frame_index == 2
+    with qtbot.assertNotEmitted(c.frame_changed):
+        c.set_frame(7)  # no such frame
+    c.step_frame(-1)
+    assert c.frame == 5
     with qtbot.waitSignal(c.pose_changed) as blocker:
-        c.set_pose("femoral", target)
-    assert blocker.args == [0, "femoral"]
-    assert c.dirty
-    np.testing.assert_allclose(c.pose("femoral"), target)
+        c.session.set_pose("femoral", 5, np.ones(6))
+    assert blocker.args == [5, "femoral"]
+
+
+def test_undo_redo_through_the_qt_stack_changes_the_session(controller, qtbot):
+    c, s = controller, controller.session
+    assert not c.dirty and not c.undo_stack.canUndo()
+    start = s.pose("femoral", 0)
+    target = start + np.array([1, 2, 3, 4, 5, 6.0])
+    with qtbot.waitSignal(c.dirty_changed) as blocker:
+        s.set_pose("femoral", 0, target)
+    assert blocker.args == [True]
+    assert c.undo_stack.count() == 1 and c.undo_stack.undoText() == "Move model"
     c.undo_stack.undo()
-    assert ("femoral" not in [k[1] for k in c.project.poses])
-    np.testing.assert_allclose(c.pose("femoral"), start)
-    assert not c.dirty
+    assert s.pose_record("femoral", 0) is None and not c.dirty and s.history.index == 0
     c.undo_stack.redo()
-    np.testing.assert_allclose(c.pose("femoral"), target)
+    np.testing.assert_allclose(s.pose("femoral", 0), target)
+    assert s.history.index == 1 and c.dirty
 
 
-def test_later_frames_start_from_the_nearest_earlier_pose(controller):
-    c = controller
-    pose = np.array([1.0, 2, 3, 10, 20, 30])
-    c.set_pose("femoral", pose, frame=0)
-    np.testing.assert_allclose(c.pose("femoral", frame=10), pose)
-    c.set_pose("femoral", pose + 1, frame=5)
-    np.testing.assert_allclose(c.pose("femoral", frame=10), pose + 1)
+def test_the_qt_stack_follows_the_history_when_it_moves_by_itself(controller):
+    c, s = controller, controller.session
+    s.set_pose("femoral", 0, np.ones(6))
+    s.set_outline((0, 1, "femoral"), SQUARE)
+    assert c.undo_stack.count() == 2 and c.undo_stack.undoText() == "Edit outline"
+    s.history.undo()  # a script undoes: the Qt stack must not undo a second time
+    assert c.undo_stack.index() == 1 and s.history.index == 1
+    assert s.outline_record((0, 1, "femoral")) is None and s.pose_record("femoral", 0) is not None
+    s.history.redo()
+    assert c.undo_stack.index() == 2 and s.outline_record((0, 1, "femoral")) is not None
+    s.history.set_clean()
+    assert c.undo_stack.isClean() and not c.dirty
+    s.history.reset_clean()
+    assert not c.undo_stack.isClean() and c.dirty
 
 
-def test_default_pose_puts_the_model_where_the_central_rays_meet(controller):
-    c = controller
-    pose = c.pose("femoral")
-    centre_world = c.mesh("femoral").centroid + pose[:3]
-    for view in c.project.views:
-        uv = view.project(centre_world[None])[0]
-        np.testing.assert_allclose(uv, (np.asarray(view.image_size) - 1) / 2, atol=1e-6)
-
-
-def test_place_at_triangulates_two_clicks(controller):
-    c = controller
-    target = np.array([3.0, -4.0, 5.0])
-    pixels = [view.project(target[None])[0] for view in c.project.views]
-    miss = c.place_at("femoral", pixels)
-    assert miss < 1e-6
-    pose = c.pose("femoral")
-    np.testing.assert_allclose(pose[:3] + c.mesh("femoral").centroid, target, atol=1e-6)
-
-
-def test_outline_changes_are_undoable_and_set_frame_state(controller, qtbot):
-    c = controller
-    assert c.frame_state(0) == FrameState.EMPTY
-    square = np.array([[10, 10], [50, 10], [50, 50], [10, 50.0]])
-    key = c.outline_key(0)
-    with qtbot.waitSignal(c.outline_changed):
-        c.set_outline(key, square)
-    assert c.outline_record(key).spline is not None
-    assert c.frame_state(0) == FrameState.OUTLINED
+def test_mergeable_nudges_are_one_step_and_macros_one_entry(controller):
+    c, s = controller, controller.session
+    for k in range(4):
+        s.set_pose("femoral", 0, np.full(6, float(k)), text="Edit pose", mergeable=True)
+    assert c.undo_stack.count() == 1
+    s.history.begin_macro("Match femoral in frame 0")
+    s.set_outline((0, 0, "femoral"), SQUARE, reviewed=False)
+    s.set_outline((0, 1, "femoral"), SQUARE, reviewed=False)
+    s.set_pose("femoral", 0, np.ones(6))
+    s.history.end_macro()
+    assert c.undo_stack.count() == 2 and c.undo_stack.undoText() == "Match femoral in frame 0"
     c.undo_stack.undo()
-    assert c.outline_points(key) is None
-    assert c.frame_state(0) == FrameState.EMPTY
+    assert s.outline_record((0, 0, "femoral")) is None
+    np.testing.assert_allclose(s.pose("femoral", 0), np.full(6, 3.0))
 
 
-def test_matched_then_reviewed_state(controller):
-    from fluorogui.core.session import MatchRecord
+def test_a_panel_edit_is_one_reviewed_step_with_the_panels_own_state(controller):
+    c, s = controller, controller.session
+    erased = []
+    key = c.outline_key(1)
+    c.apply_edit("Erase edges and 2 points", (key, SQUARE), [(lambda: erased.append(1), lambda: erased.pop())])
+    assert erased == [1] and s.outline_record(key).reviewed
+    assert c.undo_stack.count() == 1 and c.undo_stack.undoText() == "Erase edges and 2 points"
+    assert s.frame_state(0) == FrameState.OUTLINED
+    c.undo_stack.undo()
+    assert erased == [] and s.outline_record(key) is None and s.frame_state(0) == FrameState.EMPTY
+    c.undo_stack.redo()
+    assert erased == [1] and s.outline_points(key) is not None
 
-    c = controller
+
+def test_frame_states_never_show_a_flagged_pose_as_matched(controller):
+    s = controller.session
     record = MatchRecord(0.2, [0.1, 0.1], 30, 0.1, True, "fast")
-    c.set_pose("femoral", c.pose("femoral"), match=record)
-    assert c.frame_state(0) == FrameState.MATCHED
-    c.set_reviewed("femoral")
-    assert c.frame_state(0) == FrameState.REVIEWED
-    assert c.pose_record("femoral").match == record
-    c.undo_stack.undo()
-    assert c.frame_state(0) == FrameState.MATCHED
+    s.set_record("femoral", 0, PoseRecord(np.zeros(6), record, status=MATCHED), "Match")
+    assert s.frame_state(0) == FrameState.MATCHED
+    s.set_record("femoral", 5, PoseRecord(np.zeros(6), record, status=NEEDS_REVIEW, reason="view 1: too far"),
+                 "Match")
+    assert s.frame_state(5) == FrameState.NEEDS_REVIEW
+    s.set_reviewed("femoral", 5)
+    assert s.frame_state(5) == FrameState.REVIEWED
 
 
-def test_save_reopen_gives_the_same_session(controller, tmp_path):
-    c = controller
-    c.set_pose("femoral", [1, 2, 3, 4, 5, 6])
-    c.set_outline(c.outline_key(1), np.array([[10, 10], [50, 10], [50, 50], [10, 50.0]]))
-    c.set_reviewed("femoral")
+def test_open_locks_the_file_and_save_reopen_gives_the_same_session(controller, project, tmp_path, qtbot):
+    c, s = controller, controller.session
+    s.set_pose("femoral", 5, [1, 2, 3, 4, 5, 6])
+    c.set_frame(5)
     path = tmp_path / "s.fluoro"
     c.save(path)
-    assert not c.dirty
+    assert not c.dirty and read_holder(path)["pid"] == os.getpid()
     other = SessionController()
-    other.open(path)
-    assert other.project == c.project
+    other.open(path)  # the same process may open it again
+    assert other.project == s.project and other.frame == 5  # the frame on screen comes back
+    other.close()
+    assert lock_path(path).exists()  # still held by the first controller
+    c.set_project(Project(), None)  # another project replaces it: the lock goes
+    assert not lock_path(path).exists()
+
+
+def test_a_file_another_program_holds_is_refused_or_opened_read_only(controller, project, tmp_path):
+    from fluorogui.io.project import save_project
+
+    path = tmp_path / "held.fluoro"
+    save_project(project, path)
+    holder = {"program": "fluorogui track", "pid": os.getppid(), "host": socket.gethostname(), "user": "x",
+              "since": 0}
+    lock_path(path).write_text(json.dumps(holder))
+    c = controller
+    before = c.project
+    with pytest.raises(ProjectLocked, match="fluorogui track"):
+        c.open(path)
+    assert c.project is before
+    c.open(path, read_only=True)
+    assert c.read_only and c.path == path and c.lock is None
+    from fluorogui.io.errors import InputError
+
+    with pytest.raises(InputError, match="read-only"):
+        c.save()
+    copy = tmp_path / "copy.fluoro"
+    c.save(copy)  # Save As to another file works and takes that file's lock
+    assert not c.read_only and read_holder(copy)["pid"] == os.getpid()
+    assert read_holder(path)["program"] == "fluorogui track"  # the other program's lock is untouched

@@ -1,7 +1,5 @@
 """The main window on a small generated demo session: open, match in the worker, cancel,
 edit and undo, keep spin boxes, poses and overlays in step, save and reopen, refuse bad files."""
-import shutil
-
 import numpy as np
 import pytest
 
@@ -10,51 +8,9 @@ from PySide6.QtCore import QSettings, Qt  # noqa: E402
 from PySide6.QtWidgets import QMessageBox  # noqa: E402
 
 from fluorogui.core.pose import pose_error  # noqa: E402
-from fluorogui.gui.controller import FrameState  # noqa: E402
 from fluorogui.gui.image_panel import Tool  # noqa: E402
 from fluorogui.gui.main_window import MainWindow  # noqa: E402
-from fluorogui.io.demo import build_demo_project  # noqa: E402
-
-
-@pytest.fixture(scope="session")
-def demo_source(tmp_path_factory):
-    return build_demo_project(tmp_path_factory.mktemp("demo"), frames=3, image_size=512)
-
-
-@pytest.fixture()
-def demo(demo_source, tmp_path):
-    target = tmp_path / "demo"
-    shutil.copytree(demo_source.parent, target)
-    return target / demo_source.name
-
-
-@pytest.fixture()
-def dialogs(monkeypatch):
-    """Record message boxes instead of blocking; questions answer from ``answers``."""
-    seen = {"warning": [], "question": [], "answers": []}
-
-    def warning(*args, **kwargs):
-        seen["warning"].append(args)
-        return QMessageBox.StandardButton.Ok
-
-    def question(*args, **kwargs):
-        seen["question"].append(args)
-        return seen["answers"].pop(0) if seen["answers"] else QMessageBox.StandardButton.Discard
-
-    monkeypatch.setattr(QMessageBox, "warning", warning)
-    monkeypatch.setattr(QMessageBox, "question", question)
-    return seen
-
-
-@pytest.fixture()
-def window(qtbot, tmp_path, monkeypatch, dialogs):
-    monkeypatch.setenv("FLUOROGUI_DATA_DIR", str(tmp_path / "appdata"))
-    w = MainWindow(settings=QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat), with_3d=False)
-    qtbot.addWidget(w)
-    yield w
-    w.runner.cancel()
-    w.runner.wait()
-    w.controller.undo_stack.setClean()
+from fluorogui.workflow.session import FrameState  # noqa: E402
 
 
 def test_opening_a_session_shows_images_outlines_and_frames(window, demo):
@@ -69,12 +25,12 @@ def test_opening_a_session_shows_images_outlines_and_frames(window, demo):
     assert all(panel.model_outline(first) is not None and len(panel.model_outline(first)) > 20
                for panel in window.panels)
     window.step_frame(1)
-    assert c.frame == 1 and window.timeline.current == 1
+    assert c.frame == 1 and window.timeline.current_frame == 1
 
 
 def test_match_runs_in_the_worker_and_lands_on_the_truth(window, demo, qtbot):
     window.open_project(demo)
-    c = window.controller
+    c, s = window.controller, window.controller.session
     name = c.components()[1]  # the tibial component
     c.set_component(name)
     updates = []
@@ -82,27 +38,29 @@ def test_match_runs_in_the_worker_and_lands_on_the_truth(window, demo, qtbot):
     with qtbot.waitSignal(window.runner.finished, timeout=120000):
         assert window.run_match()
     truth = np.array(c.project.settings["demo_truth"]["0"][name])
-    record = c.pose_record(name)
-    assert record.match is not None and record.match.converged
+    record = s.pose_record(name, 0)
+    assert record.match is not None and record.match.converged and record.status == "matched"
     err = pose_error(record.pose, truth)
     assert np.abs(err[:3]).max() < 0.1 and np.abs(err[3:]).max() < 0.2
-    assert all(c.outline_record(c.outline_key(v, name)) is not None for v in range(2))  # automatic outlines
-    assert "converged" in window.matcher.status.text()
+    assert all(s.outline_record(c.outline_key(v, name)) is not None for v in range(2))  # automatic outlines
+    assert f"{name}: matched" in window.matcher.status.text()
+    assert s.pose_record(c.components()[0], 0).match is None  # only the active component
     np.testing.assert_allclose(window.pose_editor.pose(), record.pose, atol=1e-3)
     # accept, then undo the acceptance and the match in two steps
     window.accept_pose()
-    assert c.pose_record(name).reviewed
+    assert s.pose_record(name, 0).reviewed
     window.undo_action.trigger()
-    assert not c.pose_record(name).reviewed
+    assert not s.pose_record(name, 0).reviewed
     window.undo_action.trigger()
-    assert c.pose_record(name).match is None  # back to the demo's rough start
+    assert s.pose_record(name, 0).match is None  # back to the demo's rough start
 
 
 def test_cancel_leaves_the_previous_pose(window, demo, qtbot):
     window.open_project(demo)
-    c = window.controller
+    c, s = window.controller, window.controller.session
     name = c.components()[0]
-    before = c.pose(name)
+    before = s.pose(name, 0)
+    entries = len(s.history)
     window.matcher.method.setCurrentIndex(1)  # the paper method: hundreds of calls
     seen = []
     for signal in ("finished", "cancelled", "failed"):
@@ -111,71 +69,76 @@ def test_cancel_leaves_the_previous_pose(window, demo, qtbot):
     with qtbot.waitSignal(window.runner.cancelled, timeout=120000):
         window.run_match()
     assert seen == ["cancelled"]
-    np.testing.assert_allclose(c.pose(name), before)
-    assert c.pose_record(name).match is None
+    np.testing.assert_allclose(s.pose(name, 0), before)
+    assert s.pose_record(name, 0).match is None and len(s.history) == entries and not c.dirty
     assert "Cancelled" in window.matcher.status.text()
     assert window.matcher.run_button.isEnabled()
 
 
 def test_spin_boxes_pose_and_overlay_stay_in_step(window, demo):
     window.open_project(demo)
-    c = window.controller
+    c, s = window.controller, window.controller.session
     name = c.component
     panel = window.panels[0]
     before_overlay = panel.model_outline(name).copy()
     window.pose_editor.spins[0].setValue(window.pose_editor.spins[0].value() + 5.0)  # user edit
-    assert c.pose(name)[0] == pytest.approx(window.pose_editor.pose()[0])
+    assert s.pose(name, 0)[0] == pytest.approx(window.pose_editor.pose()[0])
     after_overlay = panel.model_outline(name)
     assert not np.array_equal(before_overlay.shape, after_overlay.shape) or np.abs(after_overlay.mean(0)
                                                                                    - before_overlay.mean(0)).max() > 1
-    target = c.pose(name) + np.array([0, 0, 0, 0, 7.0, 0])
-    c.set_pose(name, target)
+    target = s.pose(name, 0) + np.array([0, 0, 0, 0, 7.0, 0])
+    s.set_pose(name, 0, target)
     np.testing.assert_allclose(window.pose_editor.pose(), target, atol=1e-3)
     window.pose_editor.nudge(2, 1)  # a keyboard nudge of 1 mm
-    assert c.pose(name)[2] == pytest.approx(target[2] + 1.0)
+    assert s.pose(name, 0)[2] == pytest.approx(target[2] + 1.0)
 
 
 def test_outline_edit_in_a_panel_is_stored_and_undone(window, demo, qtbot):
     window.open_project(demo)
-    c = window.controller
+    c, s = window.controller, window.controller.session
     name = c.component
     key = c.outline_key(0)
     square = np.array([[100, 100], [200, 100], [200, 200], [100, 200.0]])
-    c.set_outline(key, square)
+    s.set_outline(key, square, reviewed=False)
     np.testing.assert_allclose(window.panels[0].outline(name), square)
     panel = window.panels[0]
     panel.set_tool(Tool.DELETE)
     qtbot.mouseClick(panel.viewport(), Qt.MouseButton.LeftButton, pos=panel.mapFromScene(200.0, 200.0))
-    assert len(c.outline_points(key)) == 3  # the panel's edit reached the project
+    assert len(s.outline_points(key)) == 3  # the panel's edit reached the session
+    assert s.outline_record(key).reviewed  # a user's edit: matching uses it as it is
+    assert len(panel.outline(name)) == 3
+    assert window.undo_action.text().endswith("Delete point")
     window.undo_action.trigger()
-    np.testing.assert_allclose(c.outline_points(key), square)
+    np.testing.assert_allclose(s.outline_points(key), square)
+    np.testing.assert_allclose(panel.outline(name), square)
+    window.step_frame(1)  # undo / redo still apply to frame 0's outline
     window.redo_action.trigger()
-    assert len(c.outline_points(key)) == 3
+    assert len(s.outline_points(key)) == 3 and panel.outline(name) is None
 
 
 def test_point_and_click_places_the_model(window, demo):
     window.open_project(demo)
-    c = window.controller
+    c, s = window.controller, window.controller.session
     name = c.component
     truth = np.array(c.project.settings["demo_truth"]["0"][name])
     from fluorogui.core.pose import rotation_matrix
 
-    centre = rotation_matrix(*truth[3:]) @ c.mesh(name).centroid + truth[:3]
+    centre = rotation_matrix(*truth[3:]) @ s.mesh(name).centroid + truth[:3]
     window.set_tool(Tool.PLACE)
     for view, panel in enumerate(window.panels):
         u, v = c.project.views[view].project(centre[None])[0]
         panel.point_clicked.emit(view, float(u), float(v))
-    pose = c.pose(name)
-    placed = rotation_matrix(*pose[3:]) @ c.mesh(name).centroid + pose[:3]
+    pose = s.pose(name, 0)
+    placed = rotation_matrix(*pose[3:]) @ s.mesh(name).centroid + pose[:3]
     assert np.linalg.norm(placed - centre) < 1e-3 and window.last_place_miss < 1e-3
     assert "miss" in window.statusBar().currentMessage()
 
 
 def test_save_then_reopen_gives_the_same_session(window, demo, tmp_path, qtbot):
     window.open_project(demo)
-    c = window.controller
-    c.set_pose(c.component, c.pose(c.component) + 1.0)
-    c.set_outline(c.outline_key(1), np.array([[10, 10], [60, 10], [60, 60], [10, 60.0]]))
+    c, s = window.controller, window.controller.session
+    s.set_pose(c.component, 0, s.pose(c.component, 0) + 1.0)
+    s.set_outline(c.outline_key(1), np.array([[10, 10], [60, 10], [60, 60], [10, 60.0]]))
     assert window.isWindowModified()
     target = tmp_path / "saved.fluoro"
     assert window._save_to(target)
@@ -185,6 +148,7 @@ def test_save_then_reopen_gives_the_same_session(window, demo, tmp_path, qtbot):
     assert other.open_project(target)
     assert other.controller.project == c.project
     assert str(target.resolve()) in window.recent_files()
+    other.controller.close()
 
 
 def test_a_bad_file_gives_a_dialog_and_keeps_the_open_session(window, demo, tmp_path, dialogs):
@@ -203,8 +167,8 @@ def test_a_bad_file_gives_a_dialog_and_keeps_the_open_session(window, demo, tmp_
 
 def test_close_asks_about_unsaved_changes(window, demo, dialogs):
     window.open_project(demo)
-    c = window.controller
-    c.set_pose(c.component, c.pose(c.component) + 1.0)
+    c, s = window.controller, window.controller.session
+    s.set_pose(c.component, 0, s.pose(c.component, 0) + 1.0)
     dialogs["answers"].append(QMessageBox.StandardButton.Cancel)
     window.show()
     window.close()
@@ -212,12 +176,15 @@ def test_close_asks_about_unsaved_changes(window, demo, dialogs):
     dialogs["answers"].append(QMessageBox.StandardButton.Discard)
     window.close()
     assert not window.isVisible()
+    from fluorogui.io.lock import lock_path
+
+    assert not lock_path(demo).exists()  # closing lets go of the file
 
 
 def test_autosave_and_recovery(window, demo, tmp_path, qtbot, dialogs):
     window.open_project(demo)
-    c = window.controller
-    c.set_pose(c.component, c.pose(c.component) + 2.0)
+    c, s = window.controller, window.controller.session
+    s.set_pose(c.component, 0, s.pose(c.component, 0) + 2.0)
     assert window.autosave()
     assert window.recovery_path().exists()
     expected = c.project
@@ -228,14 +195,15 @@ def test_autosave_and_recovery(window, demo, tmp_path, qtbot, dialogs):
     assert other.offer_recovery()
     assert other.controller.project == expected
     assert other.controller.path == demo and other.controller.dirty
-    other.controller.undo_stack.setClean()
+    other.controller.session.history.set_clean()
+    other.controller.close()
 
 
 def test_timeline_shows_frame_states(window, demo, qtbot):
     window.open_project(demo)
-    c = window.controller
-    assert window.timeline.states == [FrameState.EMPTY] * 3
-    c.set_outline(c.outline_key(0), np.array([[10, 10], [60, 10], [60, 60], [10, 60.0]]))
+    c, s = window.controller, window.controller.session
+    assert window.timeline.states == s.frame_states()
+    s.set_outline(c.outline_key(0), np.array([[10, 10], [60, 10], [60, 60], [10, 60.0]]))
     assert window.timeline.states[0] == FrameState.OUTLINED
 
 
@@ -246,20 +214,23 @@ def test_dropping_a_project_opens_it(window, demo):
 
 def test_track_following_frames_matches_every_frame(window, demo, qtbot):
     window.open_project(demo)
-    c = window.controller
+    c, s = window.controller, window.controller.session
     name = c.components()[1]
     c.set_component(name)
-    batches = []
-    window.runner.progress.connect(batches.append)
+    shown = []
+    window.frame_shown.connect(shown.append)
     with qtbot.waitSignal(window.runner.finished, timeout=300000):
-        assert window.track_frames()
+        assert window.track_frames()  # frame 0 is not matched yet: tracking starts there
     for frame in c.frames:
-        record = c.pose_record(name, frame)
-        assert record is not None and record.match is not None and record.match.converged
+        record = s.pose_record(name, frame)
+        assert record is not None and record.status == "matched" and record.match.converged
         truth = np.array(c.project.settings["demo_truth"][str(frame)][name])
         assert np.abs(pose_error(record.pose, truth)).max() < 0.2
-    assert [b.done for b in batches if hasattr(b, "done")][-1] == len(c.frames)
-    assert "3 frame" in window.statusBar().currentMessage()
+        assert s.pose_record(c.components()[0], frame) is None or frame == 0  # only the active component
+    assert {1, 2} <= set(shown) and c.frame == 2  # the view followed the tracked frames
+    summary = window.matcher.summary.text()
+    assert "3 matched, 0 need review, 0 failed" in summary and "3 of 3 frames" in summary
+    assert summary in window.statusBar().currentMessage()
 
 
 def test_dropped_folder_opens_the_import_dialog_filled(window, demo, monkeypatch):
