@@ -23,6 +23,10 @@ component frames are those of the phantoms (x ML, y AP, z proximal).
 ``demo_project_path(cache_dir)`` returns a cached build when its recipe stamp matches
 ``RECIPE_VERSION`` and the build arguments, otherwise builds into a temporary folder and
 swaps it in. Bump ``RECIPE_VERSION`` whenever the output of the recipe changes.
+
+The pieces are shared with the generated benchmark sequences (``fluorogui.io.synthetic``):
+the view builder (``ViewSpec``, ``views_from_specs``), the anatomy (``anatomy_meshes``,
+``posed_anatomy``), the image model (``render_view`` / ``xray_image``) and ``write_pairs_csv``.
 """
 from __future__ import annotations
 
@@ -110,18 +114,18 @@ def build_demo_project(directory, frames: int = 4, image_size: int = 1024, seed:
     flexions = np.linspace(*FLEXION_RANGE_DEG, frames)  # one frame: the first angle
     frame_numbers = list(range(frames))
     truth = {f: knee_bend_poses(flex, (f / max(frames - 1, 1))) for f, flex in zip(frame_numbers, flexions)}
-    anatomy = _anatomy_meshes()
+    anatomy = anatomy_meshes()
     sequences = [ImageSequence() for _ in views]
     for frame in frame_numbers:
         posed = [(transform_points(truth[frame][c], meshes[c][0]), meshes[c][1]) for c in COMPONENTS]
-        soft = {name: (transform_points(truth[frame][c], v), f) for name, (c, v, f) in anatomy.items()}
+        soft = posed_anatomy(truth[frame], anatomy)
         for k, view in enumerate(views):
-            image = _render_view(view, posed, soft, rng)
+            image = render_view(view, [posed], soft, rng)
             path = directory / CAMERA_FOLDERS[k] / f"frame_{frame:03d}.png"
             write_image(path, image)
             sequences[k].paths.append(path)
 
-    _write_pairs_csv(directory / "pairs.csv", frame_numbers, sequences, directory)
+    write_pairs_csv(directory / "pairs.csv", frame_numbers, sequences, directory)
 
     poses = {}
     signs = rng.choice([-1.0, 1.0], size=(len(COMPONENTS), 6))
@@ -180,16 +184,57 @@ def demo_project_path(cache_dir, frames: int = 4, image_size: int = 1024, seed: 
 
 def demo_views(image_size: int = 1024) -> list[View]:
     """The two demo views (looking at the world origin, +z towards the top of the image)."""
+    specs = [
+        ViewSpec(CAMERA_FOLDERS[k], azimuth, elevation, SOURCE_TO_IMAGE_MM, SOURCE_TO_ISOCENTRE_MM, PITCH_MM,
+                 PRINCIPAL_OFFSETS_PX[k])
+        for k, (azimuth, elevation) in enumerate(zip(VIEW_AZIMUTHS_DEG, VIEW_ELEVATIONS_DEG))
+    ]
+    return views_from_specs(specs, image_size)
+
+
+@dataclasses.dataclass(frozen=True)
+class ViewSpec:
+    """A virtual source-intensifier pair aimed at ``target`` (world mm).
+
+    ``azimuth_deg`` is the beam direction (source towards intensifier) about +z, measured
+    from +x; ``elevation_deg`` tilts the beam upwards (positive: source below the target);
+    ``roll_deg`` turns the image axes about the beam (right-hand rule about the beam
+    direction; 0: world +z points up the image). ``pitch_mm`` and ``principal_offset_px``
+    are for a 1024-pixel image: other sizes keep the same field of view (the pitch scales,
+    the offset scales with it).
+    """
+
+    name: str
+    azimuth_deg: float
+    elevation_deg: float
+    source_to_image_mm: float
+    source_to_target_mm: float
+    pitch_mm: float
+    principal_offset_px: tuple[float, float] = (0.0, 0.0)
+    roll_deg: float = 0.0
+    target: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def beam_direction(self) -> np.ndarray:
+        a, e = np.radians(self.azimuth_deg), np.radians(self.elevation_deg)
+        return np.array([np.cos(a) * np.cos(e), np.sin(a) * np.cos(e), np.sin(e)])
+
+
+def views_from_specs(specs, image_size: int = 1024) -> list[View]:
+    """Views of ``image_size`` x ``image_size`` pixels built from ``ViewSpec`` s (+z up in the image)."""
     scale = image_size / 1024.0
     views = []
-    for k, (azimuth, elevation) in enumerate(zip(VIEW_AZIMUTHS_DEG, VIEW_ELEVATIONS_DEG)):
-        a, e = np.radians(azimuth), np.radians(elevation)
-        direction = np.array([np.cos(a) * np.cos(e), np.sin(a) * np.cos(e), np.sin(e)])
+    for spec in specs:
+        direction = spec.beam_direction()
+        up = np.array([0.0, 0.0, 1.0])
+        if spec.roll_deg:
+            up = _rotated_about(up, direction, spec.roll_deg)
+        target = np.asarray(spec.target, dtype=float)
+        source = target - spec.source_to_target_mm * direction
         # the field of view stays the same at any image size: the pitch scales instead
-        view = View.looking_at(-SOURCE_TO_ISOCENTRE_MM * direction, [0, 0, 0], [0, 0, 1], SOURCE_TO_IMAGE_MM,
-                               (image_size, image_size), PITCH_MM / scale, name=CAMERA_FOLDERS[k])
+        view = View.looking_at(source, target, up, spec.source_to_image_mm, (image_size, image_size),
+                               spec.pitch_mm / scale, name=spec.name)
         cx, cy = view.principal_point
-        du, dv = PRINCIPAL_OFFSETS_PX[k]
+        du, dv = spec.principal_offset_px
         views.append(dataclasses.replace(view, principal_point=(cx + du * scale, cy + dv * scale)))
     return views
 
@@ -249,7 +294,13 @@ def _cache_is_valid(target: Path, recipe: dict) -> bool:
     return all(p.is_file() for p in files)
 
 
-def _write_pairs_csv(path: Path, frames, sequences, base: Path) -> None:
+def posed_anatomy(poses: dict, anatomy: dict) -> dict:
+    """World-space anatomy meshes {name: (vertices, faces)} for component poses {component: pose}."""
+    return {name: (transform_points(poses[c], v), f) for name, (c, v, f) in anatomy.items()}
+
+
+def write_pairs_csv(path: Path, frames, sequences, base: Path) -> None:
+    """``frame,cam1,cam2`` rows with image paths relative to ``base`` (what the importer reads)."""
     out = io.StringIO()
     writer = csv.writer(out, lineterminator="\n")
     writer.writerow(["frame", *CAMERA_FOLDERS])
@@ -274,8 +325,12 @@ def _frustum(z0: float, z1: float, r0: float, r1: float, centre=(0.0, 0.0), n: i
     return vertices, faces
 
 
-def _anatomy_meshes() -> dict:
-    """Bones and limb segments, each attached to a component frame: name -> (component, v, f)."""
+def anatomy_meshes() -> dict:
+    """Bones and limb segments, each attached to a component frame: name -> (component, v, f).
+
+    Sized for components in the phantoms' frames (x ML, y AP, z proximal, tibial tray top
+    at z = 0, femoral condyles below the femoral origin); ``posed_anatomy`` places them.
+    """
     parts = {
         "femur_bone": ("femoral", *_frustum(8.0, 320.0, 30.0, 15.0, (0.0, -4.0))),
         "tibia_bone": ("tibial", *_frustum(-320.0, -3.0, 14.0, 33.0, (2.0, 0.0))),
@@ -291,29 +346,80 @@ def _blurred_coverage(view: View, meshes, sigma_px: float) -> np.ndarray:
     return cv2.GaussianBlur(coverage, (0, 0), sigma_px, borderType=cv2.BORDER_REFLECT)
 
 
-def _render_view(view: View, implants, anatomy: dict, rng: np.random.Generator) -> np.ndarray:
-    """One demo image: transmissions multiply (tissue, bone, metal) over a shaded background."""
+def render_view(view: View, metal_layers, anatomy: dict, rng: np.random.Generator) -> np.ndarray:
+    """One X-ray-like image (H, W) float32 in [0, 1] of metal parts over anatomy.
+
+    ``metal_layers`` is a list of layers, each a list of world-space meshes ``(vertices,
+    faces)``; a layer's silhouette is the union of its meshes, rendered with ``SUPERSAMPLE``
+    x ``SUPERSAMPLE`` samples per pixel. ``anatomy`` maps the names of ``anatomy_meshes``
+    to world-space meshes. See ``xray_image``.
+    """
+    coverages = [coverage_of_meshes(view, layer, SUPERSAMPLE).astype(np.float32) for layer in metal_layers]
+    return xray_image(view, coverages, anatomy, rng)
+
+
+def xray_image(view: View, metal_coverages, anatomy: dict, rng: np.random.Generator,
+               soft_downsample: int = 1) -> np.ndarray:
+    """The image model: transmissions multiply over a shaded background, then blur, field, noise.
+
+    Each metal coverage (H, W) in [0, 1] absorbs ``IMPLANT_CONTRAST`` of the X-rays, so
+    where two layers overlap the image is darker, as behind two metal parts. Soft tissue
+    and bone (``anatomy``, world-space meshes by ``anatomy_meshes`` name) are rendered at
+    1 sample per pixel and blurred. Then the focal spot / screen blur, the circular
+    intensifier field and Gaussian noise. Random draws come from ``rng`` in a fixed order
+    (background, then noise). ``soft_downsample`` > 1 computes the smooth parts (the
+    background and the blurred tissue and bone) on a grid that many times coarser and
+    interpolates them up: nearly the same picture in less time (the demo uses 1).
+    """
     width, height = view.image_size
     scale = width / 1024.0
-    background = shaded_background((width, height), rng).astype(np.float32)
-    metal = coverage_of_meshes(view, implants, SUPERSAMPLE).astype(np.float32)
-    tissue = _blurred_coverage(view, [anatomy["thigh"], anatomy["shank"]], 9.0 * scale)
-    bone = _blurred_coverage(view, [anatomy["femur_bone"], anatomy["tibia_bone"]], 2.5 * scale)
-    image = background * (1 - TISSUE_CONTRAST * tissue) * (1 - BONE_CONTRAST * bone) * (1 - IMPLANT_CONTRAST * metal)
+    f = int(soft_downsample)
+    if f < 1:
+        raise ValueError("soft_downsample must be a positive integer")
+    coarse = view if f == 1 else _coarser_view(view, f)
+    size = coarse.image_size
+    background = shaded_background(size, rng).astype(np.float32)
+    tissue = _blurred_coverage(coarse, [anatomy["thigh"], anatomy["shank"]], 9.0 * scale / f)
+    bone = _blurred_coverage(coarse, [anatomy["femur_bone"], anatomy["tibia_bone"]], 2.5 * scale / f)
+    image = background * (1 - TISSUE_CONTRAST * tissue) * (1 - BONE_CONTRAST * bone)
+    if f > 1:  # pixel centres: full-grid u = f u' + (f - 1) / 2, as cv2.resize maps them
+        image = cv2.resize(image, (size[0] * f, size[1] * f), interpolation=cv2.INTER_LINEAR)[:height, :width]
+    for metal in metal_coverages:
+        image = image * (1 - IMPLANT_CONTRAST * np.asarray(metal, dtype=np.float32))
     image = cv2.GaussianBlur(image, (0, 0), 0.8 * scale, borderType=cv2.BORDER_REFLECT)  # focal spot, screen
-    image = 0.06 + (image - 0.06) * _intensifier_field(width, height)
+    image = 0.06 + (image - 0.06) * intensifier_field(width, height)
     image = image + rng.normal(0.0, NOISE_SD, size=image.shape).astype(np.float32)
     return np.clip(image, 0.0, 1.0)
 
 
+def _coarser_view(view: View, factor: int) -> View:
+    """The same projection on a grid ``factor`` times coarser (covering the image, maybe a little more)."""
+    width, height = view.image_size
+    cx, cy = view.principal_point
+    return dataclasses.replace(
+        view,
+        pitch=(view.pitch[0] * factor, view.pitch[1] * factor),
+        principal_point=((cx - (factor - 1) / 2.0) / factor, (cy - (factor - 1) / 2.0) / factor),
+        image_size=(-(-width // factor), -(-height // factor)),
+    )
+
+
 @functools.lru_cache(maxsize=4)
-def _intensifier_field(width: int, height: int) -> np.ndarray:
+def intensifier_field(width: int, height: int) -> np.ndarray:
     """Circular field of the image intensifier: 1 inside, 0 outside, a soft rim."""
     v, u = np.ogrid[0:height, 0:width]
     radius = np.hypot(u - (width - 1) / 2.0, v - (height - 1) / 2.0) / (FIELD_RADIUS_FRACTION * width)
     field = np.clip((1.0 - radius) * 40.0, 0.0, 1.0).astype(np.float32)
     field.flags.writeable = False
     return field
+
+
+def _rotated_about(vector, axis, deg: float) -> np.ndarray:
+    """``vector`` turned by ``deg`` about the unit ``axis`` (right-hand rule, Rodrigues)."""
+    k = np.asarray(axis, dtype=float)
+    v = np.asarray(vector, dtype=float)
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    return v * c + np.cross(k, v) * s + k * (k @ v) * (1.0 - c)
 
 
 def _rot_x(deg: float) -> np.ndarray:
@@ -328,5 +434,6 @@ def _rot_z(deg: float) -> np.ndarray:
     return rotation_matrix(0.0, 0.0, deg)
 
 
-__all__ = ["RECIPE_VERSION", "build_demo_project", "demo_project_path", "demo_views", "knee_bend_poses",
-           "write_stl"]
+__all__ = ["RECIPE_VERSION", "ViewSpec", "anatomy_meshes", "build_demo_project", "demo_project_path", "demo_views",
+           "intensifier_field", "knee_bend_poses", "posed_anatomy", "render_view", "views_from_specs",
+           "write_pairs_csv", "write_stl", "xray_image"]
