@@ -527,3 +527,14 @@ def assign_blobs(meshes: dict, views: Sequence[View], blobs: Sequence[Sequence[B
             used2.add(j)
         return out
     return {n: Assignment(n, (p[0], p[1]), trials[(n, p[0], p[1])]) for n, p in zip(names, best)}
+
+
+# -- the one entry point for "find implants" lives in find.py ----------------------------------------
+def __getattr__(name):
+    """``Placement`` and ``find_components`` (fluorogui.core.find) are importable from here
+    too; imported lazily because find.py imports this module."""
+    if name in ("Placement", "find_components"):
+        from . import find
+
+        return getattr(find, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,0 +1,192 @@
+"""find_components: implants placed with no start (or near a prediction), and an honest
+"not found" when that cannot be done, on rendered images with known poses."""
+import time
+
+import cv2
+import numpy as np
+import pytest
+
+from fluorogui.core import shape_search as ss
+from fluorogui.core.find import Placement, find_components
+from fluorogui.core.initialise import SearchCancelled
+from fluorogui.core.initialise import find_components as reexported
+from fluorogui.core.mesh import prepare_mesh
+from fluorogui.core.phantoms import femoral_component_mesh, tibial_component_mesh
+from fluorogui.core.pose import angles_from_matrix, pose_error, rotation_matrix, rotvec_matrix, transform_points
+from fluorogui.core.render import render_fluoro
+from fluorogui.io.demo import anatomy_meshes, demo_views, knee_bend_poses, posed_anatomy, render_view
+
+
+@pytest.fixture(scope="module")
+def scene():
+    """One demo frame rendered in memory: both components over bone and soft tissue."""
+    raw = {"femoral": femoral_component_mesh(), "tibial": tibial_component_mesh()}
+    meshes = {name: prepare_mesh(*mesh) for name, mesh in raw.items()}
+    views = demo_views(1024)
+    truth = knee_bend_poses(30.0, 0.6)
+    anatomy = posed_anatomy(truth, anatomy_meshes())
+    posed = [(transform_points(truth[name], v), f) for name, (v, f) in raw.items()]
+    rng = np.random.default_rng(3)
+    images = [render_view(view, [posed], anatomy, rng) for view in views]
+    empty = [render_view(view, [], anatomy, rng) for view in views]  # the same knee without implants
+    return images, views, meshes, truth, empty
+
+
+@pytest.fixture(scope="module")
+def found(scene):
+    images, views, meshes, _, _ = scene
+    calls = []
+    t0 = time.perf_counter()
+    out = find_components(images, views, meshes, progress=lambda f, text: calls.append((f, text)))
+    return out, calls, time.perf_counter() - t0
+
+
+def _errors(pose, truth):
+    e = np.abs(pose_error(pose, truth))
+    return e[:3].max(), e[3:].max()
+
+
+def test_finds_both_components_from_nothing(scene, found):
+    _, views, meshes, truth, _ = scene
+    out, _, seconds = found
+    assert set(out) == {"femoral", "tibial"}
+    for name, p in out.items():
+        assert isinstance(p, Placement) and p.component == name
+        assert p.found and p.reason == "", p.reason
+        mm, deg = _errors(p.pose, truth[name])
+        assert mm < 0.1 and deg < 0.15, (name, mm, deg)  # measured: <= 0.01 mm, 0.04 deg
+        assert len(p.iou) == 2 and min(p.iou) > 0.98  # measured ~0.99
+        assert len(p.per_view_mean_mm) == 2 and max(p.per_view_mean_mm) < 0.06  # measured ~0.03 mm
+        assert p.objective_mm == pytest.approx(sum(p.per_view_mean_mm))
+        assert min(p.edge_score) > 0.8 and p.seconds > 0
+    assert seconds < 30.0  # includes building both shape libraries; ~3-5 s on 2 shared cores
+
+
+def test_progress_runs_to_one(found):
+    _, calls, _ = found
+    fractions = [f for f, _ in calls]
+    assert len(calls) > 10 and fractions[0] == 0.0 and fractions[-1] == 1.0
+    assert all(b >= a for a, b in zip(fractions, fractions[1:]))
+    assert all(isinstance(text, str) and text for _, text in calls)
+
+
+def test_near_a_prediction(scene, found):
+    images, views, meshes, truth, _ = scene
+    rng = np.random.default_rng(7)
+    near = {}
+    for name, pose in truth.items():  # 5 mm and 15 degrees off, about the centroid
+        R = rotvec_matrix(np.radians(15.0) * _unit(rng.normal(size=3))) @ rotation_matrix(*pose[3:])
+        c = rotation_matrix(*pose[3:]) @ meshes[name].centroid + pose[:3] + 5.0 * _unit(rng.normal(size=3))
+        near[name] = np.r_[c - R @ meshes[name].centroid, angles_from_matrix(R)]
+    t0 = time.perf_counter()
+    out = find_components(images, views, meshes, near=near)
+    seconds = time.perf_counter() - t0
+    for name, p in out.items():
+        assert p.found, p.reason
+        mm, deg = _errors(p.pose, truth[name])
+        assert mm < 0.1 and deg < 0.15, (name, mm, deg)
+    assert seconds < 10.0  # measured ~1-1.5 s for both
+
+
+def test_says_so_when_nothing_is_there(scene, found):
+    _, views, meshes, _, empty = scene
+    out = find_components(empty, views, meshes)
+    for name, p in out.items():
+        assert not p.found and p.reason, name
+        assert p.pose is None or max(p.per_view_mean_mm, default=np.inf) > 0.3
+
+
+def test_can_be_cancelled(scene, found):
+    images, views, meshes, _, _ = scene
+    with pytest.raises(SearchCancelled):
+        find_components(images, views, meshes, cancel=lambda: True)
+    polls = []
+
+    def cancel_later():  # cancel on the fifth poll, in the middle of the search
+        polls.append(time.perf_counter())
+        return len(polls) >= 5
+
+    with pytest.raises(SearchCancelled):
+        find_components(images, views, meshes, cancel=cancel_later)
+    assert len(polls) == 5 and time.perf_counter() - polls[-1] < 0.2  # stops at once
+    assert np.diff(polls).max() < 1.0  # polled often
+
+
+def test_a_symmetric_part_is_ambiguous():
+    """A plain box looks the same turned by 180 degrees: never a confident placement."""
+    box = _box(40.0, 20.0, 10.0)
+    mesh = prepare_mesh(*box)
+    views = demo_views(1024)
+    pose = np.array([5.0, -3.0, 10.0, 20.0, 30.0, 10.0])
+    rng = np.random.default_rng(1)
+    images = [render_fluoro(v, [(transform_points(pose, box[0]), box[1])], rng, blur_sigma_px=0.8) for v in views]
+    p = find_components(images, views, {"box": mesh})["box"]
+    assert not p.found and "apart fit equally well" in p.reason, p.reason
+    assert p.pose is not None
+
+
+def test_reexported_from_initialise():
+    assert reexported is find_components
+
+
+# -- the pieces -----------------------------------------------------------------------------------
+def test_decimated_mesh_keeps_the_silhouette(scene):
+    _, views, meshes, truth, _ = scene
+    mesh = meshes["femoral"]
+    small = ss.decimate_mesh(mesh, 4000)
+    assert 2500 < len(small.faces) < 6000 < len(mesh.faces)
+    R = rotation_matrix(*truth["femoral"][3:])
+    c = R @ mesh.centroid + truth["femoral"][:3]
+    for view in views:
+        masks = []
+        for m in (mesh, small):
+            pts = ss.outline(m, R, c, view, spacing_px=1.0)[0]
+            canvas = np.zeros((1024, 1024), np.uint8)
+            cv2.fillPoly(canvas, [np.round(pts).astype(np.int32)], 1)
+            masks.append(canvas > 0)
+        assert (masks[0] & masks[1]).sum() / (masks[0] | masks[1]).sum() > 0.97  # measured 0.98
+
+
+def test_templates_match_exact_outlines(scene):
+    _, views, meshes, truth, _ = scene
+    mesh = meshes["tibial"]
+    lib = ss.shape_library(mesh)
+    assert ss.shape_library(mesh) is lib  # cached
+    rotations = np.stack([rotation_matrix(*a) for a in np.random.default_rng(2).uniform(-180, 180, (8, 3))])
+    c = np.array([2.0, -4.0, -15.0])
+    for view in views:
+        pts, normals = ss.place_templates(lib, view, rotations, c)
+        assert pts.shape == (8, 32, 2) and np.allclose(np.linalg.norm(normals, axis=2) > 0, True)
+        for R, p in zip(rotations, pts):
+            exact = ss.outline(mesh, R, c, view, spacing_px=1.0)[0]
+            d = np.min(np.linalg.norm(p[:, None, :] - exact[None], axis=2), axis=1)
+            assert np.median(d) < 4.0  # px: templates are ~4 degrees apart; a 70 mm part is ~230 px
+
+
+def test_edge_refinement_pulls_a_rough_pose_in(scene):
+    images, views, meshes, truth, _ = scene
+    mesh = meshes["femoral"]
+    lib = ss.shape_library(mesh)
+    maps = [ss.EdgeMaps(image) for image in images]
+    R0 = rotation_matrix(*truth["femoral"][3:])
+    c0 = R0 @ mesh.centroid + truth["femoral"][:3]
+    right = np.mean(ss.pose_edge_score(lib.coarse, R0, c0, views, maps))
+    R = rotvec_matrix(np.radians([6.0, -5.0, 4.0])) @ R0
+    c = c0 + np.array([3.0, -2.0, 2.0])
+    assert np.mean(ss.pose_edge_score(lib.coarse, R, c, views, maps)) < right - 0.3
+    R, c = ss.refine_on_edges(lib.coarse, views, maps, R, c)
+    R, c = ss.refine_on_edges(lib.fine, views, maps, R, c, (4, 3, 3))
+    angle = np.degrees(np.arccos(np.clip((np.trace(R.T @ R0) - 1) / 2, -1, 1)))
+    assert angle < 0.5 and np.linalg.norm(c - c0) < 0.3, (angle, np.linalg.norm(c - c0))
+    assert right > 0.9
+
+
+def _unit(v):
+    return v / np.linalg.norm(v)
+
+
+def _box(a, b, c):
+    v = np.array([[x, y, z] for x in (-a / 2, a / 2) for y in (-b / 2, b / 2) for z in (-c / 2, c / 2)])
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    faces = [t for q in quads for t in ((q[0], q[1], q[2]), (q[0], q[2], q[3]))]
+    return v, np.array(faces)
