@@ -379,6 +379,12 @@ def _match_fast(problem, start, settings, progress, cancel) -> MatchResult:
                 converged = True
                 break
         else:
+            # a rejected step this small is the objective's noise floor (the outline point
+            # set changes from pose to pose): more damping would only spend evaluations
+            move = np.r_[np.abs(dc), np.degrees(np.abs(w))]
+            if np.all(move < 10 * settings.xtol):
+                converged = True
+                break
             lam *= 10.0
             if lam > 1e8:
                 converged = bool(np.all(np.abs(step) < 10 * settings.xtol))

@@ -21,6 +21,8 @@ from .geometry import View
 from .mesh import PreparedMesh
 
 _SHIFT = 4  # fixed-point bits for cv2 drawing
+_BAND_PX = 3  # half width (drawing pixels) of the band around the outer contour searched for edges
+_BAND_KERNEL = np.ones((2 * _BAND_PX + 1, 2 * _BAND_PX + 1), np.uint8)
 
 
 @dataclass
@@ -71,7 +73,9 @@ def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View
     edges = silhouette_edges(mesh, R, t, view.source)
     if len(edges) == 0:
         raise ValueError("the mesh has no silhouette from this source")
-    ends = np.unique(edges)
+    used = np.zeros(len(mesh.vertices), dtype=bool)
+    used[edges.ravel()] = True
+    ends = np.flatnonzero(used)  # the vertices on silhouette edges, sorted (np.unique without a sort)
     X = mesh.vertices[ends] @ R.T + t
     d = X - view.source
     depth_all = d @ view.normal
@@ -92,7 +96,8 @@ def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View
     fixed = np.round((segs - origin) * scale * (1 << _SHIFT)).astype(np.int32)
     cv2.polylines(canvas, fixed, False, 255, 1, cv2.LINE_8, _SHIFT)
     contours, _ = cv2.findContours(canvas, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    outer = max(contours, key=lambda c: cv2.contourArea(c) + len(c))[:, 0, :].astype(float)
+    outer_px = max(contours, key=lambda c: cv2.contourArea(c) + len(c))
+    outer = outer_px[:, 0, :].astype(float)
     pts = outer / scale + origin
     if spacing_px:
         pts = pts[:: max(1, int(round(spacing_px * scale)))]
@@ -103,6 +108,18 @@ def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View
     seg_id = np.repeat(np.arange(len(segs)), n_sub + 1)
     frac = _fractions(n_sub)
     samples = P0[seg_id] + frac[:, None] * (P1 - P0)[seg_id]
+    # only edges running along the outer contour can be snapped to: keep the samples within
+    # a band around it (no silhouette edge crosses the outer contour, so an edge on it has
+    # samples every 2 px along it inside the band); most edges are inner ones
+    band = np.zeros_like(canvas)
+    band[outer_px[:, 0, 1], outer_px[:, 0, 0]] = 1
+    band = cv2.dilate(band, _BAND_KERNEL)
+    cell = np.round((samples - origin) * scale).astype(np.int64)
+    on_canvas = (cell[:, 0] >= 0) & (cell[:, 0] < band.shape[1]) & (cell[:, 1] >= 0) & (cell[:, 1] < band.shape[0])
+    near = np.zeros(len(samples), dtype=bool)
+    near[on_canvas] = band[cell[on_canvas, 1], cell[on_canvas, 0]] > 0
+    if near.sum() >= 8:
+        samples, seg_id = samples[near], seg_id[near]
     _, nearest = cKDTree(samples).query(pts, k=min(8, len(samples)))
     nearest = np.atleast_2d(nearest)
     cand = seg_id[nearest]  # (K, k)
