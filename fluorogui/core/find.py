@@ -16,7 +16,7 @@ predicted one (tracking recovery), and say honestly when it could not.
 3. *Final fit.* The best candidate (and the runner-up when it scores nearly as well) is
    matched with ``pipeline.match_images`` on Canny outlines with the full mesh.
 4. *Verdict.* A placement is ``found`` only when both views fit: mean outline distance
-   per view at most ``MAX_VIEW_MM``, overlap of the silhouette with the region inside the
+   per view at most ``MAX_VIEW_PX``, overlap of the silhouette with the region inside the
    image outline at least ``MIN_IOU`` in each view, and the edge score high enough. Two
    candidates that fit about equally well but differ by a large rotation (a symmetric
    tibial tray flipped) make it ambiguous, unless the Canny residual separates them
@@ -43,8 +43,10 @@ from .mesh import PreparedMesh
 from .pipeline import match_images
 from .pose import angles_from_matrix, rotation_matrix, rotvec_matrix
 
-#: per-view mean outline distance (mm) above which a fit is not accepted (right: ~0.12-0.15 mm)
-MAX_VIEW_MM = 0.30
+#: per-view mean outline distance above which a fit is not accepted, in px of a 1024-pixel image
+#: (right on the real data: 0.35-0.7 px = 0.11-0.21 mm; wrong: >= 1.4 px). Pixels, not mm: a
+#: calibration without a pixel pitch gets an assumed one
+MAX_VIEW_PX = 1.0
 #: per-view IoU of silhouette and image outline region below which a fit is not accepted
 MIN_IOU = 0.94
 #: per-view edge score below which a fit is not accepted (nor tried)
@@ -55,8 +57,9 @@ MIN_CANDIDATE_SCORE = 0.65
 NEAR_DEG = 36.0
 #: candidates whose edge scores differ by less than this are both matched on Canny outlines
 CLOSE_SCORE = 0.08
-#: ... and when their Canny objectives differ by less than this (mm) they are ambiguous
-CLEAR_OBJECTIVE_MM = 0.08
+#: ... and when their Canny objectives (summed mean outline distances, px of a 1024-pixel image)
+#: differ by less than this they are ambiguous
+CLEAR_OBJECTIVE_PX = 0.25
 
 #: search radii (px) of the edge refinement: screening every candidate, then finishing the best
 SCREEN_RADII, FINISH_RADII = (20, 12, 8, 5), (4, 3, 3, 3)
@@ -278,11 +281,18 @@ def _assess(images, views, mesh, lib, maps, res, splines):
     return iou, ss.pose_edge_score(lib.coarse, R, R @ mesh.centroid + pose[:3], views, maps)
 
 
-def _verdict(res, iou, edge) -> str:
+def _objective_px(res, views, maps) -> float:
+    """The match objective in px of a 1024-pixel image (summed over views)."""
+    return float(sum(mm / v.mm_per_px() / m.unit for mm, v, m in zip(res.per_view_mean_mm, views, maps)))
+
+
+def _verdict(res, iou, edge, views, maps) -> str:
     """'' when the fit is good in both views, else why not."""
-    worst = int(np.argmax(res.per_view_mean_mm))
-    if res.per_view_mean_mm[worst] > MAX_VIEW_MM:
-        return f"outline distance {res.per_view_mean_mm[worst]:.2f} mm in view {worst + 1} is too large"
+    px = [mm / v.mm_per_px() / m.unit for mm, v, m in zip(res.per_view_mean_mm, views, maps)]
+    worst = int(np.argmax(px))
+    if px[worst] > MAX_VIEW_PX:
+        return (f"outline distance {res.per_view_mean_mm[worst]:.2f} mm ({px[worst]:.1f} px) in view {worst + 1} "
+                "is too large")
     k = int(np.argmin(iou))
     if iou[k] < MIN_IOU:
         return f"best overlap {iou[k]:.2f} in view {k + 1} is too low"
@@ -321,16 +331,42 @@ def _conclude(name, mesh, lib, images, views, maps, cands, steps: _Steps, t0: fl
         # the outline was segmented along a pose that then moved: once more along the fit
         res, splines = _fit(images, views, mesh, first.pose, steps) or fits[0][:2]
     iou, edge = _assess(images, views, mesh, lib, maps, res, splines)
-    reason = _verdict(res, iou, edge)
+    reason = _verdict(res, iou, edge, views, maps)
     if not reason and len(fits) > 1:
         other, other_splines, _ = fits[1]
         apart = _angle_deg(rotation_matrix(*first.pose[3:]), rotation_matrix(*other.pose[3:]))
-        if (apart > 20.0 and other.objective_mm - first.objective_mm < CLEAR_OBJECTIVE_MM
-                and not _verdict(other, *_assess(images, views, mesh, lib, maps, other, other_splines))):
+        if (apart > 20.0 and _objective_px(other, views, maps) - _objective_px(first, views, maps) < CLEAR_OBJECTIVE_PX
+                and not _verdict(other, *_assess(images, views, mesh, lib, maps, other, other_splines), views, maps)):
             reason = f"two orientations {apart:.0f}° apart fit equally well"
     steps.report(1.0, f"{name}: done")
     return Placement(name, res.pose, not reason, iou, float(res.objective_mm), list(res.per_view_mean_mm),
                      reason, time.perf_counter() - t0, edge, alternatives)
+
+
+class _Rounds:
+    """Position hypotheses, in two rounds: pairs of dark-region centroids; then (worked out
+    only when a component was not found in the first) pairs that use depth peaks of dark
+    regions too, less the first round's."""
+
+    def __init__(self, images, views, fovs):
+        self.images, self.views, self.fovs = images, views, fovs
+        self._rounds: list[list[np.ndarray]] = []
+
+    def __len__(self) -> int:
+        return 2
+
+    def __getitem__(self, k: int) -> list[np.ndarray]:
+        if k >= 2:
+            raise IndexError(k)
+        while len(self._rounds) <= k:
+            peaks = bool(self._rounds)
+            points = [ss.dark_region_points(image, fov, max_peaks=4 if peaks else 0)
+                      for image, fov in zip(self.images, self.fovs)]
+            hyps = ss.position_hypotheses(self.views, [c + p for c, p in points], merge_mm=12.0)
+            if peaks:
+                hyps = [h for h in hyps if all(np.linalg.norm(h - g) > 12.0 for g in self._rounds[0])]
+            self._rounds.append(hyps)
+        return self._rounds[k]
 
 
 def _find_one(name, mesh, images, views, maps, rounds, near_pose, steps: _Steps, occupied) -> Placement:
@@ -382,17 +418,13 @@ def find_components(images: Sequence[np.ndarray], views: Sequence[View], meshes:
     if progress is not None:
         progress(0.0, "preparing the images")
     fovs = []
-    for image in images:
-        half = cv2.resize(ss.to_unit_float(image), None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+    for image in images:  # the field of view, found at half the resolution of a 1024-pixel image
+        scale = 0.5 / ss.image_unit(np.shape(image))
+        half = cv2.resize(ss.to_unit_float(image), None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
         fov = field_of_view(np.round(half * 255).astype(np.uint8), margin_px=15)
-        fovs.append(cv2.resize(fov.astype(np.uint8), image.shape[1::-1], interpolation=cv2.INTER_NEAREST) > 0)
+        fovs.append(cv2.resize(fov.astype(np.uint8), np.shape(image)[1::-1], interpolation=cv2.INTER_NEAREST) > 0)
     maps = [ss.EdgeMaps(image, fov) for image, fov in zip(images, fovs)]
-    rounds: list[list[np.ndarray]] = []
-    if any(name not in near for name in meshes):
-        points = [ss.dark_region_points(image, fov) for image, fov in zip(images, fovs)]
-        first = ss.position_hypotheses(views, [p[0] for p in points], merge_mm=12.0)
-        more = ss.position_hypotheses(views, [p[0] + p[1] for p in points], merge_mm=12.0)
-        rounds = [first, [h for h in more if all(np.linalg.norm(h - g) > 12.0 for g in first)]]
+    rounds = _Rounds(images, views, fovs) if any(name not in near for name in meshes) else []
     steps.check()
     out: dict[str, Placement] = {}
     occupied = []

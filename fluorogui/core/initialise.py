@@ -84,10 +84,10 @@ def field_of_view(image: np.ndarray, border_level: float | None = None, margin_p
     outside = np.isin(labels, edge_labels) if len(edge_labels) else np.zeros_like(dark, bool)
     inside = (~outside).astype(np.uint8)
     inside = cv2.morphologyEx(inside, cv2.MORPH_OPEN, np.ones((5, 5), np.uint8))
-    pts = cv2.findNonZero(inside)
-    if pts is None:
+    contours, _ = cv2.findContours(inside, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    if not contours:
         return np.zeros((h, w), bool)
-    hull = cv2.convexHull(pts)
+    hull = cv2.convexHull(np.vstack(contours))  # the hull of the outer boundaries is that of every pixel
     fov = np.zeros((h, w), np.uint8)
     cv2.fillConvexPoly(fov, hull, 1)
     if margin_px > 0:

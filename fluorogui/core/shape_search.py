@@ -40,7 +40,13 @@ from .silhouette import silhouette_edges
 
 N_BINS = 16  # quantised normal directions of the oriented edge maps
 PAD = 40  # padding (pixels of a map level) so shifted look-ups never leave the array
-LEVELS = {"coarse": (0.25, 2.0), "fine": (0.5, 1.2)}  # name -> (image scale, blur sigma in map pixels)
+LEVELS = {"coarse": (0.25, 2.0), "fine": (0.5, 1.2)}  # name -> (scale of a 1024-px image, blur sigma in map px)
+
+
+def image_unit(shape) -> float:
+    """Pixel lengths in this module are for 1024-pixel images; this is the factor for an
+    image of ``shape`` (the same field of view in more or fewer pixels)."""
+    return max(shape[:2]) / 1024.0
 
 
 # -- a small mesh for silhouettes --------------------------------------------------------------
@@ -195,14 +201,17 @@ def to_unit_float(image: np.ndarray) -> np.ndarray:
 
 
 class EdgeMaps:
-    """Oriented edge scores of one image at the ``LEVELS`` resolutions, and its
-    half-resolution gradients for ``refine_on_edges``. ``fov`` (full resolution, bool)
-    limits where the strong-edge reference gradient is measured."""
+    """Oriented edge scores of one image at the ``LEVELS`` resolutions, and its gradients
+    at half resolution (of a 1024-pixel image: ``work`` scale) for ``refine_on_edges``.
+    ``fov`` (full resolution, bool) limits where the strong-edge reference gradient is
+    measured."""
 
     def __init__(self, image: np.ndarray, fov: np.ndarray | None = None, kappa: float = 0.25):
         img = to_unit_float(image)
         self.shape = img.shape
-        half = cv2.resize(img, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+        self.unit = image_unit(img.shape)
+        self.work = 0.5 / self.unit
+        half = cv2.resize(img, None, fx=self.work, fy=self.work, interpolation=cv2.INTER_AREA)
         g = cv2.GaussianBlur(half, (0, 0), 1.0)
         self.gx = cv2.Sobel(g, cv2.CV_32F, 1, 0) / 8.0
         self.gy = cv2.Sobel(g, cv2.CV_32F, 0, 1) / 8.0
@@ -212,15 +221,17 @@ class EdgeMaps:
             inside = cv2.resize(np.asarray(fov, np.uint8), mag.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0
             inside = cv2.erode(inside.astype(np.uint8), np.ones((9, 9), np.uint8)) > 0
         vals = mag[inside] if inside.any() else mag.ravel()
-        self.g_ref = max(float(np.percentile(vals, 99.5)) * kappa, 1e-6)  # per half-res pixel
+        self.g_ref = max(float(np.percentile(vals, 99.5)) * kappa, 1e-6)  # per work pixel
         self.levels = {}
         theta = 2 * np.pi * np.arange(N_BINS) / N_BINS
         for name, (scale, sigma) in LEVELS.items():
-            small = half if scale == 0.5 else cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+            scale = scale / self.unit
+            small = half if scale == self.work else cv2.resize(img, None, fx=scale, fy=scale,
+                                                               interpolation=cv2.INTER_AREA)
             s = cv2.GaussianBlur(small, (0, 0), sigma)
             gx = cv2.Sobel(s, cv2.CV_32F, 1, 0) / 8.0
             gy = cv2.Sobel(s, cv2.CV_32F, 0, 1) / 8.0
-            ref = self.g_ref * (scale / 0.5)  # gradients per map pixel scale with the pixel size
+            ref = self.g_ref * (scale / self.work)  # gradients per map pixel scale with the pixel size
             maps = np.zeros((N_BINS, s.shape[0] + 2 * PAD, s.shape[1] + 2 * PAD), np.int8)  # score x 127
             for k, t in enumerate(theta):
                 v = np.clip((gx * np.cos(t) + gy * np.sin(t)) * (127.0 / ref), -127.0, 127.0)
@@ -247,6 +258,17 @@ class EdgeMaps:
         times faster than fancy indexing of float32 ones)."""
         v = np.take(self.levels[level][1], idx)
         return v.sum(-1, dtype=np.int32) * (1.0 / (127.0 * idx.shape[-1]))
+
+    def shifted_scores(self, level: str, idx: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+        """Mean scores (N, S) of outlines ``idx`` (N, K) moved by every flat offset (S,);
+        one shift at a time, which keeps the index array small."""
+        flat = self.levels[level][1]
+        out = np.empty((len(offsets), len(idx)), np.int32)
+        moved = np.empty(idx.shape, idx.dtype)
+        for s, o in enumerate(offsets):
+            np.add(idx, o, out=moved)
+            out[s] = np.take(flat, moved).sum(-1, dtype=np.int32)
+        return out.T * (1.0 / (127.0 * idx.shape[-1]))
 
 
 def edge_score(maps: EdgeMaps, points_px: np.ndarray, normals: np.ndarray, level: str = "fine") -> float:
@@ -280,41 +302,42 @@ def place_templates(lib: ShapeLibrary, view: View, rotations: np.ndarray, centre
 
 
 def scan_orientations(lib: ShapeLibrary, views, maps, centre: np.ndarray, rotations: np.ndarray,
-                      shifts_px: np.ndarray, level: str = "coarse", chunk: int = 1000, point_step: int = 1):
+                      shifts_px: np.ndarray, level: str = "coarse", chunk: int = 1000):
     """Edge score of every rotation with the centroid near ``centre`` ((3,), or (N, 3): one
-    per rotation): per view the best of
-    the 2D ``shifts_px`` (S, 2) is taken (every ``point_step``-th template point is used).
-    Returns the mean score over views (N,) and the best shift per view (N, V, 2)."""
+    per rotation): per view the best of the 2D ``shifts_px`` (S, 2; px of a 1024-pixel
+    image) is taken. Returns the mean score over views (N,) and the best shift per view
+    in that view's pixels (N, V, 2)."""
     n = len(rotations)
     total = np.zeros(n)
     best = np.zeros((n, len(views), 2))
     centre = np.asarray(centre, float)
     for k, (view, m) in enumerate(zip(views, maps)):
-        off = m.offsets(level, shifts_px)
+        shifts = np.asarray(shifts_px, float) * m.unit
+        off = m.offsets(level, shifts)
         for s in range(0, n, chunk):
-            pts, nrm = place_templates(lib, view, rotations[s:s + chunk], centre if centre.ndim == 1 else centre[s:s + chunk])
-            idx = m.index(level, pts[:, ::point_step], nrm[:, ::point_step])
-            sc = m.mean_score(level, idx[:, None, :] + off[None, :, None])
+            pts, nrm = place_templates(lib, view, rotations[s:s + chunk],
+                                       centre if centre.ndim == 1 else centre[s:s + chunk])
+            sc = m.shifted_scores(level, m.index(level, pts, nrm), off)
             arg = sc.argmax(1)
             total[s:s + chunk] += sc[np.arange(len(arg)), arg] / len(views)
-            best[s:s + chunk, k] = shifts_px[arg]
+            best[s:s + chunk, k] = shifts[arg]
     return total, best
 
 
 def rescore(lib: ShapeLibrary, views, maps, centre: np.ndarray, rotations: np.ndarray, shifts: np.ndarray,
             local_px: np.ndarray, level: str = "fine"):
     """Score rotations again on a sharper map level, each view searching ``local_px``
-    (S, 2) around the rotation's own shift ``shifts`` (N, V, 2). Returns the scores (N,)
-    and the new shifts (N, V, 2)."""
+    (S, 2; px of a 1024-pixel image) around the rotation's own shift ``shifts`` (N, V, 2;
+    that view's pixels). Returns the scores (N,) and the new shifts (N, V, 2)."""
     total = np.zeros(len(rotations))
     best = np.zeros_like(shifts)
     for k, (view, m) in enumerate(zip(views, maps)):
+        local = np.asarray(local_px, float) * m.unit
         pts, nrm = place_templates(lib, view, rotations, centre)
-        idx = m.index(level, pts + shifts[:, k][:, None, :], nrm)
-        sc = m.mean_score(level, idx[:, None, :] + m.offsets(level, local_px)[None, :, None])
+        sc = m.shifted_scores(level, m.index(level, pts + shifts[:, k][:, None, :], nrm), m.offsets(level, local))
         arg = sc.argmax(1)
         total += sc[np.arange(len(arg)), arg] / len(views)
-        best[:, k] = shifts[:, k] + local_px[arg]
+        best[:, k] = shifts[:, k] + local[arg]
     return total, best
 
 
@@ -360,7 +383,7 @@ def pose_edge_score(mesh: PreparedMesh, R, c, views, maps, level: str = "fine") 
     out = []
     for view, m in zip(views, maps):
         try:
-            p, n, _ = outline(mesh, R, c, view)
+            p, n, _ = outline(mesh, R, c, view, spacing_px=4.0 * m.unit)
         except ValueError:
             out.append(-1.0)
             continue
@@ -382,8 +405,8 @@ def _skew(v: np.ndarray) -> np.ndarray:
 def refine_on_edges(mesh: PreparedMesh, views, maps, R: np.ndarray, c: np.ndarray,
                     radii_px=(20, 14, 10, 7, 5, 4, 3, 3), min_response: float = 0.15):
     """Gauss-Newton on exact silhouettes: every outline point is pulled to the strongest
-    dark-inside edge along its normal within the current radius (full-resolution px; the
-    search runs on the half-resolution gradients). Returns (R, c)."""
+    dark-inside edge along its normal within the current radius (px of a 1024-pixel
+    image; the search runs on the ``work``-scale gradients). Returns (R, c)."""
     from .pose import rotvec_matrix  # local: pose imports nothing from here
 
     rho = max(mesh.radius, 1.0)
@@ -393,11 +416,11 @@ def refine_on_edges(mesh: PreparedMesh, views, maps, R: np.ndarray, c: np.ndarra
         used = 0
         for view, m in zip(views, maps):
             try:
-                p, n, model = outline(mesh, R, c, view, spacing_px=3.0)
+                p, n, model = outline(mesh, R, c, view, spacing_px=3.0 * m.unit)
             except ValueError:
                 continue
-            steps = np.arange(-radius, radius + 1e-9, 1.0)  # full-res px along the normal
-            q = (p[:, None, :] + steps[None, :, None] * n[:, None, :]) * 0.5 - 0.25
+            steps = np.arange(-radius, radius + 1e-9, 1.0) * m.unit  # full-res px along the normal
+            q = (p[:, None, :] + steps[None, :, None] * n[:, None, :]) * m.work + (m.work - 1.0) / 2.0
             resp = (_bilinear(m.gx, q) * n[:, None, 0] + _bilinear(m.gy, q) * n[:, None, 1]) / m.g_ref
             k = resp.argmax(1)
             peak = resp[np.arange(len(k)), k]
@@ -407,7 +430,7 @@ def refine_on_edges(mesh: PreparedMesh, views, maps, R: np.ndarray, c: np.ndarra
             y0, y1, y2 = (resp[np.arange(len(k)), k1 + d] for d in (-1, 0, 1))
             den = y0 - 2 * y1 + y2
             frac = np.where(np.abs(den) > 1e-9, 0.5 * (y0 - y2) / np.where(np.abs(den) > 1e-9, den, 1.0), 0.0)
-            s = steps[k1] + np.clip(frac, -1, 1)
+            s = steps[k1] + np.clip(frac, -1, 1) * m.unit
             if ok.sum() < 6:
                 continue
             X = model[ok] @ R.T + (c - R @ mesh.centroid)
@@ -415,7 +438,8 @@ def refine_on_edges(mesh: PreparedMesh, views, maps, R: np.ndarray, c: np.ndarra
             nJ = np.einsum("ij,ijk->ik", n[ok], Jp)
             J = np.hstack([nJ, -np.einsum("ik,ikl->il", nJ, _skew(X - c)) / rho])
             r = -s[ok]  # model point minus target along the normal
-            w = np.where(np.abs(r) < 2.0, 1.0, 2.0 / np.abs(r)) * np.minimum(peak[ok], 1.0) / ok.sum()
+            huber = 2.0 * m.unit
+            w = np.where(np.abs(r) < huber, 1.0, huber / np.abs(r)) * np.minimum(peak[ok], 1.0) / ok.sum()
             H += J.T @ (J * w[:, None])
             g += J.T @ (w * r)
             used += 1
@@ -444,7 +468,9 @@ def dark_region_points(image: np.ndarray, fov: np.ndarray, n_levels: int = 14, m
     region of its own but is a thick part of one. Points closer than ``merge_px`` to one
     already listed are dropped."""
     img = to_unit_float(image)
-    half = cv2.resize(img, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA)
+    unit = image_unit(img.shape)
+    scale = 0.5 / unit  # pixel counts below are those of half a 1024-pixel image
+    half = cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
     s = cv2.GaussianBlur(half, (0, 0), 1.5)
     inside = cv2.resize(np.asarray(fov, np.uint8), s.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0
     if not inside.any():
@@ -456,7 +482,8 @@ def dark_region_points(image: np.ndarray, fov: np.ndarray, n_levels: int = 14, m
     peaks: list[np.ndarray] = []
 
     def add(p, to):
-        if all(np.linalg.norm(p - q) > merge_px for q in centroids + peaks):
+        p = (p + 0.5) / scale - 0.5  # to full-resolution pixels
+        if all(np.linalg.norm(p - q) > merge_px * unit for q in centroids + peaks):
             to.append(p)
 
     for level in levels:
@@ -464,12 +491,12 @@ def dark_region_points(image: np.ndarray, fov: np.ndarray, n_levels: int = 14, m
         n, _, stats, cents = cv2.connectedComponentsWithStats(dark, connectivity=8)
         for i in range(1, n):
             if min_area_px / 4 <= stats[i, cv2.CC_STAT_AREA] <= max_area_px / 4:
-                add(cents[i] * 2.0 + 0.5, centroids)
+                add(cents[i], centroids)
         if max_peaks:
             dist = cv2.distanceTransform(dark, cv2.DIST_L2, 3)
             v, u = np.nonzero((dist >= min_radius_px / 2) & (dist >= cv2.dilate(dist, peak_kernel)))
             for k in np.argsort(-dist[v, u])[:max_peaks]:
-                add(np.array([u[k], v[k]]) * 2.0 + 0.5, peaks)
+                add(np.array([u[k], v[k]], float), peaks)
     return centroids, peaks
 
 
