@@ -27,6 +27,8 @@ Speed comes from three things:
 """
 from __future__ import annotations
 
+import dataclasses
+import threading
 import weakref
 from dataclasses import dataclass
 
@@ -58,7 +60,7 @@ def decimate_mesh(mesh: PreparedMesh, target_faces: int = 6000) -> PreparedMesh:
     ``open_edges``, which are always drawn; they lie inside the projection, so the outer
     outline is unaffected."""
     if len(mesh.faces) <= target_faces:
-        return mesh
+        return dataclasses.replace(mesh)  # a new object sharing the arrays (see shape_library)
     v, f = mesh.vertices, mesh.faces
     cell = np.sqrt(mesh.area / target_faces) * 1.25
     best = mesh
@@ -124,7 +126,7 @@ class ShapeLibrary:
     plane through the centroid, in the frame (``a``, ``b``) of each direction, relative to
     the centroid's projection; ``normals`` are the outward unit normals there."""
 
-    mesh: PreparedMesh
+    centroid: np.ndarray  # of the full mesh (the library holds no reference to it: see shape_library)
     coarse: PreparedMesh  # ~4000 faces: templates, screening
     fine: PreparedMesh  # ~15000 faces: finishing the refinement
     directions: np.ndarray
@@ -136,7 +138,7 @@ class ShapeLibrary:
     tree: cKDTree
 
     @classmethod
-    def build(cls, mesh: PreparedMesh, n_directions: int = 1500, n_points: int = 32,
+    def build(cls, mesh: PreparedMesh, n_directions: int = 1000, n_points: int = 32,
               distance: float = 1000.0, resolution_mm: float = 0.5) -> "ShapeLibrary":
         coarse = decimate_mesh(mesh, 4000)
         d = sphere_directions(n_directions)
@@ -168,23 +170,26 @@ class ShapeLibrary:
             o = _smooth_closed(outer[:, 0, :] * resolution_mm + lo, 2)  # drop the pixel staircase
             points[j] = _closed_resample(o, n_points)
         normals = np.stack([outward_normals(p) for p in points])
-        return cls(mesh, coarse, decimate_mesh(mesh, 15000), d, a, b, points, normals, areas, cKDTree(d))
+        return cls(mesh.centroid.copy(), coarse, decimate_mesh(mesh, 15000), d, a, b, points, normals, areas,
+                   cKDTree(d))
 
 
 _LIBRARIES: dict[int, tuple[weakref.ref, ShapeLibrary]] = {}
+_LIBRARY_LOCK = threading.Lock()
 
 
 def shape_library(mesh: PreparedMesh) -> ShapeLibrary:
-    """The cached ShapeLibrary of ``mesh`` (built on first use, ~1 s)."""
-    key = id(mesh)
-    hit = _LIBRARIES.get(key)
-    if hit is not None and hit[0]() is mesh:
-        return hit[1]
-    lib = ShapeLibrary.build(mesh)
-    for k in [k for k, (ref, _) in _LIBRARIES.items() if ref() is None]:
-        del _LIBRARIES[k]
-    _LIBRARIES[key] = (weakref.ref(mesh), lib)
-    return lib
+    """The ShapeLibrary of ``mesh``, built on first use (~0.5-1 s) and kept while the
+    mesh object lives (thread-safe)."""
+    with _LIBRARY_LOCK:
+        hit = _LIBRARIES.get(id(mesh))
+        if hit is not None and hit[0]() is mesh:
+            return hit[1]
+        lib = ShapeLibrary.build(mesh)
+        for k in [k for k, (ref, _) in _LIBRARIES.items() if ref() is None]:
+            del _LIBRARIES[k]
+        _LIBRARIES[id(mesh)] = (weakref.ref(mesh), lib)
+        return lib
 
 
 # -- oriented edge maps ---------------------------------------------------------------------------
