@@ -230,13 +230,15 @@ def _candidates(lib, views, maps, centres, rotations, shifts, keep: int, steps: 
 
 
 def _rank_hypotheses(lib, views, maps, hypotheses, steps: _Steps, at: float, span: float) -> list[np.ndarray]:
-    """The one or two most promising position hypotheses. A very quick scan (100
-    orientations, all hypotheses in one batch) keeps eight, a quick one (600) keeps the
-    best 20 orientations of each, and those are scored again on the sharper maps: blurred
-    maps let a tibial outline half-fit the femoral component's edges."""
+    """The one or two most promising positions. A very quick scan (100 orientations, all
+    hypotheses in one batch) keeps eight, a quick one (600) keeps the best 20 orientations
+    of each, and those are scored again on the sharp maps: blurred maps let a tibial
+    outline half-fit the femoral component's edges. After each scan a hypothesis moves to
+    where its best orientation fitted (the shifts found in both views), so one that
+    started 15-30 mm off (a region centroid between two overlapping components) comes in."""
     shifts = ss.shift_grid(48, 16)
-    scored = list(hypotheses)
-    if len(scored) <= 1:
+    scored = [np.asarray(h, float) for h in hypotheses]
+    if not scored:
         return scored
     for n_rot, keep in ((100, 8), (600, 2)):
         steps.report(at + span * (0.5 if n_rot > 100 else 0.0), "looking for the component")
@@ -245,19 +247,28 @@ def _rank_hypotheses(lib, views, maps, hypotheses, steps: _Steps, at: float, spa
         centres = np.repeat(np.array(scored), n_rot, axis=0)
         score, best = ss.scan_orientations(lib, views, maps, centres, np.tile(rotations, (h, 1, 1)), shifts,
                                            chunk=4000)
+        if n_rot == 600:  # the best 20 orientations of each hypothesis again on the sharp maps
+            top = np.argsort(-score.reshape(h, n_rot), axis=1)[:, :20]
+            rows = (np.arange(h)[:, None] * n_rot + top).ravel()
+            fine, fine_best = ss.rescore(lib, views, maps, centres[rows], np.tile(rotations, (h, 1, 1))[rows],
+                                         best[rows], ss.shift_grid(12, 4))
+            score = np.full(h * n_rot, -np.inf)
+            score[rows], best[rows] = fine, fine_best
         score = score.reshape(h, n_rot)
-        if n_rot == 100:
-            scored = [scored[i] for i in np.argsort(-score.max(1))[:keep]]
-            continue
-        top = np.argsort(-score, axis=1)[:, :20]  # per hypothesis
-        rows = (np.arange(h)[:, None] * n_rot + top).ravel()
-        fine, _ = ss.rescore(lib, views, maps, centres[rows], np.tile(rotations, (h, 1, 1))[rows],
-                             best.reshape(h * n_rot, len(views), 2)[rows], ss.shift_grid(12, 4))
-        scores = fine.reshape(h, -1).max(1)
-        order = np.argsort(-scores)
-        if scores[order[1]] < scores[order[0]] - 0.04:
+        arg = score.argmax(1)
+        top_scores = score[np.arange(h), arg]
+        moved = [_moved_centre(views, c, best[i * n_rot + arg[i]]) for i, c in enumerate(scored)]
+        order = np.argsort(-top_scores)
+        if n_rot == 600 and h > 1 and top_scores[order[1]] < top_scores[order[0]] - 0.04:
             keep = 1
-        scored = [scored[i] for i in order[:keep]]
+        # after the very quick scan both a hypothesis and its moved self go on (the move
+        # follows an orientation only roughly right); after the quick scan the moved one
+        kept = []
+        for i in order[:keep]:
+            for c in ((scored[i], moved[i]) if n_rot == 100 else (moved[i],)):
+                if all(np.linalg.norm(c - k) > 8.0 for k in kept):
+                    kept.append(c)
+        scored = kept
     return scored
 
 

@@ -65,18 +65,23 @@ class Blob(NamedTuple):
 def field_of_view(image: np.ndarray, border_level: float | None = None, margin_px: int = 12) -> np.ndarray:
     """Boolean mask of the intensifier's field of view (the bright disc), shrunk by ``margin_px``.
 
-    The black frame is what is darker than ``border_level`` (default: a quarter of the
-    darkest grey found in the middle of the image, at least 4) and connected to the image
+    The black frame is what is darker than ``border_level`` and connected to the image
     edges; the field of view is the convex hull of the rest (the disc is convex, so
-    components touching its rim are not cut off)."""
+    components touching its rim are not cut off). The default level is a quarter of the
+    way from the frame's grey (the median of a strip along the image border) up to the
+    darkest grey in the middle of the image (its 0.5th percentile), at least 4: a frame
+    that is not quite black (noise, an offset) is still found."""
     img = np.asarray(image)
     if img.ndim == 3:
         img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
     img = cv2.GaussianBlur(img.astype(np.float32), (0, 0), 1.5)
     h, w = img.shape
     if border_level is None:
-        centre = img[h // 4: 3 * h // 4, w // 4: 3 * w // 4]
-        border_level = max(4.0, 0.25 * float(np.percentile(centre, 0.5)))
+        centre = float(np.percentile(img[h // 4: 3 * h // 4, w // 4: 3 * w // 4], 0.5))
+        k = max(2, min(h, w) // 50)
+        frame = float(np.median(np.r_[img[:k].ravel(), img[-k:].ravel(), img[:, :k].ravel(), img[:, -k:].ravel()]))
+        frame = min(frame, centre)  # no darker frame: the field of view fills the image
+        border_level = max(4.0, frame + 0.25 * (centre - frame))
     dark = (img <= border_level).astype(np.uint8)
     n, labels = cv2.connectedComponents(dark, connectivity=8)
     edge_labels = np.unique(np.r_[labels[0], labels[-1], labels[:, 0], labels[:, -1]])

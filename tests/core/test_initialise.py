@@ -123,3 +123,16 @@ def test_assign_blobs_pairs_the_right_blobs():
     out = assign_blobs({"femoral": fem, "tibial": tib}, views, blobs, n_orientations=150, keep=2, refine=1)
     assert out["femoral"].blob_indices == (1, 1) and out["tibial"].blob_indices == (0, 0)
     assert min(out["femoral"].result.iou) > 0.9
+
+
+def test_field_of_view_with_a_frame_that_is_not_black():
+    # the frame of some intensifier images (and of the generated sequences) is dark grey
+    # and noisy, darker than the field but not than a quarter of the metal's grey
+    rng = np.random.default_rng(0)
+    yy, xx = np.mgrid[0:512, 0:512]
+    disc = (xx - 256) ** 2 + (yy - 256) ** 2 < 230 ** 2
+    img = np.where(disc, 200.0, 16.0) + rng.normal(0, 5, (512, 512))
+    cv2.ellipse(img, (256, 256), (40, 30), 0, 0, 360, 50, -1)  # metal, darker than the frame's quarter
+    fov = field_of_view(np.clip(img, 0, 255).astype(np.uint8), margin_px=10)
+    assert fov[256, 256] and not fov[5, 5] and not fov[256, 20]
+    assert abs(fov.sum() - np.pi * 220 ** 2) < 0.03 * np.pi * 220 ** 2
