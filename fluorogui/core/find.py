@@ -75,7 +75,7 @@ CLEAR_OBJECTIVE_PX = 0.25
 
 #: search radii (px) of the edge refinement: screening every candidate, then finishing the best
 SCREEN_RADII, FINISH_RADII = (20, 12, 8, 5), (4, 3, 3, 3)
-#: a Canny fit that moved less than this (mm and degrees) from its start is not fitted again
+#: a Canny fit that moved less than this (centroid mm, rotation deg) from its start is not fitted again
 SETTLED = 0.5
 #: orientations of the blurred scan scored again on the sharper maps, and how many of those
 #: are tried again turned by 5 degrees about each axis
@@ -100,8 +100,8 @@ class Placement:
     per_view_mean_mm: list[float]
     reason: str  # '' when found; else a short user-facing reason
     seconds: float
-    edge_score: list[float] = field(default_factory=list)  # per view, see shape_search (right: ~0.6-0.95)
-    alternatives: list = field(default_factory=list)  # (edge score, pose) of other candidates considered
+    edge_score: list[float] = field(default_factory=list)  # per view, see shape_search (right: ~0.8-1)
+    alternatives: list = field(default_factory=list)  # (edge score, pose) of the candidates considered, best first
 
 
 class _Steps:
@@ -328,14 +328,15 @@ def _verdict(res, iou, edge, views, maps) -> str:
     return ""
 
 
-def _conclude(name, mesh, lib, images, views, maps, cands, steps: _Steps, t0: float) -> Placement:
-    """Fit the best candidates on Canny outlines and judge the result."""
+def _conclude(name, mesh, lib, images, views, maps, cands, steps: _Steps, t0: float, where: str = "") -> Placement:
+    """Fit the best candidates on Canny outlines and judge the result (``where`` qualifies
+    the reason when nothing fits, e.g. " near the predicted pose")."""
     alternatives = [(c.score, c.pose(mesh)) for c in cands]
     cands = [c for c in cands if c.score >= MIN_CANDIDATE_SCORE and min(c.scores) >= MIN_EDGE_SCORE] or cands[:1]
     if not cands or cands[0].score < MIN_CANDIDATE_SCORE or min(cands[0].scores) < MIN_EDGE_SCORE:
         # nothing worth a Canny fit (which is slow where edges are faint)
         best = f" (edge scores {' / '.join(f'{v:.2f}' for v in cands[0].scores)})" if cands else ""
-        return Placement(name, None, False, [], float("nan"), [], f"nothing in the images fits its outline{best}",
+        return Placement(name, None, False, [], float("nan"), [], f"nothing{where} fits its outline{best}",
                          time.perf_counter() - t0, cands[0].scores if cands else [], alternatives)
     steps.report(0.6, f"{name}: fitting on Canny outlines")
     fits = []  # first pass on Canny outlines from the best candidate and a close runner-up
@@ -346,10 +347,9 @@ def _conclude(name, mesh, lib, images, views, maps, cands, steps: _Steps, t0: fl
         if fit is not None:
             fits.append((*fit, cand.pose(mesh)))
         steps.report(0.6 + 0.12 * (k + 1), f"{name}: fitting on Canny outlines")
-    if not fits:
-        return Placement(name, cands[0].pose(mesh), False, [], float("nan"), [],
-                         "no outline found along the best candidate", time.perf_counter() - t0, cands[0].scores,
-                         alternatives)
+    if not fits:  # the candidates stay in ``alternatives``; they were not fitted on Canny outlines
+        return Placement(name, None, False, [], float("nan"), [], "no image outline found along the best candidate",
+                         time.perf_counter() - t0, cands[0].scores, alternatives)
     fits.sort(key=lambda f: f[0].objective_mm)
     first, start = fits[0][0], fits[0][2]
     res, splines = fits[0][:2]
@@ -407,7 +407,7 @@ def _find_one(name, mesh, images, views, maps, rounds, near_pose, steps: _Steps,
         R0 = rotation_matrix(*near_pose[3:])
         centres = [R0 @ mesh.centroid + near_pose[:3]]
         cands = _candidates(lib, views, maps, centres, near_rotations(R0), ss.shift_grid(64, 16), 4, steps, 0.0, 0.5)
-        return _conclude(name, mesh, lib, images, views, maps, cands, steps, t0)
+        return _conclude(name, mesh, lib, images, views, maps, cands, steps, t0, " near the predicted pose")
     best, seen = None, False
     for r, hypotheses in enumerate(rounds):
         seen = seen or bool(hypotheses)
@@ -418,7 +418,7 @@ def _find_one(name, mesh, images, views, maps, rounds, near_pose, steps: _Steps,
         steps.span = (0.0, 0.7) if r == 0 else (0.7, 1.0)
         centres = _rank_hypotheses(lib, views, maps, hypotheses, steps, 0.0, 0.25)
         cands = _candidates(lib, views, maps, centres, _grid(4000), ss.shift_grid(48, 16), KEEP, steps, 0.25, 0.35)
-        placement = _conclude(name, mesh, lib, images, views, maps, cands, steps, t0)
+        placement = _conclude(name, mesh, lib, images, views, maps, cands, steps, t0, " in the images")
         if placement.found:
             return placement
         if best is None or (placement.pose is not None and (best.pose is None or placement.objective_mm < best.objective_mm)):

@@ -1,6 +1,12 @@
 """Automatic initial pose: find a component in both images with no pose to start from.
 
-Steps (all pure numpy / OpenCV):
+``find_components`` / ``Placement`` (``find.py``, importable from here too) is the entry
+point for "find implants": edge-based, ~1 s per frame, and it says when it is not sure.
+The blob-mask search below is the earlier method, kept for its existing callers; on the
+real biplane data its masks lose the tibial tray and merge with soft tissue. This module
+also holds the field-of-view mask and the orientation grid that ``find`` uses.
+
+Steps of the blob-mask search (all pure numpy / OpenCV):
 
 1. ``dark_blobs``: metal components are the darkest regions inside the bright field of
    view. The black frame around the intensifier disc is removed first (dark pixels
