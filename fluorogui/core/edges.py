@@ -357,14 +357,23 @@ def _dark_edge_points(image, edges, predicted, sigma, polarity, gradients=None):
 
 
 def uncovered_arc(points: np.ndarray, predicted_px: np.ndarray, tolerance_px: float = 8.0,
-                  bin_px: float = 1.0, min_gap_px: float = 6.0) -> tuple[np.ndarray, np.ndarray]:
+                  bin_px: float = 1.0, min_gap_px: float = 6.0,
+                  hidden: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Where a predicted closed outline has no edge point within ``tolerance_px``: the bin
     index of every given point's nearest arc position (``bin_px`` bins along the
     prediction) and a boolean flag per bin, True on runs of uncovered bins at least
-    ``min_gap_px`` long (shorter runs are the normal breaks of an edge chain)."""
+    ``min_gap_px`` long (shorter runs are the normal breaks of an edge chain). Bins under
+    ``hidden`` (a boolean image: another component's area) are expected to be bare and
+    never count as uncovered."""
     dense, arc, total = _arc_parameter(np.asarray(predicted_px, dtype=float))
     n_bins = max(4, int(np.ceil(total / bin_px)))
     covered = np.zeros(n_bins, dtype=bool)
+    if hidden is not None:
+        centre = np.interp((np.arange(n_bins) + 0.5) * total / n_bins, arc, np.arange(len(dense)))
+        at = dense[np.clip(np.round(centre).astype(int), 0, len(dense) - 1)]
+        col = np.clip(np.round(at[:, 0]).astype(int), 0, hidden.shape[1] - 1)
+        row = np.clip(np.round(at[:, 1]).astype(int), 0, hidden.shape[0] - 1)
+        covered |= hidden[row, col]
     bins = np.zeros(0, dtype=int)
     if len(points):
         dist, nearest = cKDTree(dense).query(points)
@@ -439,8 +448,10 @@ def _outline_in_region(image, predicted, roi, keep, sigma, tolerance_px, polarit
                        min_gap_px) -> np.ndarray:
     """``component_outline`` in the coordinates of an image crop; ``keep`` masks usable edges."""
     edges = canny_edges(image, low, high, sigma, roi)
+    hidden = None
     if keep is not None:
         edges &= keep
+        hidden = ~keep
     if not edges.any():
         raise EdgeError("the image has no edges near the predicted outline")
     gradients = smoothed_gradients(image, sigma)
@@ -464,7 +475,7 @@ def _outline_in_region(image, predicted, roi, keep, sigma, tolerance_px, polarit
         points, pieces = refined[agrees], labels[agrees]
         had_gaps = False
         if gap_fill is not None:
-            _, gap = uncovered_arc(points, pred, tolerance_px, min_gap_px=min_gap_px)
+            _, gap = uncovered_arc(points, pred, tolerance_px, min_gap_px=min_gap_px, hidden=hidden)
             had_gaps = bool(gap.any())
             weak = weak_edges() & ~edges if had_gaps else None
             if had_gaps and weak.any():
@@ -473,7 +484,7 @@ def _outline_in_region(image, predicted, roi, keep, sigma, tolerance_px, polarit
                 use = w_agrees & gap[w_bins]
                 points = np.vstack([points, w_points[use]])
                 pieces = np.concatenate([pieces, w_labels[use] + int(labels.max()) + 1])
-        _, left = uncovered_arc(points, pred, tolerance_px, min_gap_px=0.0)
+        _, left = uncovered_arc(points, pred, tolerance_px, min_gap_px=0.0, hidden=hidden)
         return pred, points, pieces, had_gaps, int(left.sum())
 
     shift = best_translation(edges, predicted, search_px) if search_px > 0 else np.zeros(2)

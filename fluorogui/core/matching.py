@@ -60,6 +60,7 @@ class MatchSettings:
     spacing_px: float = 2.0  # fast: spacing of outline points when outline_points is None
     huber_px: float = 2.0  # fast: Huber threshold of the robust loss
     symmetric: bool = True  # fast: add image-to-model residuals
+    skip_gaps: bool = True  # fast: no residuals on chords the outline draws across gaps
     starts: int = 1  # independent starts (the given one plus perturbed ones); the best is kept
     restart_sd: tuple[float, float] = (5.0, 5.0)  # mm, deg for the extra starts
     seed: int = 0
@@ -267,7 +268,14 @@ class _FastEvaluation:
             if mask is not None:
                 seen = visible_points(mask, uv)
                 X, uv, Jp = X[seen], uv[seen], Jp[seen]
-            dist, closest_pt, normal, _ = spline.closest(uv)
+            dist, closest_pt, normal, t_near = spline.closest(uv)
+            if settings.skip_gaps and len(spline.gaps):
+                # a model point whose nearest image outline is a chord across missing or
+                # hidden edges has nothing to be measured against
+                on_edge = ~spline.in_gap(t_near)
+                if on_edge.sum() >= MIN_VISIBLE_POINTS:
+                    X, uv, Jp = X[on_edge], uv[on_edge], Jp[on_edge]
+                    dist, closest_pt, normal = dist[on_edge], closest_pt[on_edge], normal[on_edge]
             self.per_view_mm.append(float(np.mean(dist)) * view.mm_per_px())
             self._add(np.einsum("ij,ij->i", normal, uv - closest_pt), np.einsum("ij,ijk->ik", normal, Jp), X, c, rho)
             if settings.symmetric:
@@ -337,9 +345,12 @@ def _polygon_centroid(p: np.ndarray) -> np.ndarray:
 def _match_fast(problem, start, settings, progress, cancel) -> MatchResult:
     mesh = problem.mesh
     R, c = _to_state(start, mesh.centroid)
-    image_samples = [s.sample(settings.outline_points or max(16, int(s.length_px / settings.spacing_px)))
-                     for s in problem.splines]
+    n_samples = [settings.outline_points or max(16, int(s.length_px / settings.spacing_px)) for s in problem.splines]
+    image_samples = [s.sample(n) for s, n in zip(problem.splines, n_samples)]
     c = _initial_translation(problem, R, c, image_samples)  # whole outlines: centroids of closed curves
+    if settings.skip_gaps:  # chords across gaps are not image edges
+        image_samples = [s.sample(n, skip_gaps=True) if len(s.gaps) else g
+                         for s, n, g in zip(problem.splines, n_samples, image_samples)]
     image_samples = [g[visible_points(problem.occluder(k), g)] for k, g in enumerate(image_samples)]
     calls = 0
     history: list[float] = []

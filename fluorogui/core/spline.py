@@ -15,6 +15,11 @@ from scipy.interpolate import PPoly, splprep
 from scipy.spatial import cKDTree
 
 
+#: a step between consecutive outline points longer than this many times the median step
+#: (and than GAP_MIN_PX) is a chord across missing edges, not part of the traced outline
+GAP_FACTOR, GAP_MIN_PX = 4.0, 4.0
+
+
 class OutlineError(ValueError):
     """An outline that cannot be turned into a closed spline."""
 
@@ -172,6 +177,9 @@ class OutlineSpline:
         self._outward = None
         self._lookup = None
         self.length_px = float(self._dense_polyline()[2][-1])
+        #: (G, 2) parameter intervals where the outline bridges a gap between its points (a
+        #: chord across missing or hidden edges); set by ``fit``, empty when unknown
+        self.gaps = np.zeros((0, 2))
 
     # -- construction ------------------------------------------------------------------------
     @classmethod
@@ -188,7 +196,11 @@ class OutlineSpline:
         u = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))])
         s = float(len(pts)) * float(smoothing) ** 2
         tck, _ = splprep([closed[:, 0], closed[:, 1]], u=u, s=s, k=3, per=1, quiet=2)
-        return cls(tck, (u[0], u[-1]))
+        spline = cls(tck, (u[0], u[-1]))
+        steps = np.diff(u)
+        bridge = steps > max(GAP_MIN_PX, GAP_FACTOR * float(np.median(steps)))
+        spline.gaps = np.column_stack([u[:-1][bridge], u[1:][bridge]])
+        return spline
 
     def to_dict(self) -> dict:
         knots, coefficients, degree = self.tck
@@ -300,11 +312,23 @@ class OutlineSpline:
             self._seed_polyline = (pts, t, cKDTree(pts, leafsize=16), chords)
         return self._seed_polyline
 
-    def sample(self, n: int) -> np.ndarray:
-        """``n`` points (n, 2) equally spaced in arc length, starting at t0."""
+    def sample(self, n: int, skip_gaps: bool = False) -> np.ndarray:
+        """``n`` points (n, 2) equally spaced in arc length, starting at t0; with
+        ``skip_gaps`` the ones on chords across gaps (``gaps``) are left out."""
         pts, t, arc = self._dense_polyline()
         targets = np.arange(n) * (arc[-1] / n)
-        return self.evaluate(np.interp(targets, arc, t))
+        params = np.interp(targets, arc, t)
+        if skip_gaps:
+            params = params[~self.in_gap(params)]
+        return self.evaluate(params)
+
+    def in_gap(self, t) -> np.ndarray:
+        """True for parameters on a chord across a gap of the outline."""
+        t = self.wrap(np.asarray(t, dtype=float))
+        out = np.zeros(t.shape, dtype=bool)
+        for a, b in self.gaps:
+            out |= (t > a) & (t < b)
+        return out
 
     def outward_sign(self) -> float:
         """Sign that turns (g'_v, -g'_u) into the outward normal: +1 when the outline has a

@@ -42,14 +42,16 @@ def find_in_frame(frame: int, images: Sequence[np.ndarray], views: Sequence[View
 
 def near_search(views: Sequence[View]):
     """A ``find_near(images, component, mesh, pose, cancel) -> pose or None`` for tracking
-    recovery: the search limited to around the predicted pose."""
+    recovery: the search limited to around the predicted pose (the whole image when
+    ``pose`` is None). A placement the search is not confident of is still returned: the
+    match from it is judged by its own checks."""
 
     def find_near(images, component: str, mesh: PreparedMesh, pose, cancel=None):
         from fluorogui.core.initialise import find_components
 
+        near = None if pose is None else {component: pose}
         try:
-            found = find_components(list(images), list(views), {component: mesh}, near={component: pose},
-                                    cancel=cancel)
+            found = find_components(list(images), list(views), {component: mesh}, near=near, cancel=cancel)
         except SearchCancelled:
             raise
         except ValueError:

@@ -5,10 +5,12 @@ one segment -> match loop (``core.pipeline.segment_and_match``) from a start pos
 the other components' current projections masked out where they overlap
 (``occlusion_masks``), then every quality check (``core.quality``). A frame that fails a
 check is not given up at once: other starts are tried - the last matched pose when the
-prediction extrapolated, the prediction turned by a few degrees about the recent motion
-axis and the model's axes, and finally a search near the prediction (*find implants*) -
-and the best result is kept. Whatever fails its checks in the end is returned as
-``needs_review``; a frame where no outline could be traced at all is ``failed``.
+prediction extrapolated, a search near the prediction (*find implants*), the prediction
+turned by a few degrees about the recent motion axis (between neighbouring frames), and
+a search of the whole image - and the best result is kept (recovery starts run a
+shorter loop). Whatever fails its checks in the end is returned as
+``needs_review``; a frame where no outline could be traced at all is ``failed``. The jump
+allowed from the prediction grows with the number of frames since the last match.
 
 Everything here reads only what it is given (images, views, meshes, outlines), so it
 runs in a worker thread or another process without touching the session.
@@ -16,7 +18,7 @@ runs in a worker thread or another process without touching the session.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Sequence
 
 import cv2
@@ -52,6 +54,7 @@ class ComponentInput:
     given: list[OutlineSpline | None] | None = None  # reviewed outlines per view (None: segment)
     typical_view_mm: float | None = None
     axis: np.ndarray | None = None  # unit axis (world) of the recent rotation, for turned starts
+    gap: int = 1  # frame numbers since the last matched frame: the jump allowed grows with it
 
 
 def occlusion_masks(views: Sequence[View], others: Sequence[tuple[PreparedMesh, np.ndarray]], near: np.ndarray | None,
@@ -105,20 +108,22 @@ class FrameMatcher:
                  find_near: Callable | None = None, live: Callable | None = None) -> None:
         self.views = list(views)
         self.settings = settings or WorkflowSettings()
-        self.find_near = find_near  # find_near(images, component, mesh, pose, cancel) -> pose or None
+        # find_near(images, component, mesh, pose or None (a search of the whole image), cancel) -> pose or None
+        self.find_near = find_near
         self.live = live  # live(component, calls, objective_mm, pose) at every step of a match
 
     # -- one attempt ---------------------------------------------------------------------------
-    def attempt(self, images, job: ComponentInput, start, occluded, cancel) -> FrameResult:
+    def attempt(self, images, job: ComponentInput, start, occluded, cancel, loop=None) -> FrameResult:
         """One segment -> match loop from ``start`` and the quality checks of its result."""
         s = self.settings
         t0 = time.perf_counter()
+        loop = loop or s.loop
         step = None
         if self.live is not None:
             def step(calls, objective, pose, _c=job.component):
                 self.live(_c, calls, objective, pose)
         try:
-            out = segment_and_match(images, self.views, job.mesh, start, s.match, s.loop, job.given, occluded,
+            out = segment_and_match(images, self.views, job.mesh, start, s.match, loop, job.given, occluded,
                                     step, cancel)
         except SegmentationError as exc:
             return FrameResult(0, job.component, None, FAILED, messages.segmentation_failed(job.component, exc),
@@ -134,7 +139,9 @@ class FrameMatcher:
                     for o, sp in zip(automatic, out.splines)]
         quality = assess(images, self.views, job.mesh, result.pose, result.converged, result.per_view_mean_mm,
                          outlines, job.start, occluded, s.quality.tol_px)
-        status, reason = judge(quality, s.quality, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))])
+        limits = replace(s.quality, max_jump_mm=s.quality.max_jump_mm * max(1, job.gap),
+                         max_jump_deg=s.quality.max_jump_deg * max(1, job.gap))
+        status, reason = judge(quality, limits, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))])
         return FrameResult(0, job.component, result.pose, status, reason, result, quality,
                            out.outlines, time.perf_counter() - t0)
 
@@ -146,10 +153,12 @@ class FrameMatcher:
         t0 = time.perf_counter()
         best: FrameResult | None = None
         tried = 0
+        light = replace(self.settings.loop, max_passes=min(3, self.settings.loop.max_passes))
         for label, start in self._starts(images, job, cancel):
             if cancel is not None and cancel():
                 raise Cancelled
-            candidate = self.attempt(images, job, start, occluded, cancel)
+            # recovery starts get a shorter loop: most of them lead nowhere
+            candidate = self.attempt(images, job, start, occluded, cancel, None if not label else light)
             tried += 1
             if best is None or _better(candidate, best):
                 best = candidate
@@ -164,26 +173,32 @@ class FrameMatcher:
         return best
 
     def _starts(self, images, job: ComponentInput, cancel):
-        """(label, start) pairs, cheapest first; later ones are computed only when needed."""
+        """(label, start) pairs, cheapest and likeliest first; each is computed only when
+        the ones before it failed."""
         yield "", np.asarray(job.start, dtype=float)
         t = self.settings.tracking
         if not t.recover:
             return
         if job.fallback is not None and np.abs(np.asarray(job.fallback) - job.start).max() > 0.5:
             yield "last pose", np.asarray(job.fallback, dtype=float)
-        centroid = job.mesh.centroid
-        axes = []
-        if job.axis is not None and np.linalg.norm(job.axis) > 0:
-            axes.append(np.asarray(job.axis, float) / np.linalg.norm(job.axis))
-        R = rotation_matrix(*job.start[3:])
-        axes += [R[:, k] for k in range(3)]  # the model's own axes in the world
-        for axis in axes:
-            for sign in (1.0, -1.0):
-                yield "turned start", turned(job.start, centroid, axis, sign * t.rotated_start_deg)
         if t.find_near and self.find_near is not None:
             pose = self.find_near(images, job.component, job.mesh, job.start, cancel)
             if pose is not None:
                 yield "find near the prediction", np.asarray(pose, dtype=float)
+        if job.gap <= 2:  # a small miss between neighbouring frames: turn the prediction a little
+            centroid = job.mesh.centroid
+            if job.axis is not None and np.linalg.norm(job.axis) > 0:
+                axes = [np.asarray(job.axis, float) / np.linalg.norm(job.axis)]
+            else:
+                R = rotation_matrix(*job.start[3:])
+                axes = [R[:, k] for k in range(3)]  # the model's own axes in the world
+            for axis in axes:
+                for sign in (1.0, -1.0):
+                    yield "turned start", turned(job.start, centroid, axis, sign * t.rotated_start_deg)
+        if t.find_near and self.find_near is not None:
+            pose = self.find_near(images, job.component, job.mesh, None, cancel)
+            if pose is not None:
+                yield "find implants", np.asarray(pose, dtype=float)
 
     # -- all components of a frame ----------------------------------------------------------------
     def match_frame(self, frame: int, images, jobs: Sequence[ComponentInput], fixed: dict | None = None,

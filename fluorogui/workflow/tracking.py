@@ -162,10 +162,12 @@ class TrackJob:
         start = starts.get(c) if len(m) == 0 else m.predict(frame)
         last = m.last(before=frame)
         typical = None
-        if len(residuals[c]) >= 4:
+        if len(residuals[c]) >= 2:
             typical = float(np.median(residuals[c]))
+        before = [f for f in m.frames if f < frame]
+        gap = frame - before[-1] if before else 1
         return ComponentInput(c, self.meshes[c], np.asarray(start, float), last, self.given.get((frame, c)),
-                              typical, _recent_axis(m, frame))
+                              typical, _recent_axis(m, frame), gap)
 
 
 def _near_search(views):
