@@ -14,8 +14,14 @@ reported and skipped). Writes ``tests/data/biplane_reference_poses.csv`` and ove
 an existing ``--out`` file are kept unchanged (first, in their order), the tibial rows
 are replaced.
 
+``--refine`` instead re-matches every row of an existing ``--out`` file from its own pose
+with the current segment -> match loop (``core.pipeline.segment_and_match``, the one the
+app, the command line and tracking use) and rewrites the file: after a change to the
+segmentation or the matcher, the reference poses are where a careful single-frame match
+from the old reference lands today, independent of tracking, prediction and find.
+
 Usage: .venv/bin/python packaging/find_reference_poses.py [--data DIR] [--frames N] [--overlays DIR]
-           [--components femoral tibial] [--no-reinit] [--max-view-px PX]
+           [--components femoral tibial] [--no-reinit] [--max-view-px PX] [--refine]
 """
 from __future__ import annotations
 
@@ -137,7 +143,11 @@ def main(argv=None) -> int:
                     help="components to (re)compute; rows of the others in --out are kept")
     ap.add_argument("--no-reinit", dest="reinit", action="store_false",
                     help="stop tracking a lost component instead of searching for it again")
+    ap.add_argument("--refine", action="store_true",
+                    help="re-match every row of --out from its pose with the current loop and rewrite it")
     args = ap.parse_args(argv)
+    if args.refine:
+        return refine(args)
     names = [n for n in COMPONENTS if n in args.components]
     kept_rows = []
     if args.out.exists() and set(names) != set(COMPONENTS):
@@ -223,6 +233,43 @@ def main(argv=None) -> int:
             w.writerows(kept_rows)
             w.writerows(out_rows)
     print(f"{len(out_rows)} poses in {time.perf_counter() - t_start:.0f} s -> {args.out}")
+    return 0
+
+
+def refine(args) -> int:
+    """Re-match every reference row from its own pose; keep converged ones within --max-view-px."""
+    from fluorogui.core.pipeline import segment_and_match
+    from fluorogui.core.pose import pose_error
+
+    views = load_views(args.data)
+    meshes = {name: load_mesh(args.data / f"models/{name}_component.stl") for name in COMPONENTS}
+    pairs = {r["frame"]: r for r in csv.DictReader(open(args.data / "pairs.csv"))}
+    with open(args.out, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    out_rows = []
+    for row in rows:
+        frame, name = row["frame"], row["component"]
+        images = [cv2.imread(str(args.data / pairs[frame][k]), cv2.IMREAD_GRAYSCALE) for k in ("cam1", "cam2")]
+        old = np.array([float(row[k]) for k in ("x", "y", "z", "alpha", "beta", "gamma")])
+        out = segment_and_match(images, views, meshes[name], old)
+        res = out.result
+        px = [m / v.mm_per_px() for m, v in zip(res.per_view_mean_mm, views)]
+        moved = pose_error(res.pose, old)
+        note = f"moved {np.abs(moved[:3]).max():.3f} mm / {np.abs(moved[3:]).max():.3f} deg"
+        if not res.converged or max(px) > args.max_view_px:
+            print(f"frame {frame}: {name}: dropped ({'not converged' if not res.converged else 'residual'}; {note})")
+            continue
+        ious = [outline_iou(meshes[name], res.pose, v, s.sample(max(64, int(s.length_px))), img.shape)
+                for v, s, img in zip(views, out.splines, images)]
+        print(f"frame {frame}: {name}: {note}, views {px[0]:.2f} / {px[1]:.2f} px", flush=True)
+        out_rows.append([frame, name, *[f"{v:.4f}" for v in res.pose], f"{res.objective_mm:.4f}",
+                         f"{res.per_view_mean_mm[0]:.4f}", f"{res.per_view_mean_mm[1]:.4f}",
+                         f"{ious[0]:.4f}", f"{ious[1]:.4f}"])
+    with open(args.out, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(HEADER)
+        w.writerows(out_rows)
+    print(f"{len(out_rows)} of {len(rows)} reference poses refined -> {args.out}")
     return 0
 
 
