@@ -36,6 +36,9 @@ def add_parsers(sub) -> None:
     t.add_argument("--frames", metavar="A:B", help="frames to track, both ends included (default: all)")
     t.add_argument("--component", choices=COMPONENT_CHOICES, default="both")
     t.add_argument("--redo", action="store_true", help="match again frames already matched (accepted ones are kept)")
+    t.add_argument("--workers", type=int, default=1,
+                   help="track N consecutive runs of frames in parallel processes (each after the first starts "
+                        "with find implants); results then arrive out of frame order")
     t.add_argument("--json", action="store_true", help="one JSON object per frame and component as it finishes")
     t.set_defaults(func=run_track)
 
@@ -81,7 +84,10 @@ def run_track(args) -> int:
         t0 = time.perf_counter()
         last_frame = None
 
-        for result in session.track(frames, components_arg(args.component), redo=args.redo, autosave=True):
+        if args.workers < 1:
+            raise UsageError("fluorogui: track: --workers must be at least 1")
+        for result in session.track(frames, components_arg(args.component), redo=args.redo, autosave=True,
+                                    workers=args.workers):
             status = "kept" if result.kept else result.status
             counts[status] = counts.get(status, 0) + 1
             if args.json:

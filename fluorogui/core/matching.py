@@ -82,6 +82,22 @@ class MatchResult:
     cancelled: bool = False
     message: str = ""
     history: list[float] = field(default_factory=list)
+    #: fast method: the 6x6 Gauss-Newton matrix at the result, in the matcher's variables
+    #: (centroid shift mm, rotation vector x model radius mm); says how well each direction
+    #: of motion is pinned down by the outlines
+    normal_matrix: np.ndarray | None = field(default=None, repr=False)
+
+    def weakest_rotation_axis(self) -> np.ndarray | None:
+        """Unit axis (world) of the turn the outlines constrain least, translation free to
+        follow (smallest eigenvalue of the rotation block's Schur complement)."""
+        H = self.normal_matrix
+        if H is None:
+            return None
+        try:
+            S = H[3:, 3:] - H[3:, :3] @ np.linalg.solve(H[:3, :3], H[:3, 3:])
+        except np.linalg.LinAlgError:
+            return None
+        return np.linalg.eigh(S)[1][:, 0]
 
     def to_dict(self) -> dict:
         return {
@@ -403,7 +419,8 @@ def _match_fast(problem, start, settings, progress, cancel) -> MatchResult:
     pose = _to_pose(R, c, mesh.centroid)
     return MatchResult(pose, ev.objective_mm, ev.per_view_mm, calls, 0.0, converged and not cancelled,
                        "fast", settings.to_dict(), cancelled,
-                       "" if converged else ("cancelled" if cancelled else "did not converge"), history)
+                       "" if converged else ("cancelled" if cancelled else "did not converge"), history,
+                       ev.normal_equations(huber)[0])
 
 
 def match(problem: MatchProblem, start, settings: MatchSettings | None = None,

@@ -43,8 +43,9 @@ class QualityThresholds:
     (right poses: 0.11-0.21 mm per view, edge support >= 0.9) and the demo."""
 
     max_view_mm: float = 0.6  # a view's mean outline distance above this always fails
-    floor_view_mm: float = 0.25  # ... below this always passes the residual check
-    typical_factor: float = 2.5  # ... between the two: fails above factor x typical
+    floor_view_mm: float = 0.25  # ... and below this passes while the typical residual is unknown
+    typical_factor: float = 3.0  # with a typical residual: fails above factor x typical
+    typical_margin_mm: float = 0.05  # ... or above typical + margin, whichever is larger
     min_edge_support: float = 0.85
     min_outline_support: float = 0.85
     tol_px: float = 1.5
@@ -109,9 +110,11 @@ def edge_support(image: np.ndarray, outline_px: np.ndarray, occluded: np.ndarray
 
 
 def outline_support(image_outline_px: np.ndarray, model_outline_px: np.ndarray, occluded: np.ndarray | None = None,
-                    tol_px: float = 1.5, spacing_px: float = 1.0) -> float:
-    """Share of the (visible) image outline lying within ``tol_px`` of the model outline."""
-    image_pts = resample_closed_polyline(np.asarray(image_outline_px, dtype=float), spacing=spacing_px)
+                    tol_px: float = 1.5) -> float:
+    """Share of the (visible) image outline points - dense samples along the traced edges,
+    without the chords the outline draws across gaps - lying within ``tol_px`` of the
+    model outline."""
+    image_pts = np.asarray(image_outline_px, dtype=float).reshape(-1, 2)
     image_pts = image_pts[visible_points(occluded, image_pts)]
     model = resample_closed_polyline(np.asarray(model_outline_px, dtype=float), spacing=0.5)
     if len(image_pts) == 0 or len(model) == 0:
@@ -128,8 +131,8 @@ def pose_jump(mesh: PreparedMesh, pose, predicted) -> tuple[float, float]:
 def assess(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMesh, pose, converged: bool,
            per_view_mean_mm: Sequence[float], image_outlines: Sequence[np.ndarray] | None,
            predicted=None, occluded: Sequence | None = None, tol_px: float = 1.5) -> Quality:
-    """Every check of a pose. ``image_outlines`` are the outlines it was matched to (points
-    per view; None skips ``outline_support``)."""
+    """Every check of a pose. ``image_outlines`` are the outlines it was matched to (dense
+    points per view, chords left out; None skips ``outline_support``)."""
     edge, support = [], []
     for k, (image, view) in enumerate(zip(images, views)):
         mask = occluded[k] if occluded is not None and k < len(occluded) else None
@@ -150,9 +153,9 @@ def judge(quality: Quality, thresholds: QualityThresholds | None = None,
     problems = []
     if not quality.converged:
         problems.append("the match did not converge")
-    limit = t.max_view_mm
+    limit = min(t.max_view_mm, t.floor_view_mm)
     if typical_view_mm is not None and np.isfinite(typical_view_mm):
-        limit = min(t.max_view_mm, max(t.floor_view_mm, t.typical_factor * typical_view_mm))
+        limit = min(t.max_view_mm, max(t.typical_factor * typical_view_mm, typical_view_mm + t.typical_margin_mm))
     for name, value in zip(names, quality.per_view_mean_mm):
         if not np.isfinite(value) or value > limit:
             typical = f", typical {typical_view_mm:.2f} mm" if typical_view_mm else ""

@@ -55,6 +55,8 @@ class ComponentInput:
     typical_view_mm: float | None = None
     axis: np.ndarray | None = None  # unit axis (world) of the recent rotation, for turned starts
     gap: int = 1  # frame numbers since the last matched frame: the jump allowed grows with it
+    probe: bool = True  # look for a second orientation that fits as well (no motion to tell them apart)
+    predicted: bool = True  # ``start`` predicts the pose (tracking): far from it is suspect; a hand placement is not
 
 
 def occlusion_masks(views: Sequence[View], others: Sequence[tuple[PreparedMesh, np.ndarray]], near: np.ndarray | None,
@@ -134,11 +136,9 @@ class FrameMatcher:
         result = out.result
         if result.cancelled:
             raise Cancelled
-        automatic = out.outlines or [None] * len(out.splines)
-        outlines = [o if o is not None else sp.sample(max(64, int(sp.length_px)))
-                    for o, sp in zip(automatic, out.splines)]
+        outlines = [sp.sample(max(64, int(sp.length_px)), skip_gaps=True) for sp in out.splines]
         quality = assess(images, self.views, job.mesh, result.pose, result.converged, result.per_view_mean_mm,
-                         outlines, job.start, occluded, s.quality.tol_px)
+                         outlines, job.start if job.predicted else None, occluded, s.quality.tol_px)
         limits = replace(s.quality, max_jump_mm=s.quality.max_jump_mm * max(1, job.gap),
                          max_jump_deg=s.quality.max_jump_deg * max(1, job.gap))
         status, reason = judge(quality, limits, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))])
@@ -167,10 +167,43 @@ class FrameMatcher:
                 break
             if job.given is not None and all(g is not None for g in job.given) and best.status == FAILED:
                 break  # reviewed outlines that cannot be matched: other starts will not help
+        if best.status == MATCHED and job.probe and self.settings.tracking.probe:
+            best, tried = self._probe(images, job, best, occluded, cancel, tried)
         best.frame, best.attempts, best.seconds = frame, tried, time.perf_counter() - t0
         if best.pose is None:
             best.pose = np.asarray(job.start, dtype=float).copy()  # the prediction, as a start for the user
         return best
+
+    def _probe(self, images, job: ComponentInput, best: FrameResult, occluded, cancel, tried: int):
+        """Is there a second orientation that fits as well? Starts turned by ``probe_deg``
+        either way about the axis the outlines constrain least (a tibial tray about its
+        stem, a symmetric part about its axis): a better fit replaces ``best``; a distinct
+        one within ``probe_ratio`` of its objective makes the result ambiguous."""
+        t = self.settings.tracking
+        light = replace(self.settings.loop, max_passes=min(3, self.settings.loop.max_passes))
+        axis = best.match.weakest_rotation_axis() if best.match is not None else None
+        if axis is None:
+            return best, tried
+        start_pose = best.pose
+        for sign in (1.0, -1.0):
+            start = turned(start_pose, job.mesh.centroid, axis, sign * t.probe_deg)
+            other = self.attempt(images, job, start, occluded, cancel, light)
+            tried += 1
+            if other.status != MATCHED:
+                continue
+            turn = motion_between(other.pose, best.pose, job.mesh.centroid)[1]
+            if turn < 2.0:
+                continue  # the same pose again
+            if other.match.objective_mm < best.match.objective_mm:
+                best, other = other, best  # the probe found the better fit
+                best.recovered = "probe"
+            if other.match.objective_mm <= t.probe_ratio * best.match.objective_mm:
+                best.status = NEEDS_REVIEW
+                best.reason = (f"ambiguous: another orientation {turn:.0f}° away fits almost as well "
+                               f"(outline distance {other.match.objective_mm:.2f} vs "
+                               f"{best.match.objective_mm:.2f} mm) — check which is right")
+                break
+        return best, tried
 
     def _starts(self, images, job: ComponentInput, cancel):
         """(label, start) pairs, cheapest and likeliest first; each is computed only when

@@ -327,8 +327,10 @@ class Session(WorkMixin):
         self.history.push(Command(text, key, before, after, self._store_outline))
 
     def _new_record(self, key, points: np.ndarray, reviewed: bool) -> OutlineRecord:
-        stored, spline = fitted_outline(points)
-        record = OutlineRecord(points, stored, reviewed=reviewed)
+        """The record keeps the points; its spline is fitted again from them when needed
+        (the same spline, so the file need not hold it)."""
+        _, spline = fitted_outline(points)
+        record = OutlineRecord(points, None, reviewed=reviewed)
         self._splines[key] = (record, spline)
         return record
 
@@ -380,7 +382,8 @@ class Session(WorkMixin):
                     key = (r.frame, view, r.component)
                     old = self.project.records.get(key)
                     if points is not None and (old is None or not old.reviewed):
-                        self.set_outline(key, points, "Automatic outline", reviewed=False)
+                        # 1e-4 px is far below the edges' accuracy and keeps the file small
+                        self.set_outline(key, np.round(points, 4), "Automatic outline", reviewed=False)
                 record = r.record()
                 if record is not None:
                     self.set_record(r.component, r.frame, record, "Match")

@@ -21,6 +21,9 @@ class TrackingSettings:
     rotated_start_deg: float = 12.0  # size of the turned starts tried in recovery
     find_near: bool = True  # last resort: search near the prediction (find implants)
     typical_window: int = 15  # matched frames whose residuals set the "typical" residual
+    probe: bool = True  # without motion to go by, look for a second orientation that fits as well:
+    probe_deg: float = 20.0  # ... this far either way about the least constrained axis ...
+    probe_ratio: float = 1.5  # ... for another orientation fitting within this factor: ambiguous
 
     @classmethod
     def from_dict(cls, d: dict | None) -> "TrackingSettings":

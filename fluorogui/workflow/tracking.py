@@ -18,7 +18,7 @@ Accepted poses, and on a resumed run poses already matched, are kept as they are
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Iterator, Sequence
 
@@ -91,6 +91,23 @@ class TrackJob:
                 yield r
             if progress is not None:
                 progress(done + 1, total, frame, f"frame {frame} done ({time.perf_counter() - t0:.1f} s)")
+
+    def split(self, parts: int) -> list["TrackJob"]:
+        """The job as ``parts`` jobs over consecutive runs of frames, to run in parallel. The
+        first keeps the start; each later one starts from an accepted (or, when resuming,
+        matched) pose in its first frames if it has one, else it finds the implants in its
+        first frame - it cannot wait for the frames before it."""
+        parts = max(1, min(int(parts), len(self.frames) // 2 or 1))
+        bounds = np.linspace(0, len(self.frames), parts + 1).round().astype(int)
+        jobs = []
+        for k in range(parts):
+            frames = self.frames[bounds[k]:bounds[k + 1]]
+            job = replace(self, frames=frames, image_paths={f: self.image_paths[f] for f in frames})
+            if k > 0:
+                job.anchors = {c: [] for c in self.components}
+                job.starts = {}
+            jobs.append(job)
+        return jobs
 
     # -- one frame -----------------------------------------------------------------------------
     def _kept_is_matched(self, frame: int, component: str) -> bool:
@@ -166,8 +183,9 @@ class TrackJob:
             typical = float(np.median(residuals[c]))
         before = [f for f in m.frames if f < frame]
         gap = frame - before[-1] if before else 1
+        # with two matched frames before, the motion tells orientations apart; without, probe
         return ComponentInput(c, self.meshes[c], np.asarray(start, float), last, self.given.get((frame, c)),
-                              typical, _recent_axis(m, frame), gap)
+                              typical, _recent_axis(m, frame), gap, probe=len(before) < 2)
 
 
 def _near_search(views):
@@ -220,3 +238,52 @@ def select_frames(spec: str | None, frames: Sequence[int]) -> list[int]:
     if not out:
         raise ValueError(f"{spec}: no project frame lies in that range")
     return out
+
+
+def by_frame(results: Iterator[FrameResult], n_components: int) -> Iterator[list[FrameResult]]:
+    """Group a job's results (a frame's components come one after another) into frames."""
+    pending: list[FrameResult] = []
+    for result in results:
+        pending.append(result)
+        if len(pending) == n_components:
+            yield pending
+            pending = []
+
+
+def run_parallel(jobs: Sequence[TrackJob], cancel: Callable[[], bool] | None = None) -> Iterator[list[FrameResult]]:
+    """Run jobs in worker processes (one each), yielding each frame's results (a list) as
+    soon as a worker sends them; frames of different jobs interleave. Uses the standard
+    library's process pool and a manager queue."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    context = multiprocessing.get_context("spawn")  # safe beside threads (the GUI, Dask)
+    with context.Manager() as manager, ProcessPoolExecutor(len(jobs), mp_context=context) as pool:
+        queue, stop = manager.Queue(), manager.Event()
+        futures = [pool.submit(_run_job, job, queue, stop) for job in jobs]
+        running = len(jobs)
+        while running:
+            if cancel is not None and cancel():
+                stop.set()
+            try:
+                item = queue.get(timeout=0.2)
+            except Exception:  # noqa: BLE001 - queue.Empty from the manager: look at the workers again
+                for f in futures:
+                    if f.done() and f.exception() is not None:
+                        stop.set()
+                        raise f.exception()
+                continue
+            if item is None:
+                running -= 1
+            else:
+                yield item
+        for f in futures:
+            f.result()  # re-raise a worker's error
+
+
+def _run_job(job: TrackJob, queue, stop) -> None:
+    try:
+        for frame in by_frame(job.run(cancel=stop.is_set), len(job.components)):
+            queue.put(frame)
+    finally:
+        queue.put(None)

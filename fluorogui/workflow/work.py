@@ -127,7 +127,8 @@ class WorkMixin:
         names = self._components(components)
         settings = self.settings
         inputs = [ComponentInput(c, self.mesh(c), self.pose(c, frame), None, self.given_splines(c, frame),
-                                 self._typical(self._residuals(c, None, settings.tracking.typical_window)))
+                                 self._typical(self._residuals(c, None, settings.tracking.typical_window)),
+                                 predicted=False)
                   for c in names]
         fixed = {}
         for c in self.components():
@@ -217,19 +218,31 @@ class WorkMixin:
     def track(self, frames: Sequence[int] | None = None, components=None, redo: bool = False,
               progress: TrackProgress | None = None, cancel: Callable[[], bool] | None = None,
               autosave: bool = False, first: int | None = None, last: int | None = None,
-              run: str | None = None) -> Iterator[FrameResult]:
+              run: str | None = None, workers: int = 1) -> Iterator[FrameResult]:
         """Track and store frame by frame, yielding every result; with ``autosave`` the
         project is saved (atomically) after every frame. ``run`` names this run in the
-        stored match records (see ``track_job``)."""
+        stored match records (see ``track_job``). With ``workers`` > 1 the frames are cut
+        into that many consecutive runs tracked in parallel processes (``TrackJob.split``:
+        every run after the first starts by finding the implants); results then arrive
+        frame by frame but not in frame order."""
         job = self.track_job(frames, components, redo, first, last, run)
-        pending: list[FrameResult] = []
-        for result in job.run(progress, cancel):
-            if run is not None and result.match is not None:
-                result.match.settings = dict(result.match.settings, run=run)
-            pending.append(result)
-            if len(pending) == len(job.components):  # a whole frame
-                self.store(pending, f"Track frame {pending[0].frame}")
-                if autosave and self.path is not None and any(not r.kept for r in pending):
-                    self.save()
-                yield from pending
-                pending = []
+        if workers > 1 and len(job.frames) >= 4:
+            from fluorogui.workflow.tracking import run_parallel
+
+            stream = run_parallel(job.split(workers), cancel)
+        else:
+            from fluorogui.workflow.tracking import by_frame
+
+            stream = by_frame(job.run(progress, cancel), len(job.components))
+        for done, results in enumerate(stream, start=1):
+            frame = results[0].frame
+            if run is not None:
+                for r in results:
+                    if r.match is not None:
+                        r.match.settings = dict(r.match.settings, run=run)
+            self.store(results, f"Track frame {frame}")
+            if autosave and self.path is not None and any(not r.kept for r in results):
+                self.save()
+            if workers > 1 and progress is not None:
+                progress(done, len(job.frames), frame, f"frame {frame} done")
+            yield from results

@@ -248,7 +248,8 @@ def test_status_reason_and_quality_round_trip(tmp_path):
     assert again.poses[(0, "femur")].needs_review and again.poses[(1, "tibia")].needs_review
     assert again.poses[(0, "femur")].match.quality["edge_support"] == [0.99, 0.42]
     text = (tmp_path / "p.fluoro").read_text()
-    bad = text.replace('"status": "failed"', '"status": "fine"')
+    bad = text.replace('"status":"failed"', '"status":"fine"')
+    assert bad != text
     (tmp_path / "bad.fluoro").write_text(bad)
     with pytest.raises(InputError, match="status"):
         load_project(tmp_path / "bad.fluoro")
