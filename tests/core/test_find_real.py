@@ -45,7 +45,7 @@ def test_both_components_from_nothing(real):
     for name, p in out.items():
         assert p.found, (name, p.reason)
         mm, deg = _errors(p.pose, ref[("64", name)])
-        assert mm < 0.2 and deg < 0.3, (name, mm, deg)  # measured: 0.02 mm, 0.04 deg
+        assert mm < 0.2 and deg < 0.3, (name, mm, deg)  # measured: <= 0.02 mm, 0.13 deg
         assert max(p.per_view_mean_mm) < 0.2 and min(p.iou) > 0.96  # measured: ~0.13-0.14 mm, IoU ~0.975-0.99
 
 
