@@ -50,7 +50,7 @@ import numpy as np
 
 from . import shape_search as ss
 from .geometry import View
-from .initialise import SearchCancelled, field_of_view, orientation_grid
+from .initialise import SearchCancelled, orientation_grid
 from .mesh import PreparedMesh
 from .pipeline import match_images
 from .pose import angles_from_matrix, rotation_matrix, rotvec_matrix
@@ -444,12 +444,7 @@ def find_components(images: Sequence[np.ndarray], views: Sequence[View], meshes:
     steps = _Steps(progress, cancel, len(meshes))
     if progress is not None:
         progress(0.0, "preparing the images")
-    fovs = []
-    for image in images:  # the field of view, found at half the resolution of a 1024-pixel image
-        scale = 0.5 / ss.image_unit(np.shape(image))
-        half = cv2.resize(ss.to_unit_float(image), None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
-        fov = field_of_view(np.round(half * 255).astype(np.uint8), margin_px=15)
-        fovs.append(cv2.resize(fov.astype(np.uint8), np.shape(image)[1::-1], interpolation=cv2.INTER_NEAREST) > 0)
+    fovs = [ss.image_field(image) for image in images]
     maps = [ss.EdgeMaps(image, fov) for image, fov in zip(images, fovs)]
     rounds = _Rounds(images, views, fovs) if any(name not in near for name in meshes) else []
     steps.check()

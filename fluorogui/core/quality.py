@@ -48,6 +48,7 @@ class QualityThresholds:
     typical_margin_mm: float = 0.05  # ... or above typical + margin, whichever is larger
     min_edge_support: float = 0.85
     min_outline_support: float = 0.85
+    max_outside_field: float = 0.02  # share of the model outline allowed beyond the field of view
     tol_px: float = 1.5
     max_jump_mm: float = 15.0  # centroid distance from the prediction
     max_jump_deg: float = 25.0
@@ -71,6 +72,7 @@ class Quality:
     outline_support: list[float] = field(default_factory=list)
     jump_mm: float = 0.0
     jump_deg: float = 0.0
+    outside_field: list[float] = field(default_factory=list)  # share of the outline off the field of view
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -123,6 +125,20 @@ def outline_support(image_outline_px: np.ndarray, model_outline_px: np.ndarray, 
     return float(np.mean(d <= tol_px))
 
 
+def outside_share(field_mask: np.ndarray, points_px: np.ndarray) -> float:
+    """Share of points (K, 2) off the field of view (off the image counts as off)."""
+    pts = np.asarray(points_px, dtype=float).reshape(-1, 2)
+    if len(pts) == 0:
+        return 0.0
+    h, w = field_mask.shape
+    col = np.round(pts[:, 0]).astype(int)
+    row = np.round(pts[:, 1]).astype(int)
+    on = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+    inside = np.zeros(len(pts), dtype=bool)
+    inside[on] = field_mask[row[on], col[on]]
+    return float(1.0 - inside.mean())
+
+
 def pose_jump(mesh: PreparedMesh, pose, predicted) -> tuple[float, float]:
     """Distance (mm) between the model centroids and rotation angle (deg) between two poses."""
     return motion_between(pose, predicted, mesh.centroid)
@@ -130,18 +146,23 @@ def pose_jump(mesh: PreparedMesh, pose, predicted) -> tuple[float, float]:
 
 def assess(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMesh, pose, converged: bool,
            per_view_mean_mm: Sequence[float], image_outlines: Sequence[np.ndarray] | None,
-           predicted=None, occluded: Sequence | None = None, tol_px: float = 1.5) -> Quality:
+           predicted=None, occluded: Sequence | None = None, tol_px: float = 1.5,
+           fields: Sequence[np.ndarray] | None = None) -> Quality:
     """Every check of a pose. ``image_outlines`` are the outlines it was matched to (dense
-    points per view, chords left out; None skips ``outline_support``)."""
-    edge, support = [], []
+    points per view, chords left out; None skips ``outline_support``); ``fields`` are the
+    intensifiers' fields of view (bool images): an outline reaching beyond one is cut off
+    by the rim, whose edge is not the implant's."""
+    edge, support, outside = [], [], []
     for k, (image, view) in enumerate(zip(images, views)):
         mask = occluded[k] if occluded is not None and k < len(occluded) else None
         model = model_outline(mesh, pose, view)
         edge.append(edge_support(image, model, mask, tol_px))
         if image_outlines is not None:
             support.append(outline_support(image_outlines[k], model, mask, tol_px))
+        if fields is not None and k < len(fields) and fields[k] is not None:
+            outside.append(outside_share(fields[k], model))
     jump = pose_jump(mesh, pose, predicted) if predicted is not None else (0.0, 0.0)
-    return Quality(bool(converged), [float(v) for v in per_view_mean_mm], edge, support, *jump)
+    return Quality(bool(converged), [float(v) for v in per_view_mean_mm], edge, support, *jump, outside)
 
 
 def judge(quality: Quality, thresholds: QualityThresholds | None = None,
@@ -166,6 +187,9 @@ def judge(quality: Quality, thresholds: QualityThresholds | None = None,
     for name, value in zip(names, quality.outline_support):
         if value < t.min_outline_support:
             problems.append(f"only {100 * value:.0f} % of the image outline lies on the model in {name}")
+    for name, value in zip(names, quality.outside_field):
+        if value > t.max_outside_field:
+            problems.append(f"{100 * value:.0f} % of the model outline lies beyond the field of view in {name}")
     if quality.jump_mm > t.max_jump_mm or quality.jump_deg > t.max_jump_deg:
         problems.append(f"moved {quality.jump_mm:.1f} mm / {quality.jump_deg:.1f}° from the predicted pose")
     return (NEEDS_REVIEW, "; ".join(problems)) if problems else (MATCHED, "")

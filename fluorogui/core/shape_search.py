@@ -206,6 +206,18 @@ def to_unit_float(image: np.ndarray) -> np.ndarray:
     return img
 
 
+def image_field(image: np.ndarray, margin_px: int = 15) -> np.ndarray:
+    """The intensifier's field of view (bool, full resolution), found at half the
+    resolution of a 1024-pixel image (``initialise.field_of_view``), shrunk by ``margin_px``
+    (of such a half-size image)."""
+    from .initialise import field_of_view
+
+    scale = 0.5 / image_unit(np.shape(image))
+    half = cv2.resize(to_unit_float(image), None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+    fov = field_of_view(np.round(half * 255).astype(np.uint8), margin_px=margin_px)
+    return cv2.resize(fov.astype(np.uint8), np.shape(image)[1::-1], interpolation=cv2.INTER_NEAREST) > 0
+
+
 class EdgeMaps:
     """Oriented edge scores of one image at the ``LEVELS`` resolutions, and its gradients
     at half resolution (of a 1024-pixel image: ``work`` scale) for ``refine_on_edges``.

@@ -30,6 +30,7 @@ from fluorogui.core.mesh import PreparedMesh
 from fluorogui.core.pipeline import SegmentationError, segment_and_match
 from fluorogui.core.pose import angles_from_matrix, motion_between, rotation_matrix
 from fluorogui.core.quality import FAILED, MATCHED, NEEDS_REVIEW, assess, judge
+from fluorogui.core.shape_search import image_field
 from fluorogui.core.silhouette import mesh_silhouette
 from fluorogui.core.spline import OutlineSpline
 from fluorogui.workflow import messages
@@ -114,6 +115,14 @@ class FrameMatcher:
         self.find_near = find_near
         self.live = live  # live(component, calls, objective_mm, pose) at every step of a match
 
+    def _fields(self, images) -> list[np.ndarray]:
+        """The fields of view of this frame's images (computed once per set of images)."""
+        key = tuple(id(i) for i in images)
+        if getattr(self, "_field_key", None) != key:
+            self._field_key = key
+            self._field_masks = [image_field(image, margin_px=2) for image in images]
+        return self._field_masks
+
     # -- one attempt ---------------------------------------------------------------------------
     def attempt(self, images, job: ComponentInput, start, occluded, cancel, loop=None) -> FrameResult:
         """One segment -> match loop from ``start`` and the quality checks of its result."""
@@ -138,7 +147,8 @@ class FrameMatcher:
             raise Cancelled
         outlines = [sp.sample(max(64, int(sp.length_px)), skip_gaps=True) for sp in out.splines]
         quality = assess(images, self.views, job.mesh, result.pose, result.converged, result.per_view_mean_mm,
-                         outlines, job.start if job.predicted else None, occluded, s.quality.tol_px)
+                         outlines, job.start if job.predicted else None, occluded, s.quality.tol_px,
+                         self._fields(images))
         limits = replace(s.quality, max_jump_mm=s.quality.max_jump_mm * max(1, job.gap),
                          max_jump_deg=s.quality.max_jump_deg * max(1, job.gap))
         status, reason = judge(quality, limits, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))])
