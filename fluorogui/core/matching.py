@@ -61,6 +61,7 @@ class MatchSettings:
     huber_px: float = 2.0  # fast: Huber threshold of the robust loss
     symmetric: bool = True  # fast: add image-to-model residuals
     skip_gaps: bool = True  # fast: no residuals on chords the outline draws across gaps
+    centre_first: bool = True  # fast: first shift the model so the outline centroids meet
     starts: int = 1  # independent starts (the given one plus perturbed ones); the best is kept
     restart_sd: tuple[float, float] = (5.0, 5.0)  # mm, deg for the extra starts
     seed: int = 0
@@ -86,6 +87,8 @@ class MatchResult:
     #: (centroid shift mm, rotation vector x model radius mm); says how well each direction
     #: of motion is pinned down by the outlines
     normal_matrix: np.ndarray | None = field(default=None, repr=False)
+    #: fast method: the model outline (pixels) per view at the result, about 2 px apart
+    outlines_px: list | None = field(default=None, repr=False)
 
     def weakest_rotation_axis(self) -> np.ndarray | None:
         """Unit axis (world) of the turn the outlines constrain least, translation free to
@@ -270,6 +273,7 @@ class _FastEvaluation:
         t = c - R @ mesh.centroid
         rho = mesh.radius
         self.per_view_mm: list[float] = []
+        self.outlines_px: list[np.ndarray] = []
         self.r, self.J, self.w = [], [], []
         for k, (view, spline, g) in enumerate(zip(problem.views, problem.splines, image_samples)):
             mask = problem.occluder(k)
@@ -281,6 +285,7 @@ class _FastEvaluation:
             # model outline points to the image spline: signed distance along the spline normal
             X = fwd.model_points @ R.T + t
             uv, Jp = view.project_jacobian(X)
+            self.outlines_px.append(uv)
             if mask is not None:
                 seen = visible_points(mask, uv)
                 X, uv, Jp = X[seen], uv[seen], Jp[seen]
@@ -363,7 +368,8 @@ def _match_fast(problem, start, settings, progress, cancel) -> MatchResult:
     R, c = _to_state(start, mesh.centroid)
     n_samples = [settings.outline_points or max(16, int(s.length_px / settings.spacing_px)) for s in problem.splines]
     image_samples = [s.sample(n) for s, n in zip(problem.splines, n_samples)]
-    c = _initial_translation(problem, R, c, image_samples)  # whole outlines: centroids of closed curves
+    if settings.centre_first:
+        c = _initial_translation(problem, R, c, image_samples)  # whole outlines: centroids of closed curves
     if settings.skip_gaps:  # chords across gaps are not image edges
         image_samples = [s.sample(n, skip_gaps=True) if len(s.gaps) else g
                          for s, n, g in zip(problem.splines, n_samples, image_samples)]
@@ -420,7 +426,7 @@ def _match_fast(problem, start, settings, progress, cancel) -> MatchResult:
     return MatchResult(pose, ev.objective_mm, ev.per_view_mm, calls, 0.0, converged and not cancelled,
                        "fast", settings.to_dict(), cancelled,
                        "" if converged else ("cancelled" if cancelled else "did not converge"), history,
-                       ev.normal_equations(huber)[0])
+                       ev.normal_equations(huber)[0], ev.outlines_px)
 
 
 def match(problem: MatchProblem, start, settings: MatchSettings | None = None,

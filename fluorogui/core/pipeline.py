@@ -4,7 +4,9 @@ The outline of a component is segmented along the projection of a rough pose
 (``edges.component_outline``). When that pose is several degrees off, parts of the true
 edge fall outside the search band and the spline bridges them with a chord; matching
 and segmenting again along the matched pose removes that, as a user reviewing the
-outline would. The loop runs at least ``LoopSettings.min_passes`` passes and stops when
+outline would. The loop runs at least ``LoopSettings.min_passes`` passes (one when the
+first pass moved less than ``settled_first``: its outline was already chosen along the
+right pose) and stops when
 a pass moves the model centroid by less than ``LoopSettings.settled`` mm and turns it by
 less than that many degrees, or after ``max_passes``. (Re-segmentation jitters the pose
 by a few hundredths of a mm / degree on real images, so a tighter threshold would only
@@ -22,7 +24,7 @@ same settings give the same pose everywhere.
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Sequence
 
 import numpy as np
@@ -53,6 +55,7 @@ class LoopSettings:
     min_passes: int = 2
     max_passes: int = 6
     settled: float = 0.05  # a pass moving the centroid less (mm) and turning less (deg) ends the loop
+    settled_first: float = 0.25  # ... and the first pass already, when it moved less than this from its start
     search_px: int = 60  # first pass: how far the outline may sit from the prediction
     later_search_px: int = 8  # later passes start from a matched pose
 
@@ -154,7 +157,9 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
                 break  # keep the previous pass
             outlines = new_outlines
             current = [g if g is not None else n for g, n in zip(given, new_splines)]
-        result = match(MatchProblem(mesh, views, current, occluded), pose, settings, progress, cancel)
+        # later passes start from a matched pose: no need to centre the model first
+        pass_settings = settings if passes == 0 or not settings.centre_first else replace(settings, centre_first=False)
+        result = match(MatchProblem(mesh, views, current, occluded), pose, pass_settings, progress, cancel)
         passes += 1
         total_calls += result.calls
         total_seconds += result.seconds
@@ -162,6 +167,10 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
         moved = max(motion_between(result.pose, pose, mesh.centroid))
         pose = result.pose
         if result.cancelled or (passes >= loop.min_passes and moved < loop.settled):
+            break
+        if passes == 1 and moved < loop.settled_first:
+            # the start was within a fraction of a pixel: segmenting along the result would
+            # pick the same edges (the search band is several pixels wide)
             break
     result.calls, result.seconds, result.history = total_calls, total_seconds, history
     result.settings = dict(result.settings, loop=loop.to_dict(), passes=passes)

@@ -147,15 +147,16 @@ def pose_jump(mesh: PreparedMesh, pose, predicted) -> tuple[float, float]:
 def assess(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMesh, pose, converged: bool,
            per_view_mean_mm: Sequence[float], image_outlines: Sequence[np.ndarray] | None,
            predicted=None, occluded: Sequence | None = None, tol_px: float = 1.5,
-           fields: Sequence[np.ndarray] | None = None) -> Quality:
+           fields: Sequence[np.ndarray] | None = None, model_outlines: Sequence[np.ndarray] | None = None) -> Quality:
     """Every check of a pose. ``image_outlines`` are the outlines it was matched to (dense
     points per view, chords left out; None skips ``outline_support``); ``fields`` are the
     intensifiers' fields of view (bool images): an outline reaching beyond one is cut off
-    by the rim, whose edge is not the implant's."""
+    by the rim, whose edge is not the implant's. ``model_outlines`` (per view, the model
+    outline at ``pose``, e.g. the matcher's last) saves projecting the model again."""
     edge, support, outside = [], [], []
     for k, (image, view) in enumerate(zip(images, views)):
         mask = occluded[k] if occluded is not None and k < len(occluded) else None
-        model = model_outline(mesh, pose, view)
+        model = model_outlines[k] if model_outlines is not None else model_outline(mesh, pose, view)
         edge.append(edge_support(image, model, mask, tol_px))
         if image_outlines is not None:
             support.append(outline_support(image_outlines[k], model, mask, tol_px))

@@ -71,29 +71,37 @@ def occlusion_masks(views: Sequence[View], others: Sequence[tuple[PreparedMesh, 
         mask = np.zeros((h, w), np.uint8)
         for other_mesh, pose in others:
             try:
-                sil = mesh_silhouette(other_mesh, rotation_matrix(*pose[3:]), pose[:3], view, spacing_px=1.0)
+                sil = _outline_px(other_mesh, pose, view)
             except ValueError:
                 continue
-            cv2.fillPoly(mask, [np.round(sil.points_px * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
+            cv2.fillPoly(mask, [np.round(sil * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
         if not mask.any():
             out.append(None)
             continue
         if margin_px > 0:
             mask = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin_px + 1,) * 2))
         if near is not None and mesh is not None:
-            try:
-                own = mesh_silhouette(mesh, rotation_matrix(*near[3:]), near[:3], view, spacing_px=2.0).points_px
-            except ValueError:
-                own = None
-            if own is not None:
-                lo = np.floor(own.min(0)).astype(int) - 20
-                hi = np.ceil(own.max(0)).astype(int) + 20
-                box = mask[max(lo[1], 0):max(hi[1], 0), max(lo[0], 0):max(hi[0], 0)]
-                if not box.any():
-                    out.append(None)
-                    continue
+            lo, hi = _projected_box(mesh, near, view)
+            box = mask[max(lo[1] - 20, 0):max(hi[1] + 20, 0), max(lo[0] - 20, 0):max(hi[0] + 20, 0)]
+            if not box.any():
+                out.append(None)
+                continue
         out.append(mask > 0)
     return out if any(m is not None for m in out) else None
+
+
+def _outline_px(mesh: PreparedMesh, pose, view: View) -> np.ndarray:
+    pose = np.asarray(pose, dtype=float)
+    return mesh_silhouette(mesh, rotation_matrix(*pose[3:]), pose[:3], view, spacing_px=1.0).points_px
+
+
+def _projected_box(mesh: PreparedMesh, pose, view: View) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel box (lo, hi) holding the projection of the mesh's bounding box at ``pose``."""
+    lo, hi = mesh.vertices.min(0), mesh.vertices.max(0)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    pose = np.asarray(pose, dtype=float)
+    uv = view.project(corners @ rotation_matrix(*pose[3:]).T + pose[:3])
+    return np.floor(uv.min(0)).astype(int), np.ceil(uv.max(0)).astype(int)
 
 
 def turned(pose: np.ndarray, centroid: np.ndarray, axis: np.ndarray, degrees: float) -> np.ndarray:
@@ -148,7 +156,7 @@ class FrameMatcher:
         outlines = [sp.sample(max(64, int(sp.length_px)), skip_gaps=True) for sp in out.splines]
         quality = assess(images, self.views, job.mesh, result.pose, result.converged, result.per_view_mean_mm,
                          outlines, job.start if job.predicted else None, occluded, s.quality.tol_px,
-                         self._fields(images))
+                         self._fields(images), result.outlines_px)
         limits = replace(s.quality, max_jump_mm=s.quality.max_jump_mm * max(1, job.gap),
                          max_jump_deg=s.quality.max_jump_deg * max(1, job.gap))
         status, reason = judge(quality, limits, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))])

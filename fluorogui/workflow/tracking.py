@@ -135,6 +135,7 @@ class TrackJob:
             return results
         # components with nothing to start from: find them in this frame
         lost = [c for c in todo if len(motion[c]) == 0 and c not in starts]
+        found_here: set[str] = set()
         if lost and self.find:
             from fluorogui.workflow.finding import SearchCancelled, find_in_frame
 
@@ -147,12 +148,13 @@ class TrackJob:
                 p = placements[c]
                 if p.found and p.pose is not None:
                     starts[c] = p.pose
+                    found_here.add(c)
                 else:
                     results[c] = FrameResult(frame, c, p.pose, FAILED, "find implants could not place it: "
                                              f"{p.reason}", seconds=time.perf_counter() - t0)
             todo = [c for c in todo if c not in results]
         fixed = {c: (self.meshes[c], r.pose) for c, r in results.items() if r.kept and r.pose is not None}
-        jobs = [self._input(c, frame, motion, residuals, starts) for c in todo]
+        jobs = [self._input(c, frame, motion, residuals, starts, probe=c not in found_here) for c in todo]
         found = matcher.match_frame(frame, images, jobs, fixed, cancel)
         for c in todo:
             results[c] = found[c]
@@ -174,7 +176,7 @@ class TrackJob:
         p = motion[c].predict(frame)
         return p if p is not None else starts.get(c)
 
-    def _input(self, c, frame, motion, residuals, starts) -> ComponentInput:
+    def _input(self, c, frame, motion, residuals, starts, probe: bool = True) -> ComponentInput:
         m = motion[c]
         start = starts.get(c) if len(m) == 0 else m.predict(frame)
         last = m.last(before=frame)
@@ -183,9 +185,10 @@ class TrackJob:
             typical = float(np.median(residuals[c]))
         before = [f for f in m.frames if f < frame]
         gap = frame - before[-1] if before else 1
-        # with two matched frames before, the motion tells orientations apart; without, probe
+        # a matched frame before tells orientations apart (a flip would be a jump from it), and
+        # find implants checks its own placements for one; a start placed by hand is probed
         return ComponentInput(c, self.meshes[c], np.asarray(start, float), last, self.given.get((frame, c)),
-                              typical, _recent_axis(m, frame), gap, probe=len(before) < 2)
+                              typical, _recent_axis(m, frame), gap, probe=probe and not before)
 
 
 def _near_search(views):
@@ -255,9 +258,14 @@ def run_parallel(jobs: Sequence[TrackJob], cancel: Callable[[], bool] | None = N
     soon as a worker sends them; frames of different jobs interleave. Uses the standard
     library's process pool and a manager queue."""
     import multiprocessing
+    import threading
     from concurrent.futures import ProcessPoolExecutor
 
-    context = multiprocessing.get_context("spawn")  # safe beside threads (the GUI, Dask)
+    # fork starts fast and needs no "if __name__ == '__main__'" in the caller's script, but is
+    # unsafe beside other threads (the GUI, Dask): spawn then
+    methods = multiprocessing.get_all_start_methods()
+    alone = threading.active_count() == 1
+    context = multiprocessing.get_context("fork" if alone and "fork" in methods else "spawn")
     with context.Manager() as manager, ProcessPoolExecutor(len(jobs), mp_context=context) as pool:
         queue, stop = manager.Queue(), manager.Event()
         futures = [pool.submit(_run_job, job, queue, stop) for job in jobs]
