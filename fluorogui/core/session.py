@@ -92,6 +92,7 @@ class MatchRecord:
     method: str
     settings: dict = field(default_factory=dict)
     quality: dict = field(default_factory=dict)  # ``fluorogui.core.quality.Quality.to_dict()``
+    history: list[float] = field(default_factory=list)  # the objective (mm) after every accepted step
 
     @classmethod
     def from_result(cls, result, quality: dict | None = None) -> "MatchRecord":
@@ -105,6 +106,7 @@ class MatchRecord:
             method=str(result.method),
             settings=dict(result.settings),
             quality=dict(quality or {}),
+            history=[round(float(v), 6) for v in result.history],
         )
 
 

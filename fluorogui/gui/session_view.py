@@ -185,6 +185,9 @@ class SessionView:
             text, level = describe_pose(name, s.pose_record(name, c.frame))
             lines.append((text, level, name == c.component))
         self.matcher.show_poses(lines)
+        record = s.pose_record(c.component, c.frame)
+        if not self.runner.is_running():  # a running task draws its own plot
+            self.matcher.plot.set_values(record.match.history if record is not None and record.match else [])
 
     def _frame_note(self, frame: int) -> str:
         """Why a frame needs review, for the timeline's tooltip ("" when it does not)."""

@@ -12,7 +12,8 @@ Layout (schema 3, the current one)::
                   "spline": {"knots": [...], "coefficients": 2xn, "degree": 3,
                              "t_range": [t0, t1]} or null, "reviewed": true}],
      "poses": [{"frame": 0, "component": "femur", "pose": [x, y, z, a, b, g],
-                "match": {"objective_mm": ..., ..., "quality": {...}} or null,   # quality: optional
+                "match": {"objective_mm": ..., ..., "quality": {...}, "history": [...]} or null,
+                                                             # quality, history: optional
                 "reviewed": false, "status": "matched", "reason": ""}],
      "settings": {...}}
 
@@ -246,6 +247,7 @@ def _match_to_dict(match: MatchRecord) -> dict:
         "method": str(match.method),
         "settings": match.settings,
         "quality": match.quality,
+        "history": [float(v) for v in match.history],
     }
 
 
@@ -361,6 +363,7 @@ def _match_from_dict(raw: dict, where: str) -> MatchRecord:
         method=_get(raw, "method", where, str),
         settings=_get(raw, "settings", where, dict),
         quality=_get(raw, "quality", where, dict) if "quality" in raw else {},
+        history=[float(v) for v in _array(raw["history"], f"{where}.history", (None,))] if "history" in raw else [],
     )
 
 

@@ -87,6 +87,9 @@ def test_track_both_from_a_matched_frame_keeps_it_and_lands_on_the_truth(window,
     summary = window.matcher.summary.text()
     assert "3 matched, 0 need review, 0 failed" in summary and "(1–3)" in summary
     assert c.undo_stack.count() == 2 * len(s.components()) + 3  # set, accept; then one step per tracked frame
+    c.set_frame(2)  # coming back to a tracked frame later: its objective is still plotted
+    stored = s.pose_record(c.component, 2).match.history
+    assert stored and window.matcher.plot.values == pytest.approx(stored)
 
 
 def test_the_app_and_a_script_give_the_identical_pose(window, demo, qtbot, tmp_path):

@@ -239,6 +239,7 @@ def test_status_reason_and_quality_round_trip(tmp_path):
     project = full_project(tmp_path)
     record = project.poses[(0, "femur")]
     record.match.quality = {"edge_support": [0.99, 0.42], "jump_mm": 0.5}
+    record.match.history = [0.5, 0.21, 0.125]
     project.poses[(0, "femur")] = PoseRecord(record.pose, record.match, status="needs_review",
                                              reason="only 42 % of the model outline lies on image edges in view 2")
     project.poses[(1, "tibia")] = PoseRecord(np.ones(6), None, status="failed", reason="view 2: image missing")
@@ -247,6 +248,7 @@ def test_status_reason_and_quality_round_trip(tmp_path):
     assert again == project
     assert again.poses[(0, "femur")].needs_review and again.poses[(1, "tibia")].needs_review
     assert again.poses[(0, "femur")].match.quality["edge_support"] == [0.99, 0.42]
+    assert again.poses[(0, "femur")].match.history == [0.5, 0.21, 0.125]
     text = (tmp_path / "p.fluoro").read_text()
     bad = text.replace('"status":"failed"', '"status":"fine"')
     assert bad != text

@@ -119,3 +119,29 @@ def test_import_of_unequal_cameras_warns_and_flags_later(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "camera 2 has 2 images but the project has 3 frames" in err
     assert len(load_project(tmp_path / "u.fluoro").sequences[1].paths) == 2
+
+
+def test_find_places_both_components_and_reports_json(demo, capsys):
+    from fluorogui.core.pose import pose_error
+
+    assert main(["find", str(demo), "--frames", "2", "--json"]) == 0
+    lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [(d["frame"], d["component"], d["found"]) for d in lines] == [(2, "femoral", True), (2, "tibial", True)]
+    project = load_project(demo)
+    truth = project.settings["demo_truth"]["2"]
+    for d in lines:
+        assert set(d) == {"frame", "component", "found", "pose", "iou", "reason", "seconds"}
+        e = pose_error(d["pose"], truth[d["component"]])
+        assert np.abs(e[:3]).max() < 0.02 and np.abs(e[3:]).max() < 0.05, e  # measured 0.003 mm, 0.016 deg
+        assert project.poses[(2, d["component"])].status == "placed"
+
+
+def test_engine_problems_become_sentences():
+    from fluorogui.core.pipeline import SegmentationError
+    from fluorogui.workflow import messages
+
+    text = messages.segmentation_failed("tibial", SegmentationError(0, "outline crosses itself at point 5"))
+    assert text == ("view 1: the tibial outline could not be traced, it crosses itself — edit it or re-run "
+                    "Find implants")
+    assert messages.plain("outline has 3 points; at least 4 are needed") == "only 3 edge points were found"
+    assert "Error" not in messages.match_failed("femoral", ValueError("part of the model lies behind the X-ray source"))
