@@ -234,7 +234,7 @@ class MatchControl:
         self.controller.set_frame(frame)
 
     def _task_finished(self, result) -> None:
-        c, s = self.controller, self.controller.session
+        s = self.controller.session
         if isinstance(result, jobs.MatchOutcome):
             self._store(result.results)
             self._show_results(result.results)

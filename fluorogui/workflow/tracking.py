@@ -33,7 +33,6 @@ from fluorogui.core.session import PoseRecord
 from fluorogui.core.spline import OutlineSpline
 from fluorogui.io.errors import InputError
 from fluorogui.io.images import read_image
-from fluorogui.workflow import messages
 from fluorogui.workflow.framematch import Cancelled, ComponentInput, FrameMatcher
 from fluorogui.workflow.motion import MotionModel
 from fluorogui.workflow.results import FrameResult

@@ -1,36 +1,16 @@
 """find_components on the real biplane data (skips without ../shared/data): both
 components from nothing in one frame, and tracking recovery near a perturbed pose."""
-import csv
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from fluorogui.core.find import find_components
-from fluorogui.core.mesh import prepare_mesh
 from fluorogui.core.pose import angles_from_matrix, pose_error, rotation_matrix, rotvec_matrix
-from fluorogui.io.calibration import load_view
-from fluorogui.io.images import read_image
-from fluorogui.io.meshes import load_mesh
-
-REFERENCE = Path(__file__).resolve().parents[1] / "data" / "biplane_reference_poses.csv"
-KEYS = ("x", "y", "z", "alpha", "beta", "gamma")
 
 
 @pytest.fixture(scope="module")
-def real(shared_data):
-    d = shared_data / "biplane-tka"
-    views = [load_view(d / "calibration" / f"cam{k}_mayacam2.txt") for k in (1, 2)]
-    with open(d / "pairs.csv", newline="") as fh:
-        pairs = {r["frame"]: r for r in csv.DictReader(fh)}
-    with open(REFERENCE, newline="") as fh:
-        ref = {(r["frame"], r["component"]): np.array([float(r[k]) for k in KEYS]) for r in csv.DictReader(fh)}
-    meshes = {name: prepare_mesh(*load_mesh(d / "models" / f"{name}_component.stl")) for name in ("femoral", "tibial")}
-
-    def images(frame):
-        return [read_image(d / pairs[frame]["cam1"]), read_image(d / pairs[frame]["cam2"])]
-
-    return views, images, ref, meshes
+def real(biplane):
+    return biplane
 
 
 def _errors(pose, truth):

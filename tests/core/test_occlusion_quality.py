@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from fluorogui.core.matching import MatchSettings, visible_points
+from fluorogui.core.matching import visible_points
 from fluorogui.core.mesh import prepare_mesh
 from fluorogui.core.phantoms import femoral_component_mesh
 from fluorogui.core.pipeline import SegmentationError, predicted_outline, segment_and_match

@@ -3,36 +3,17 @@
 Its keel is a faint edge in bone next to the strong edges of the tray and the femoral
 component; these check that the outline follows it (``component_outline``'s gap fill)
 and that tracking is not pulled onto the soft-tissue edge beside it."""
-import csv
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from fluorogui.core.mesh import prepare_mesh
 from fluorogui.core.pipeline import match_images
-from fluorogui.io.calibration import load_view
-from fluorogui.io.images import read_image
-from fluorogui.io.meshes import load_mesh
-
-REFERENCE = Path(__file__).resolve().parents[1] / "data" / "biplane_reference_poses.csv"
-KEYS = ("x", "y", "z", "alpha", "beta", "gamma")
 
 
 @pytest.fixture(scope="module")
-def real(shared_data):
-    d = shared_data / "biplane-tka"
-    views = [load_view(d / "calibration" / f"cam{k}_mayacam2.txt") for k in (1, 2)]
-    with open(d / "pairs.csv", newline="") as fh:
-        pairs = {r["frame"]: r for r in csv.DictReader(fh)}
-    with open(REFERENCE, newline="") as fh:
-        ref = {r["frame"]: np.array([float(r[k]) for k in KEYS]) for r in csv.DictReader(fh) if r["component"] == "tibial"}
-    mesh = prepare_mesh(*load_mesh(d / "models" / "tibial_component.stl"))
-
-    def images(frame):
-        return [read_image(d / pairs[frame]["cam1"]), read_image(d / pairs[frame]["cam2"])]
-
-    return views, images, ref, mesh
+def real(biplane):
+    views, images, ref, meshes = biplane
+    return views, images, {f: pose for (f, c), pose in ref.items() if c == "tibial"}, meshes["tibial"]
 
 
 def check(result, views, expected):

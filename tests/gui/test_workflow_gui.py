@@ -147,7 +147,7 @@ def test_a_flagged_frame_is_shown_as_needing_review_and_tracking_goes_on(window,
 
 def test_cancelled_tracking_keeps_the_stored_frames_and_leaves_the_rest(window, demo, qtbot):
     window.open_project(demo)
-    c, s = window.controller, window.controller.session
+    s = window.controller.session
     start_from_truth(s, 0)
     window.runner.item.connect(lambda _item: window.runner.cancel())  # cancel once frame 1 is stored
     with qtbot.waitSignal(window.runner.cancelled, timeout=600000):
@@ -159,7 +159,7 @@ def test_cancelled_tracking_keeps_the_stored_frames_and_leaves_the_rest(window, 
 
 def test_match_both_skips_an_accepted_pose(window, demo, qtbot):
     window.open_project(demo)
-    c, s = window.controller, window.controller.session
+    s = window.controller.session
     start_from_truth(s, 0, reviewed=True)
     entries = len(s.history)
     assert not window.match_both()  # both accepted: nothing to do, and it says so
@@ -200,7 +200,7 @@ def fake_find(monkeypatch):
 
 def test_find_implants_shows_progress_and_stores_only_confident_placements(window, demo, qtbot, fake_find):
     window.open_project(demo)
-    c, s = window.controller, window.controller.session
+    s = window.controller.session
     fake_find["truth"] = {n: truth(s, 0, n) for n in s.components()}
     tibial_before = s.pose("tibial", 0)
     texts = []
