@@ -15,7 +15,7 @@ Sections (all by default, or name some):
 
 Errors are body-fixed (``core.pose.pose_error``): translation mm, rotation angles deg.
 Usage: .venv/bin/python packaging/bench_tracking.py [demo] [synthetic] [real]
-           [--workers N] [--frames N] [--json OUT]
+           [--workers N] [--frames N] [--no-occlusion] [--json OUT]
 """
 from __future__ import annotations
 
@@ -96,6 +96,10 @@ def bench_synthetic(args) -> dict:
                                frames=args.frames, workers=2)
     built = time.perf_counter() - t0
     session = Session.open(path)
+    if args.no_occlusion:  # to show what masking the other component does
+        settings = session.settings
+        settings.tracking.occlusion = False
+        session.set_settings(settings)
     truth = {int(f): {c: np.asarray(p) for c, p in by.items()} for f, by in session.project.settings["truth"].items()}
     results, wall = _track(session, args.workers)
     session.save()
@@ -111,7 +115,8 @@ def bench_synthetic(args) -> dict:
         else:
             flagged.append((r.frame, r.component, r.status, mm, deg, r.reason))
     print(f"synthetic: {args.frames} frames x 2 components (built in {built:.0f} s), tracked from nothing with "
-          f"{args.workers} worker(s) in {wall:.1f} s ({wall / args.frames:.2f} s per frame)")
+          f"{args.workers} worker(s) in {wall:.1f} s ({wall / args.frames:.2f} s per frame)"
+          + (", WITHOUT occlusion masks" if args.no_occlusion else ""))
     out = {"frames": args.frames, "workers": args.workers, "wall_seconds": wall, "wrong_matched": len(wrong),
            "flagged": len(flagged)}
     for c, errors in per.items():
@@ -188,6 +193,8 @@ def main(argv=None) -> int:
     ap.add_argument("sections", nargs="*", choices=["demo", "synthetic", "real"], default=[])
     ap.add_argument("--workers", type=int, default=2, help="processes for the synthetic sequence (default 2)")
     ap.add_argument("--frames", type=int, default=100, help="frames of the synthetic sequence")
+    ap.add_argument("--no-occlusion", action="store_true",
+                    help="synthetic: track without masking the other component (to compare)")
     ap.add_argument("--json", type=Path, help="write the numbers here")
     args = ap.parse_args(argv)
     sections = args.sections or ["demo", "synthetic", "real"]

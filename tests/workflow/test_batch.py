@@ -46,3 +46,13 @@ def test_batch_command_prints_a_summary_and_exit_status(demo, capsys):
     out = capsys.readouterr().out
     assert "project" in out.splitlines()[0] and str(demo)[-30:] in out
     assert main(["batch", str(demo), "--workers", "0"]) == 2
+
+
+def test_batch_skips_a_project_open_elsewhere_and_says_who_holds_it(demo):
+    from fluorogui.io.lock import ProjectLock
+
+    with ProjectLock(demo, "fluorogui (desktop)"):  # this test process plays the desktop app
+        rows = list(run_batch([demo], workers=1, frames="1:1"))
+    assert len(rows) == 1 and not rows[0].ok
+    assert "in use by fluorogui (desktop)" in rows[0].error and str(os.getpid()) in rows[0].error
+    assert (1, "femoral") not in load_project(demo).poses  # nothing written
