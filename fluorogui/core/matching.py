@@ -249,19 +249,25 @@ def _polyline_normals(points: np.ndarray) -> np.ndarray:
 MIN_VISIBLE_POINTS = 8
 
 
+def mask_at(mask: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """A boolean image's value at points (K, 2) in pixels (nearest pixel; False off the image)."""
+    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+    h, w = mask.shape
+    col = np.round(uv[:, 0]).astype(int)
+    row = np.round(uv[:, 1]).astype(int)
+    on = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+    out = np.zeros(len(uv), dtype=bool)
+    out[on] = mask[row[on], col[on]]
+    return out
+
+
 def visible_points(mask: np.ndarray | None, uv: np.ndarray) -> np.ndarray:
     """True for points (K, 2) in pixels that a boolean ``mask`` does not cover (points off
     the image count as visible); all True without a mask or when almost nothing is left."""
     uv = np.asarray(uv, dtype=float).reshape(-1, 2)
     if mask is None or len(uv) == 0:
         return np.ones(len(uv), dtype=bool)
-    h, w = mask.shape
-    col = np.round(uv[:, 0]).astype(int)
-    row = np.round(uv[:, 1]).astype(int)
-    inside = (col >= 0) & (col < w) & (row >= 0) & (row < h)
-    hidden = np.zeros(len(uv), dtype=bool)
-    hidden[inside] = mask[row[inside], col[inside]]
-    visible = ~hidden
+    visible = ~mask_at(mask, uv)
     return visible if visible.sum() >= MIN_VISIBLE_POINTS else np.ones(len(uv), dtype=bool)
 
 

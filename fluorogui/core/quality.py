@@ -28,7 +28,7 @@ from scipy.spatial import cKDTree
 
 from .edges import canny_edges
 from .geometry import View
-from .matching import visible_points
+from .matching import mask_at, visible_points
 from .mesh import PreparedMesh
 from .pose import motion_between, rotation_matrix
 from .silhouette import mesh_silhouette
@@ -128,15 +128,7 @@ def outline_support(image_outline_px: np.ndarray, model_outline_px: np.ndarray, 
 def outside_share(field_mask: np.ndarray, points_px: np.ndarray) -> float:
     """Share of points (K, 2) off the field of view (off the image counts as off)."""
     pts = np.asarray(points_px, dtype=float).reshape(-1, 2)
-    if len(pts) == 0:
-        return 0.0
-    h, w = field_mask.shape
-    col = np.round(pts[:, 0]).astype(int)
-    row = np.round(pts[:, 1]).astype(int)
-    on = (col >= 0) & (col < w) & (row >= 0) & (row < h)
-    inside = np.zeros(len(pts), dtype=bool)
-    inside[on] = field_mask[row[on], col[on]]
-    return float(1.0 - inside.mean())
+    return float(1.0 - mask_at(field_mask, pts).mean()) if len(pts) else 0.0
 
 
 def pose_jump(mesh: PreparedMesh, pose, predicted) -> tuple[float, float]:
