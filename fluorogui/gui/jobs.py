@@ -19,6 +19,7 @@ import numpy as np
 from fluorogui.core.pipeline import predicted_outline
 from fluorogui.gui.worker import TaskCancelled
 from fluorogui.workflow.results import FAILED, MATCHED, NEEDS_REVIEW, FrameResult, Placement
+from fluorogui.workflow.tracking import by_frame
 
 OVERLAY_SPACING_PX = 3.0
 
@@ -126,11 +127,7 @@ def find_task(job):
         def progress(fraction, text):
             reporter.report(FindProgress(float(fraction), str(text)))
 
-        try:
-            placements = job.run(progress, reporter.cancelled)
-        except ImportError as exc:
-            raise RuntimeError("Find implants is not available in this installation (its search engine is "
-                               f"missing: {exc}); place the models by hand with the Place model tool") from None
+        placements = job.run(progress, reporter.cancelled)
         if placements is None or reporter.cancelled():
             raise TaskCancelled()
         return FindOutcome(job.frame, placements)
@@ -143,19 +140,13 @@ def track_task(job):
     ``TrackedFrame`` item; a cancel stops after the frame in progress (not stored)."""
 
     def task(reporter) -> TrackOutcome:
-        per_frame = len(job.components)
         total = len(job.frames)
         t0 = time.perf_counter()
-        pending: list[FrameResult] = []
         done = 0
-        for result in job.run(None, reporter.cancelled):
-            pending.append(result)
-            if len(pending) < per_frame:
-                continue
+        for results in by_frame(job.run(None, reporter.cancelled), len(job.components)):
             done += 1
             following = job.frames[done] if done < total else None
-            reporter.emit(TrackedFrame(pending[0].frame, pending, done, total, time.perf_counter() - t0, following))
-            pending = []
+            reporter.emit(TrackedFrame(results[0].frame, results, done, total, time.perf_counter() - t0, following))
         if reporter.cancelled():
             raise TaskCancelled()
         return TrackOutcome(done, total, time.perf_counter() - t0)

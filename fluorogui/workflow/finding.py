@@ -52,9 +52,7 @@ def near_search(views: Sequence[View]):
         near = None if pose is None else {component: pose}
         try:
             found = find_components(list(images), list(views), {component: mesh}, near=near, cancel=cancel)
-        except SearchCancelled:
-            raise
-        except ValueError:
+        except ValueError:  # SearchCancelled passes through to the caller
             return None
         p = found.get(component)
         return None if p is None or p.pose is None else np.asarray(p.pose, float)

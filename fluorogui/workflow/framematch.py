@@ -125,11 +125,10 @@ class FrameMatcher:
 
     def _fields(self, images) -> list[np.ndarray]:
         """The fields of view of this frame's images (computed once per set of images)."""
-        key = tuple(id(i) for i in images)
-        if getattr(self, "_field_key", None) != key:
-            self._field_key = key
-            self._field_masks = [image_field(image, margin_px=2) for image in images]
-        return self._field_masks
+        cached = getattr(self, "_field_cache", None)  # (images, masks): holding the images keeps ids unique
+        if cached is None or len(cached[0]) != len(images) or any(a is not b for a, b in zip(cached[0], images)):
+            cached = self._field_cache = (list(images), [image_field(image, margin_px=2) for image in images])
+        return cached[1]
 
     # -- one attempt ---------------------------------------------------------------------------
     def attempt(self, images, job: ComponentInput, start, occluded, cancel, loop=None) -> FrameResult:

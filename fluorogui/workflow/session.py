@@ -29,7 +29,7 @@ import numpy as np
 from fluorogui.core.geometry import triangulate
 from fluorogui.core.mesh import MeshError, PreparedMesh, prepare_mesh
 from fluorogui.core.pose import as_pose, rotation_matrix
-from fluorogui.core.session import OutlineRecord, PoseRecord, Project, SplineRecord
+from fluorogui.core.session import OutlineRecord, PoseRecord, Project
 from fluorogui.core.spline import OutlineError, OutlineSpline
 from fluorogui.io.errors import InputError
 from fluorogui.io.images import read_image
@@ -61,16 +61,12 @@ class FrameState(enum.IntEnum):
     NEEDS_REVIEW = 4  # a component failed its checks (or could not be matched)
 
 
-def fitted_outline(points: np.ndarray) -> tuple[SplineRecord | None, OutlineSpline | None]:
-    """The spline of an outline as stored (SplineRecord) and as used, or None for both
-    while the outline cannot carry a spline."""
+def fitted_outline(points: np.ndarray) -> OutlineSpline | None:
+    """The spline through an outline, or None while the outline cannot carry one."""
     try:
-        spline = OutlineSpline.fit(points)
+        return OutlineSpline.fit(points)
     except (OutlineError, ValueError):
-        return None, None
-    d = spline.to_dict()
-    record = SplineRecord(knots=d["knots"], coefficients=d["coefficients"], degree=d["degree"], t_range=d["t_range"])
-    return record, spline
+        return None
 
 
 class Session(WorkMixin):
@@ -327,12 +323,9 @@ class Session(WorkMixin):
         self.history.push(Command(text, key, before, after, self._store_outline))
 
     def _new_record(self, key, points: np.ndarray, reviewed: bool) -> OutlineRecord:
-        """The record keeps the points; its spline is fitted again from them when needed
-        (the same spline, so the file need not hold it)."""
-        _, spline = fitted_outline(points)
-        record = OutlineRecord(points, None, reviewed=reviewed)
-        self._splines[key] = (record, spline)
-        return record
+        """The record keeps the points; ``spline`` fits them when first asked (the same
+        spline every time, so neither the file nor storing a tracked frame needs it)."""
+        return OutlineRecord(points, None, reviewed=reviewed)
 
     def _store_outline(self, key, record: OutlineRecord | None) -> None:
         if record is None:
@@ -349,7 +342,7 @@ class Session(WorkMixin):
             return None
         cached = self._splines.get(key)
         if cached is None or cached[0] is not record:  # e.g. a record loaded from a file
-            cached = self._splines[key] = (record, fitted_outline(record.points)[1])
+            cached = self._splines[key] = (record, fitted_outline(record.points))
         return cached[1]
 
     def given_splines(self, component: str, frame: int) -> list[OutlineSpline | None] | None:

@@ -161,15 +161,7 @@ class TrackJob:
         return results
 
     def _images(self, frame: int) -> list[np.ndarray]:
-        paths = list(self.image_paths.get(frame, []))
-        paths += [None] * (len(self.views) - len(paths))
-        out = []
-        for view, path in enumerate(paths):
-            if path is None:
-                count = f" (this camera has {self.image_counts[view]} images)" if view < len(self.image_counts) else ""
-                raise InputError(f"view {view + 1}", f"no image for frame {frame}{count}")
-            out.append(read_image(path))
-        return out
+        return read_frame_images(frame, self.image_paths.get(frame, []), len(self.views), self.image_counts)
 
     def _predicted(self, c, frame, motion, starts) -> np.ndarray | None:
         p = motion[c].predict(frame)
@@ -188,6 +180,20 @@ class TrackJob:
         # find implants checks its own placements for one; a start placed by hand is probed
         return ComponentInput(c, self.meshes[c], np.asarray(start, float), last, self.given.get((frame, c)),
                               typical, _recent_axis(m, frame), gap, probe=probe and not before)
+
+
+def read_frame_images(frame: int, paths: Sequence[Path | None], n_views: int,
+                      counts: Sequence[int] = ()) -> list[np.ndarray]:
+    """The images of a frame, one per view; raises InputError naming the view (and how many
+    images its camera has) when one is missing, or the file when it cannot be read."""
+    paths = list(paths) + [None] * (n_views - len(paths))
+    out = []
+    for view, path in enumerate(paths):
+        if path is None:
+            count = f" (this camera has {counts[view]} images)" if view < len(counts) else ""
+            raise InputError(f"view {view + 1}", f"no image for frame {frame}{count}")
+        out.append(read_image(path))
+    return out
 
 
 def _near_search(views):

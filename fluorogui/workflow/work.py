@@ -18,11 +18,10 @@ import numpy as np
 from fluorogui.core.geometry import View
 from fluorogui.core.mesh import PreparedMesh
 from fluorogui.io.errors import InputError
-from fluorogui.io.images import read_image
 from fluorogui.workflow.framematch import Cancelled, ComponentInput, FrameMatcher
 from fluorogui.workflow.results import FrameResult, Placement
 from fluorogui.workflow.settings import WorkflowSettings
-from fluorogui.workflow.tracking import TrackJob, TrackProgress, frames_between
+from fluorogui.workflow.tracking import TrackJob, TrackProgress, frames_between, read_frame_images
 
 
 @dataclass
@@ -40,11 +39,7 @@ class MatchJob:
             cancel: Callable[[], bool] | None = None) -> list[FrameResult] | None:
         """The results, or None when cancelled. ``live(component, calls, objective_mm, pose)``
         follows every step of the matcher. Raises InputError for a missing image."""
-        images = []
-        for view, path in enumerate(self.image_paths):
-            if path is None:
-                raise InputError(f"view {view + 1}", f"no image for frame {self.frame}")
-            images.append(read_image(path))
+        images = read_frame_images(self.frame, self.image_paths, len(self.views))
         matcher = FrameMatcher(self.views, self.settings, _near_search(self.views, self.settings), live)
         try:
             found = matcher.match_frame(self.frame, images, self.inputs, self.fixed, cancel)
@@ -66,11 +61,7 @@ class FindJob:
             cancel: Callable[[], bool] | None = None) -> dict[str, Placement] | None:
         from fluorogui.workflow.finding import SearchCancelled, find_in_frame
 
-        images = []
-        for view, path in enumerate(self.image_paths):
-            if path is None:
-                raise InputError(f"view {view + 1}", f"no image for frame {self.frame}")
-            images.append(read_image(path))
+        images = read_frame_images(self.frame, self.image_paths, len(self.views))
         try:
             return find_in_frame(self.frame, images, self.views, self.meshes, progress=progress, cancel=cancel)
         except SearchCancelled:
