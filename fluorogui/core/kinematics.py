@@ -1,0 +1,151 @@
+"""Knee kinematics: the joint coordinate system of Grood & Suntay (1983) for the tibia
+relative to the femur, from the two components' poses and their anatomical frames.
+
+Anatomical frames (4×4, anatomical → model coordinates) have, for both knees, x to the
+subject's right, y anterior, z proximal, origin at the joint centre. From them:
+
+* e1 = the femoral x axis, e3 = the tibial z axis, e2 = e3 × e1 (normalised), the floating
+  axis;
+* flexion about e1, varus (adduction) about e2, internal rotation about e3, the three
+  angles of the intrinsic x-y-z Cardan sequence of ``R_femur^T R_tibia``;
+* translations: the femoral-origin → tibial-origin vector H written in the non-orthogonal
+  basis, H = q1·e1 + q2·e2 + q3·e3.
+
+Clinical signs, identical in name for both knees (``SIGN_CONVENTIONS``): flexion +,
+varus +, internal rotation of the tibia +, medial, anterior tibial translation +,
+distraction +. For a right knee, medial is the subject's left (−x); for a left knee the
+mirror flips varus, internal rotation and medial back, so the names keep their meaning.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+SIDES = ("right", "left")
+KINEMATICS_COLUMNS = ("flexion_deg", "varus_deg", "internal_deg", "medial_mm", "anterior_mm", "distraction_mm")
+KINEMATICS_LABELS = ("Flexion", "Varus", "Internal rotation", "Medial translation", "Anterior translation",
+                     "Distraction")
+SIGN_CONVENTIONS = (
+    "Grood & Suntay joint coordinate system of the tibia relative to the femur; "
+    "e1 = femoral x (to the subject's right), e3 = tibial z (proximal), e2 = e3 x e1; "
+    "anatomical frames x right, y anterior, z proximal for both knees; "
+    "positive = flexion, varus (adduction), internal tibial rotation, medial, anterior and distal "
+    "(distraction) tibial translation, for both knees; "
+    "translations are the femoral-origin -> tibial-origin vector in the non-orthogonal basis e1, e2, e3"
+)
+
+
+class KinematicsError(ValueError):
+    """An anatomical frame or pose that kinematics cannot use."""
+
+
+@dataclass(frozen=True)
+class KneeKinematics:
+    """The six joint values of one frame (degrees, millimetres)."""
+
+    flexion_deg: float
+    varus_deg: float
+    internal_deg: float
+    medial_mm: float
+    anterior_mm: float
+    distraction_mm: float
+
+    def values(self) -> np.ndarray:
+        return np.array([getattr(self, c) for c in KINEMATICS_COLUMNS])
+
+    @classmethod
+    def missing(cls) -> "KneeKinematics":
+        return cls(*([float("nan")] * 6))
+
+
+def check_side(side: str) -> str:
+    side = str(side).strip().lower()
+    if side not in SIDES:
+        raise KinematicsError(f"side must be 'right' or 'left', not {side!r}")
+    return side
+
+
+def check_frame(matrix, tolerance: float = 1e-6) -> np.ndarray:
+    """A 4×4 rigid transform (orthonormal rotation, det +1, last row 0 0 0 1) or KinematicsError."""
+    try:
+        T = np.asarray(matrix, dtype=float)
+    except (TypeError, ValueError):
+        raise KinematicsError("the frame is not a 4×4 matrix of numbers") from None
+    if T.shape != (4, 4):
+        raise KinematicsError(f"the frame must be a 4×4 matrix, not {T.shape}")
+    if not np.all(np.isfinite(T)):
+        raise KinematicsError("the frame holds NaN or infinite numbers")
+    if not np.allclose(T[3], [0, 0, 0, 1], atol=tolerance):
+        raise KinematicsError("the frame's last row must be 0 0 0 1")
+    R = T[:3, :3]
+    deviation = float(np.abs(R.T @ R - np.eye(3)).max())
+    if deviation > tolerance:
+        raise KinematicsError(f"the frame's rotation is not orthonormal (off by {deviation:.2g})")
+    det = float(np.linalg.det(R))
+    if abs(det - 1.0) > tolerance:
+        raise KinematicsError(f"the frame's rotation has determinant {det:.6g}, not +1 (a mirror?)")
+    return T
+
+
+def joint_kinematics(femur_world, tibia_world, side: str = "right") -> KneeKinematics:
+    """Grood & Suntay values from the anatomical frames placed in the world (4×4 each:
+    anatomical → world, i.e. pose matrix @ anatomical frame)."""
+    side = check_side(side)
+    F = np.asarray(femur_world, dtype=float)
+    T = np.asarray(tibia_world, dtype=float)
+    if not (np.all(np.isfinite(F)) and np.all(np.isfinite(T))):
+        return KneeKinematics.missing()
+    I, J, K = F[:3, 0], F[:3, 1], F[:3, 2]
+    i, j, k = T[:3, 0], T[:3, 1], T[:3, 2]
+    e1, e3 = I, k
+    floating = np.cross(e3, e1)
+    norm = float(np.linalg.norm(floating))
+    if norm < 1e-9:  # gimbal lock: varus of ±90°, never seen in a knee
+        return KneeKinematics.missing()
+    e2 = floating / norm
+    # angle about e1 from the femoral K to the plane of e2 and e3; about e3 from e2 to tibial j
+    cardan_x = np.arctan2(-float(np.dot(J, k)), float(np.dot(K, k)))
+    cardan_y = np.arcsin(np.clip(float(np.dot(I, k)), -1.0, 1.0))
+    cardan_z = np.arctan2(-float(np.dot(j, I)), float(np.dot(i, I)))
+    H = T[:3, 3] - F[:3, 3]
+    q1, q2, q3 = np.linalg.solve(np.column_stack([e1, e2, e3]), H)
+    mirror = 1.0 if side == "right" else -1.0
+    return KneeKinematics(
+        flexion_deg=float(np.degrees(-cardan_x)),
+        varus_deg=float(np.degrees(mirror * cardan_y)),
+        internal_deg=float(np.degrees(mirror * cardan_z)),
+        medial_mm=float(-mirror * q1),
+        anterior_mm=float(q2),
+        distraction_mm=float(-q3),
+    )
+
+
+def knee_kinematics(femoral_pose_matrix, tibial_pose_matrix, femoral_frame, tibial_frame,
+                    side: str = "right") -> KneeKinematics:
+    """Kinematics from the two model poses (4×4, model → world) and anatomical frames
+    (4×4, anatomical → model)."""
+    return joint_kinematics(np.asarray(femoral_pose_matrix) @ femoral_frame,
+                            np.asarray(tibial_pose_matrix) @ tibial_frame, side)
+
+
+def relative_pose_from_kinematics(values, side: str = "right") -> np.ndarray:
+    """The tibial anatomical frame in the femoral anatomical frame (4×4) that gives the six
+    ``values`` (the inverse of ``joint_kinematics`` with the femur at the identity)."""
+    side = check_side(side)
+    flexion, varus, internal, medial, anterior, distraction = (float(v) for v in values)
+    mirror = 1.0 if side == "right" else -1.0
+    a, b, c = np.radians([-flexion, mirror * varus, mirror * internal])
+    ca, sa, cb, sb, cc, sc = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(c), np.sin(c)
+    Rx = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
+    Ry = np.array([[cb, 0, sb], [0, 1, 0], [-sb, 0, cb]])
+    Rz = np.array([[cc, -sc, 0], [sc, cc, 0], [0, 0, 1]])
+    R = Rx @ Ry @ Rz
+    e1, e3 = np.array([1.0, 0, 0]), R[:, 2]
+    e2 = np.cross(e3, e1)
+    e2 /= np.linalg.norm(e2)
+    q = np.array([-mirror * medial, anterior, -distraction])
+    out = np.eye(4)
+    out[:3, :3] = R
+    out[:3, 3] = np.column_stack([e1, e2, e3]) @ q
+    return out

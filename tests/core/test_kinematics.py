@@ -1,0 +1,146 @@
+"""Grood & Suntay kinematics against hand-computed cases (both knees) and against scipy's
+intrinsic x-y-z Cardan angles; anatomical frame checks."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from fluorogui.core.kinematics import (
+    KinematicsError,
+    check_frame,
+    joint_kinematics,
+    knee_kinematics,
+    relative_pose_from_kinematics,
+)
+
+
+def frame(R=np.eye(3), t=(0, 0, 0)):
+    out = np.eye(4)
+    out[:3, :3] = R
+    out[:3, 3] = t
+    return out
+
+
+def c(d):
+    return np.cos(np.radians(d))
+
+
+def s(d):
+    return np.sin(np.radians(d))
+
+
+@pytest.mark.parametrize("side", ["right", "left"])
+@pytest.mark.parametrize("theta", [0.0, 15.0, 45.0, 90.0, 120.0, 150.0])
+def test_pure_flexion_is_flexion_for_both_knees(theta, side):
+    # the shank swings back: the tibial long axis tilts towards femoral anterior
+    tibia = np.array([[1, 0, 0], [0, c(theta), s(theta)], [0, -s(theta), c(theta)]])
+    assert tibia[:, 2] @ [0, 1, 0] == pytest.approx(s(theta))
+    k = joint_kinematics(frame(), frame(tibia), side)
+    assert k.values() == pytest.approx([theta, 0, 0, 0, 0, 0], abs=1e-9)
+
+
+@pytest.mark.parametrize("side, medial_sign", [("right", -1.0), ("left", 1.0)])
+def test_pure_varus_moves_the_distal_tibia_medially(side, medial_sign):
+    v = 7.0
+    # varus: the ankle goes medial, so the tibia's proximal axis leans laterally (-medial)
+    k_axis = np.array([-medial_sign * s(v), 0.0, c(v)])
+    x_axis = np.array([c(v), 0.0, medial_sign * s(v)])
+    tibia = np.column_stack([x_axis, [0, 1, 0], k_axis])
+    k = joint_kinematics(frame(), frame(tibia), side)
+    assert k.values() == pytest.approx([0, v, 0, 0, 0, 0], abs=1e-9)
+
+
+@pytest.mark.parametrize("side, medial_sign", [("right", -1.0), ("left", 1.0)])
+def test_pure_internal_rotation_turns_the_tibial_front_medially(side, medial_sign):
+    r = 12.0
+    anterior = np.array([medial_sign * s(r), c(r), 0.0])  # the tibia's front turns medially
+    right = np.cross(anterior, [0, 0, 1])
+    tibia = np.column_stack([right, anterior, [0, 0, 1]])
+    k = joint_kinematics(frame(), frame(tibia), side)
+    assert k.values() == pytest.approx([0, 0, r, 0, 0, 0], abs=1e-9)
+
+
+@pytest.mark.parametrize("side, medial_sign", [("right", -1.0), ("left", 1.0)])
+def test_pure_translations(side, medial_sign):
+    femur = frame(t=(3.0, -2.0, 40.0))
+    cases = {  # tibial origin offset from the femoral origin -> expected six values
+        (medial_sign * 2.5, 0, 0): [0, 0, 0, 2.5, 0, 0],
+        (0, 4.0, 0): [0, 0, 0, 0, 4.0, 0],
+        (0, 0, -6.0): [0, 0, 0, 0, 0, 6.0],
+    }
+    for offset, expected in cases.items():
+        tibia = frame(t=np.add(femur[:3, 3], offset))
+        assert joint_kinematics(femur, tibia, side).values() == pytest.approx(expected, abs=1e-9)
+
+
+def test_translations_use_the_non_orthogonal_basis():
+    # flexion 90 deg and varus 30 deg (right knee): e1, e2, e3 are not orthogonal
+    R = Rotation.from_euler("XYZ", [-90.0, 30.0, 0.0], degrees=True).as_matrix()
+    e1, e3 = np.array([1.0, 0, 0]), R[:, 2]
+    assert abs(e1 @ e3) == pytest.approx(0.5)  # sin(30 deg): not orthogonal
+    e2 = np.cross(e3, e1) / np.linalg.norm(np.cross(e3, e1))
+    H = 1.0 * e1 + 2.0 * e2 + 3.0 * e3  # q = (1, 2, 3), by construction
+    k = joint_kinematics(frame(), frame(R, H), "right")
+    assert [k.medial_mm, k.anterior_mm, k.distraction_mm] == pytest.approx([-1.0, 2.0, -3.0], abs=1e-9)
+    # plain dot products would give something else
+    assert H @ e1 != pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("side", ["right", "left"])
+def test_angles_equal_scipy_intrinsic_xyz_cardan_angles(side):
+    rng = np.random.default_rng(4)
+    mirror = 1.0 if side == "right" else -1.0
+    for _ in range(200):
+        femur = Rotation.random(random_state=rng).as_matrix()
+        angles = rng.uniform([-10, -40, -60], [150, 40, 60])
+        relative = Rotation.from_euler("XYZ", angles, degrees=True).as_matrix()
+        tibia = femur @ relative
+        k = joint_kinematics(frame(femur, rng.normal(size=3)), frame(tibia, rng.normal(size=3)), side)
+        cardan = Rotation.from_matrix(femur.T @ tibia).as_euler("XYZ", degrees=True)
+        assert [k.flexion_deg, k.varus_deg, k.internal_deg] == pytest.approx(
+            [-cardan[0], mirror * cardan[1], mirror * cardan[2]], abs=1e-9)
+
+
+@pytest.mark.parametrize("side", ["right", "left"])
+def test_relative_pose_round_trip(side):
+    rng = np.random.default_rng(1)
+    for _ in range(50):
+        values = rng.uniform([-5, -10, -30, -8, -8, -8], [150, 10, 30, 8, 8, 8])
+        relative = relative_pose_from_kinematics(values, side)
+        femur = frame(Rotation.random(random_state=rng).as_matrix(), rng.normal(size=3) * 50)
+        assert joint_kinematics(femur, femur @ relative, side).values() == pytest.approx(values, abs=1e-9)
+
+
+def test_knee_kinematics_applies_the_anatomical_frames():
+    # models whose own axes are turned: the anatomical frames turn them back
+    turn = frame(Rotation.from_euler("z", 90, degrees=True).as_matrix(), (1, 2, 3))
+    femoral_anat = np.linalg.inv(turn)
+    relative = relative_pose_from_kinematics([30, 2, 5, 1, -2, 3])
+    world_femur = frame(Rotation.from_euler("x", 20, degrees=True).as_matrix(), (10, 0, 0))
+    femoral_pose = world_femur @ np.linalg.inv(femoral_anat)
+    tibial_pose = world_femur @ relative @ np.linalg.inv(femoral_anat)
+    k = knee_kinematics(femoral_pose, tibial_pose, femoral_anat, femoral_anat)
+    assert k.values() == pytest.approx([30, 2, 5, 1, -2, 3], abs=1e-9)
+
+
+def test_missing_pose_gives_nan():
+    k = joint_kinematics(frame(), np.full((4, 4), np.nan))
+    assert np.all(np.isnan(k.values()))
+
+
+@pytest.mark.parametrize("matrix, words", [
+    (np.diag([1.0, 1.0, 1.1, 1.0]), "not orthonormal"),
+    (np.diag([1.0, 1.0, -1.0, 1.0]), "determinant"),
+    (np.ones((3, 3)), "4×4"),
+    (np.full((4, 4), np.nan), "NaN"),
+    ([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 1, 1]], "last row"),
+])
+def test_frames_that_are_not_rigid_are_refused(matrix, words):
+    with pytest.raises(KinematicsError, match=words):
+        check_frame(matrix)
+
+
+def test_a_rotation_within_tolerance_is_accepted():
+    R = Rotation.from_euler("xyz", [10, 20, 30], degrees=True).as_matrix()
+    assert check_frame(frame(R + 1e-8))[0, 0] == pytest.approx(R[0, 0] + 1e-8)
