@@ -14,7 +14,9 @@ glue's Application or MNE's coreg under its GUI). It owns:
   ``store`` puts into the project on the caller's thread.
 
 Listeners (``session.listeners``) hear ``("pose", (frame, component))``,
-``("outline", (frame, view, component))``, ``("project", None)`` and ``("saved", path)``.
+``("outline", (frame, view, component))``, ``("knee", "side" | component)``,
+``("project", None)`` and ``("saved", path)``. The knee's side, anatomical frames and
+kinematics come from ``KneeMixin`` (``knee.py``).
 """
 from __future__ import annotations
 
@@ -38,6 +40,7 @@ from fluorogui.io.project import load_project, save_project
 from fluorogui.workflow.commands import Command, CommandStack
 from fluorogui.workflow.results import FrameResult
 from fluorogui.workflow.settings import SETTINGS_KEY, WorkflowSettings
+from fluorogui.workflow.knee import KneeMixin
 from fluorogui.workflow.work import WorkMixin
 
 COMPONENT_ORDER = ("femoral", "tibial")
@@ -69,7 +72,7 @@ def fitted_outline(points: np.ndarray) -> OutlineSpline | None:
         return None
 
 
-class Session(WorkMixin):
+class Session(WorkMixin, KneeMixin):
     """One open project, its undo history and the work done on it."""
 
     def __init__(self, project: Project | None = None, path=None) -> None:
@@ -98,6 +101,7 @@ class Session(WorkMixin):
         self._meshes.clear()
         self._raw_meshes.clear()
         self._splines.clear()
+        self.__dict__.pop("_default_frames", None)
         self.history.clear()
         self._notify("project", None)
 

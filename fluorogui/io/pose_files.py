@@ -1,0 +1,313 @@
+"""Pose and kinematics files, out and in: our CSV, Autoscoper ``.tra``, JointTrack ``.jts``.
+
+* **Our poses CSV (wide).** ``#`` comment lines (units, conventions, version, side), then
+  one row per frame: for each component its pose (x, y, z, alpha, beta, gamma), its 4×4
+  (row by row), status, objective and per-view residuals, SDs; then the kinematics.
+* **Our poses CSV (long)**, what ``fluorogui kinematics --poses`` reads: columns
+  ``frame,component,x,y,z,alpha,beta,gamma`` (DESIGN.md's pose convention).
+* **Autoscoper ``.tra``.** One row per frame, per component 16 numbers (the 4×4 row by
+  row; components in the order given), comma-separated, ``NaN`` where a frame has no pose.
+* **JointTrack ``.jts``.** ``JT_EULER_312``, a column-title line, one row per frame of
+  x, y, z, z-rot, x-rot, y-rot (mm, degrees) in a view's JointTrack camera frame (source at
+  the origin looking down −Z, X along image columns, Y up the rows), ``NOT_OPTIMIZED``
+  where missing.
+
+Writers are atomic (nothing half-written is left); readers raise ``InputError`` naming
+the file and line.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from fluorogui.core.geometry import View
+from fluorogui.core.pose import angles_from_matrix, pose_to_matrix
+from fluorogui.io.calibration import jointtrack_matrix
+from fluorogui.io.errors import InputError, atomic_write_text, describe_os_error
+
+POSE_KEYS = ("x", "y", "z", "alpha", "beta", "gamma")
+JTS_TITLE = "JT_EULER_312"
+JTS_HEADER = "          x_tran,          y_tran,          z_tran,                   z_rot,           x_rot,           y_rot"
+NOT_OPTIMIZED = "NOT_OPTIMIZED"
+MAX_ROWS = 1_000_000
+
+
+def check_writable(path) -> Path:
+    """Refuse an output path that cannot be written, before any work is done."""
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise InputError(path, "is a folder, not a file")
+    if not folder.is_dir():
+        raise InputError(path, "cannot be written: its folder does not exist")
+    if not os.access(folder, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise InputError(path, "cannot be written: permission denied")
+    return path
+
+
+def check_writable_folder(folder) -> Path:
+    """Refuse an output folder that cannot be created or written, before any work is done."""
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise InputError(folder, "is a file, not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(folder, f"cannot be created: {describe_os_error(exc)}") from None
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InputError(folder, "cannot be written: permission denied")
+    return folder
+
+
+def _number_text(value) -> str:
+    value = float(value)
+    return "NaN" if not math.isfinite(value) else repr(round(value, 10))
+
+
+def read_text_lines(path: Path) -> list[str]:
+    try:
+        if not path.is_file():
+            raise InputError(path, "not found" if not path.exists() else "is not a regular file")
+        with open(path, "r", encoding="utf-8", newline="") as handle:
+            text = handle.read(64 * 1024 * 1024 + 1)
+    except UnicodeDecodeError:
+        raise InputError(path, "is not a text file") from None
+    except OSError as exc:
+        raise InputError(path, f"cannot be read: {describe_os_error(exc)}") from None
+    if len(text) > 64 * 1024 * 1024:
+        raise InputError(path, "is larger than 64 MB; not a pose file")
+    return text.splitlines()
+
+
+def _float(path: Path, text: str, where: str) -> float:
+    text = text.strip()
+    if text.lower() in ("nan", ""):
+        return float("nan")
+    try:
+        value = float(text)
+    except ValueError:
+        raise InputError(path, f"{where}: {text[:30]!r} is not a number") from None
+    if math.isinf(value):
+        raise InputError(path, f"{where}: infinite value")
+    return value
+
+
+# -- Autoscoper .tra -----------------------------------------------------------------------
+def write_tra(path, matrices: list[list[np.ndarray | None]]) -> None:
+    """One row per frame; ``matrices[i]`` holds each component's 4×4 (or None)."""
+    lines = []
+    for row in matrices:
+        numbers = []
+        for matrix in row:
+            values = np.full(16, np.nan) if matrix is None else np.asarray(matrix, dtype=float).reshape(16)
+            numbers.extend(_number_text(v) for v in values)
+        lines.append(",".join(numbers))
+    atomic_write_text(path, "\n".join(lines) + "\n")
+
+
+def read_tra(path, components: int) -> list[list[np.ndarray | None]]:
+    """Rows of ``components`` 4×4 matrices (None where the row holds NaN)."""
+    path = Path(path)
+    out = []
+    for number, line in enumerate(read_text_lines(path), start=1):
+        if not line.strip():
+            continue
+        fields = [f for f in line.replace("\t", ",").replace(" ", ",").split(",") if f.strip()]
+        if len(fields) != 16 * components:
+            raise InputError(path, f"line {number} has {len(fields)} numbers; expected {16 * components} "
+                                   f"(16 per component, {components} component{'s' if components > 1 else ''})")
+        values = np.array([_float(path, f, f"line {number}") for f in fields]).reshape(components, 4, 4)
+        row = []
+        for matrix in values:
+            if np.isnan(matrix).any():
+                row.append(None)
+                continue
+            _check_rigid(path, matrix, f"line {number}")
+            row.append(matrix)
+        out.append(row)
+        if len(out) > MAX_ROWS:
+            raise InputError(path, f"more than {MAX_ROWS} rows")
+    if not out:
+        raise InputError(path, "holds no poses")
+    return out
+
+
+def _check_rigid(path: Path, matrix: np.ndarray, where: str) -> None:
+    R = matrix[:3, :3]
+    if (not np.allclose(matrix[3], [0, 0, 0, 1], atol=1e-6) or np.abs(R.T @ R - np.eye(3)).max() > 1e-4
+            or np.linalg.det(R) < 0):
+        raise InputError(path, f"{where}: not a rigid transform (rotation and translation, last row 0 0 0 1)")
+
+
+# -- JointTrack .jts ------------------------------------------------------------------------
+def jointtrack_camera(view: View) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation (rows: camera X, Y, Z in world coordinates) and origin of a view's
+    JointTrack camera frame."""
+    return np.vstack([view.e_u, -view.e_v, -view.normal]), np.asarray(view.source, dtype=float)
+
+
+def pose_to_jointtrack(pose, view: View) -> np.ndarray:
+    """Our pose (world frame) as a JointTrack row (x, y, z, z_rot, x_rot, y_rot) in ``view``."""
+    M, source = jointtrack_camera(view)
+    T = pose_to_matrix(pose)
+    R = M @ T[:3, :3]
+    t = M @ (T[:3, 3] - source)
+    # R = Rz(z) Rx(x) Ry(y): R[2,1] = sin x, R[0,1] = -sin z cos x, R[2,0] = -cos x sin y
+    x_rot = math.asin(max(-1.0, min(1.0, R[2, 1])))
+    z_rot = math.atan2(-R[0, 1], R[1, 1])
+    y_rot = math.atan2(-R[2, 0], R[2, 2])
+    return np.array([*t, *np.degrees([z_rot, x_rot, y_rot])])
+
+
+def jointtrack_to_world_pose(row, view: View) -> np.ndarray:
+    """A JointTrack row in ``view``'s camera frame as our pose in the world frame."""
+    row = np.asarray(row, dtype=float).reshape(6)
+    M, source = jointtrack_camera(view)
+    R = M.T @ jointtrack_matrix(row)
+    t = M.T @ row[:3] + source
+    return np.array([*t, *angles_from_matrix(R)])
+
+
+def write_jts(path, rows: list[np.ndarray | None]) -> None:
+    """A JointTrack pose file: JT_EULER_312, the column titles, one row per frame."""
+    lines = [JTS_TITLE, JTS_HEADER]
+    for row in rows:
+        if row is None or not np.all(np.isfinite(row)):
+            lines.append(NOT_OPTIMIZED)
+            continue
+        cells = [f"{float(v):16.7f}" for v in row]
+        lines.append(",".join(cells[:3]) + ",        " + ",".join(cells[3:]))
+    atomic_write_text(path, "\n".join(lines) + "\n")
+
+
+def read_jts(path) -> list[np.ndarray | None]:
+    """Rows (x, y, z, z_rot, x_rot, y_rot) of a JT_EULER_312 file, None where NOT_OPTIMIZED."""
+    path = Path(path)
+    lines = read_text_lines(path)
+    content = [(n, line.strip()) for n, line in enumerate(lines, start=1) if line.strip()]
+    if not content or content[0][1].upper() != JTS_TITLE:
+        raise InputError(path, f"not a JointTrack pose file (the first line must be {JTS_TITLE})")
+    out = []
+    for number, line in content[1:]:
+        fields = [f.strip() for f in line.replace("\t", ",").split(",") if f.strip()]
+        if len(fields) == 1 and " " in fields[0]:
+            fields = fields[0].split()
+        if fields and fields[0].upper() == NOT_OPTIMIZED:
+            out.append(None)
+            continue
+        if not out and fields and not _looks_numeric(fields[0]):
+            continue  # the column-title line
+        if len(fields) != 6:
+            raise InputError(path, f"line {number} has {len(fields)} columns; expected 6 "
+                                   "(x, y, z, z_rot, x_rot, y_rot) or NOT_OPTIMIZED")
+        out.append(np.array([_float(path, f, f"line {number}") for f in fields]))
+    if not out:
+        raise InputError(path, "holds no poses")
+    return out
+
+
+def _looks_numeric(text: str) -> bool:
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return text.lower() == "nan"
+
+
+# -- CSV -------------------------------------------------------------------------------------
+def write_csv(path, header_comments: list[str], columns: list[str], rows: list[list]) -> None:
+    """A CSV with ``#`` comment lines first; numbers NaN where missing."""
+    buffer = io.StringIO()
+    for comment in header_comments:
+        buffer.write(f"# {' '.join(str(comment).split())}\n")
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(columns)
+    for row in rows:
+        writer.writerow([_number_text(v) if isinstance(v, (float, np.floating)) else v for v in row])
+    atomic_write_text(path, buffer.getvalue())
+
+
+def read_csv_table(path, required: tuple[str, ...]) -> list[dict]:
+    """Rows (dicts) of a CSV whose ``#`` lines are comments; refuses missing columns."""
+    path = Path(path)
+    lines = [line for line in read_text_lines(path) if not line.lstrip().startswith("#")]
+    reader = csv.reader(lines)
+    try:
+        header = [h.strip() for h in next(reader)]
+    except StopIteration:
+        raise InputError(path, "is empty") from None
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise InputError(path, f"lacks the column{'s' if len(missing) > 1 else ''} {', '.join(missing)} "
+                               f"(it has {', '.join(header[:12])})")
+    rows = []
+    for number, fields in enumerate(reader, start=2):
+        if not any(f.strip() for f in fields):
+            continue
+        if len(fields) != len(header):
+            raise InputError(path, f"data row {number - 1} has {len(fields)} columns; the header has {len(header)}")
+        rows.append(dict(zip(header, (f.strip() for f in fields))))
+        if len(rows) > MAX_ROWS:
+            raise InputError(path, f"more than {MAX_ROWS} rows")
+    return rows
+
+
+def read_long_poses(path, components=("femoral", "tibial")) -> dict[tuple[int, str], np.ndarray]:
+    """Poses by (frame, component) from a CSV with ``frame,component,x,y,z,alpha,beta,gamma``.
+
+    NaN poses are kept (as NaN) so the caller can report the frame; a repeated frame and
+    component is refused.
+    """
+    path = Path(path)
+    out: dict[tuple[int, str], np.ndarray] = {}
+    for number, row in enumerate(read_csv_table(path, ("frame", "component", *POSE_KEYS)), start=1):
+        where = f"data row {number}"
+        frame_text = row["frame"]
+        try:
+            frame = int(frame_text)
+        except ValueError:
+            raise InputError(path, f"{where}: frame {frame_text[:20]!r} is not a whole number") from None
+        component = row["component"].lower()
+        if component not in components:
+            raise InputError(path, f"{where}: component {row['component'][:20]!r} is not one of {', '.join(components)}")
+        if (frame, component) in out:
+            raise InputError(path, f"{where}: frame {frame} has a second {component} pose")
+        out[(frame, component)] = np.array([_float(path, row[k], f"{where}, {k}") for k in POSE_KEYS])
+    if not out:
+        raise InputError(path, "holds no poses")
+    return out
+
+
+def read_wide_poses(path, components=("femoral", "tibial")) -> dict[tuple[int, str], np.ndarray]:
+    """Poses by (frame, component) from our wide export CSV (``femoral_x`` … columns)."""
+    path = Path(path)
+    rows = read_csv_table(path, ("frame",))
+    present = [c for c in components if rows and all(f"{c}_{k}" in rows[0] for k in POSE_KEYS)]
+    if rows and not present:
+        raise InputError(path, "has neither long (component, x, …) nor wide (femoral_x, …) pose columns")
+    out = {}
+    for number, row in enumerate(rows, start=1):
+        try:
+            frame = int(row["frame"])
+        except ValueError:
+            raise InputError(path, f"data row {number}: frame {row['frame'][:20]!r} is not a whole number") from None
+        for component in present:
+            out[(frame, component)] = np.array(
+                [_float(path, row[f"{component}_{k}"], f"data row {number}, {component}_{k}") for k in POSE_KEYS])
+    if not out:
+        raise InputError(path, "holds no poses")
+    return out
+
+
+def read_pose_csv(path, components=("femoral", "tibial")) -> dict[tuple[int, str], np.ndarray]:
+    """Long or wide pose CSV, whichever the header says."""
+    path = Path(path)
+    header = next((line for line in read_text_lines(path) if line.strip() and not line.lstrip().startswith("#")), "")
+    if "component" in [h.strip() for h in header.split(",")]:
+        return read_long_poses(path, components)
+    return read_wide_poses(path, components)

@@ -1,0 +1,236 @@
+"""Results out of a session (poses and kinematics CSV, Autoscoper ``.tra``, JointTrack
+``.jts``, figures) and poses from other tools in; also kinematics of bare pose files.
+
+Every export names, in its header, the software version, the side, the units and the
+conventions (``fluorogui.core.kinematics.SIGN_CONVENTIONS``). Output paths are checked
+before any work, and every file is written atomically.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from fluorogui import __version__
+from fluorogui.core.kinematics import (
+    KINEMATICS_COLUMNS,
+    SIGN_CONVENTIONS,
+    KneeKinematics,
+    check_side,
+    knee_kinematics,
+)
+from fluorogui.core.pose import matrix_to_pose, pose_to_matrix
+from fluorogui.core.session import PLACED, PoseRecord
+from fluorogui.io.errors import InputError
+from fluorogui.io.pose_files import (
+    POSE_KEYS,
+    check_writable,
+    check_writable_folder,
+    jointtrack_to_world_pose,
+    pose_to_jointtrack,
+    read_jts,
+    read_pose_csv,
+    read_tra,
+    write_csv,
+    write_jts,
+    write_tra,
+)
+from fluorogui.workflow.knee import KNEE_COMPONENTS, KneeRow
+
+POSE_CONVENTION = ("pose x, y, z (mm), alpha, beta, gamma (deg) of the model in the calibration (world) frame: "
+                   "X = R m + t, R = Ry(beta) Rz(gamma) Rx(alpha); m00..m33 the same pose as a 4x4 "
+                   "model -> world matrix, row by row")
+SD_KEYS = tuple(f"sd_{k}" for k in POSE_KEYS)
+
+
+def header_lines(session, what: str) -> list[str]:
+    side = session.side
+    lines = [f"fluorogui {__version__} {what}",
+             f"project: {session.path.name if session.path else '(unsaved)'}",
+             f"side: {side if side else 'right (not set in the project; assumed)'}",
+             "units: mm and degrees",
+             POSE_CONVENTION,
+             f"kinematics: {SIGN_CONVENTIONS}",
+             "status: matched = both components passed their checks; needs_review = a component "
+             "failed a check or was placed by hand; missing = a component has no pose (values NaN)"]
+    for component in KNEE_COMPONENTS:
+        try:
+            matrix = session.anatomical_frame(component)
+            source = session.anatomical_frame_source(component)
+            lines.append(f"{component} anatomical frame ({source}; anatomical -> model): "
+                         f"{json.dumps(np.round(matrix, 9).tolist())}")
+        except (InputError, KeyError, ValueError) as exc:
+            lines.append(f"{component} anatomical frame: unavailable ({exc})")
+    return lines
+
+
+def _sd(record: PoseRecord | None) -> list[float]:
+    """The six standard deviations of a match, NaN where the match gives none."""
+    if record is None or record.match is None:
+        return [float("nan")] * 6
+    sd = getattr(record.match, "sd", None)
+    if sd is None and isinstance(record.match.quality, dict):
+        sd = record.match.quality.get("sd")
+    if sd is None or len(sd) != 6:
+        return [float("nan")] * 6
+    return [float(v) for v in sd]
+
+
+def pose_columns(views: int) -> list[str]:
+    columns = ["frame", "status", "reason"]
+    for c in KNEE_COMPONENTS:
+        columns += [f"{c}_status", *(f"{c}_{k}" for k in POSE_KEYS),
+                    *(f"{c}_m{r}{k}" for r in range(4) for k in range(4)),
+                    f"{c}_objective_mm", *(f"{c}_view{v + 1}_mm" for v in range(views)),
+                    *(f"{c}_{k}" for k in SD_KEYS)]
+    return columns + list(KINEMATICS_COLUMNS)
+
+
+def pose_rows(session, rows: list[KneeRow]) -> list[list]:
+    views = session.n_views
+    out = []
+    for row in rows:
+        cells: list = [row.frame, row.status, row.reason]
+        for c in KNEE_COMPONENTS:
+            record = row.records.get(c)
+            if record is None:
+                cells += ["missing", *([float("nan")] * (6 + 16 + 1 + views + 6))]
+                continue
+            match = record.match
+            per_view = list(match.per_view_mean_mm) if match is not None else []
+            per_view = (per_view + [float("nan")] * views)[:views]
+            cells += [record.status + (" (reviewed)" if record.reviewed else ""),
+                      *(float(v) for v in record.pose), *(float(v) for v in pose_to_matrix(record.pose).reshape(16)),
+                      float(match.objective_mm) if match is not None else float("nan"),
+                      *(float(v) for v in per_view), *_sd(record)]
+        cells += [float(v) for v in row.values.values()]
+        out.append(cells)
+    return out
+
+
+def export_poses_csv(session, path) -> Path:
+    path = check_writable(path)
+    rows = session.knee_rows()
+    write_csv(path, header_lines(session, "poses and kinematics, one row per frame"),
+              pose_columns(session.n_views), pose_rows(session, rows))
+    return path
+
+
+def export_kinematics_csv(session, path) -> Path:
+    path = check_writable(path)
+    rows = session.knee_rows()
+    write_csv(path, header_lines(session, "knee kinematics, one row per frame"),
+              ["frame", *KINEMATICS_COLUMNS, "status", "reason"],
+              [[r.frame, *(float(v) for v in r.values.values()), r.status, r.reason] for r in rows])
+    return path
+
+
+def export_tra(session, path) -> Path:
+    """Autoscoper: one row per frame, femoral then tibial, 16 numbers each (row by row)."""
+    path = check_writable(path)
+    matrices = []
+    for frame in session.frames:
+        row = []
+        for c in KNEE_COMPONENTS:
+            record = session.project.poses.get((frame, c))
+            row.append(None if record is None or record.status == "failed" else pose_to_matrix(record.pose))
+        matrices.append(row)
+    write_tra(path, matrices)
+    return path
+
+
+def export_jts(session, folder, view: int) -> list[Path]:
+    """JointTrack: ``femoral.jts`` and ``tibial.jts`` in ``view``'s (0-based) camera frame."""
+    if not 0 <= view < session.n_views:
+        raise InputError(folder, f"view {view + 1} does not exist (the session has {session.n_views})")
+    folder = check_writable_folder(folder)
+    camera = session.views[view]
+    written = []
+    for c in KNEE_COMPONENTS:
+        if session.project.model(c) is None:
+            continue
+        rows = []
+        for frame in session.frames:
+            record = session.project.poses.get((frame, c))
+            rows.append(None if record is None or record.status == "failed" else pose_to_jointtrack(record.pose, camera))
+        write_jts(folder / f"{c}.jts", rows)
+        written.append(folder / f"{c}.jts")
+    return written
+
+
+def export_plot(session, path, against: str = "frame") -> Path:
+    from fluorogui.workflow.knee_plot import save_kinematics_figure
+
+    path = check_writable(path)
+    if path.suffix.lower() not in (".png", ".svg", ".pdf"):
+        raise InputError(path, "the figure must be .png, .svg or .pdf")
+    save_kinematics_figure(session.knee_rows(), path, side=session.side or "right", against=against,
+                           title=session.path.stem if session.path else "")
+    return path
+
+
+# -- imports -----------------------------------------------------------------------------------
+def read_poses_file(session, path, component: str | None = None, view: int = 0) -> dict[tuple[int, str], np.ndarray]:
+    """Poses by (frame, component) from our CSV (long or wide), an Autoscoper ``.tra``
+    (femoral then tibial; rows are the session's frames in order) or a JointTrack ``.jts``
+    (``component`` says which; rows are the session's frames, in ``view``'s camera frame)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".jts":
+        if component not in KNEE_COMPONENTS:
+            raise InputError(path, "say which component a .jts file holds (femoral or tibial)")
+        rows = read_jts(path)
+        _check_row_count(path, len(rows), session.frames)
+        camera = session.views[view]
+        return {(f, component): jointtrack_to_world_pose(r, camera) for f, r in zip(session.frames, rows) if r is not None}
+    if suffix == ".tra":
+        components = [c for c in KNEE_COMPONENTS if session.project.model(c) is not None] if component is None else [component]
+        rows = read_tra(path, len(components))
+        _check_row_count(path, len(rows), session.frames)
+        return {(f, c): matrix_to_pose(m) for f, row in zip(session.frames, rows)
+                for c, m in zip(components, row) if m is not None}
+    poses = read_pose_csv(path)
+    unknown = sorted({f for f, _ in poses} - set(session.frames))
+    if unknown:
+        raise InputError(path, f"frame {unknown[0]} is not a frame of this session")
+    return {k: v for k, v in poses.items() if np.all(np.isfinite(v)) and (component is None or k[1] == component)}
+
+
+def _check_row_count(path: Path, rows: int, frames: list[int]) -> None:
+    if rows != len(frames):
+        raise InputError(path, f"has {rows} rows but the session has {len(frames)} frames")
+
+
+def import_poses(session, path, component: str | None = None, view: int = 0) -> int:
+    """Read poses from another tool into the session (status ``placed``, reason naming the
+    file, so they are reviewed before use) as one undoable step; returns how many."""
+    poses = read_poses_file(session, path, component, view)
+    name = Path(path).name
+    session.history.begin_macro(f"Import poses from {name}")
+    try:
+        for (frame, c), pose in sorted(poses.items()):
+            session.set_record(c, frame, PoseRecord(pose, status=PLACED, reason=f"imported from {name}"),
+                               f"Import {c} pose")
+    finally:
+        session.history.end_macro()
+    return len(poses)
+
+
+# -- bare pose files (no session) -------------------------------------------------------------------
+def kinematics_of_poses(poses: dict[tuple[int, str], np.ndarray], side: str, femoral_frame, tibial_frame
+                        ) -> list[tuple[int, KneeKinematics, str]]:
+    """Kinematics per frame of bare poses; NaN with a reason where a component is missing."""
+    side = check_side(side)
+    out = []
+    for frame in sorted({f for f, _ in poses}):
+        pose = {c: poses.get((frame, c)) for c in KNEE_COMPONENTS}
+        lacking = [c for c in KNEE_COMPONENTS if pose[c] is None or not np.all(np.isfinite(pose[c]))]
+        if lacking:
+            reason = " and ".join(f"{c} pose {'missing' if pose[c] is None else 'is NaN'}" for c in lacking)
+            out.append((frame, KneeKinematics.missing(), reason))
+            continue
+        values = knee_kinematics(pose_to_matrix(pose["femoral"]), pose_to_matrix(pose["tibial"]),
+                                 femoral_frame, tibial_frame, side)
+        out.append((frame, values, ""))
+    return out

@@ -1,0 +1,154 @@
+"""The knee of a session: its side, each component's anatomical frame and the joint
+kinematics frame by frame, from the stored poses. Qt-free; the app, the command line and
+scripts all read kinematics from here.
+
+Kept in ``project.settings["kinematics"]``::
+
+    {"side": "right" | "left" | null,
+     "frames": {"femoral": {"matrix": [[4 rows of 4]], "source": "user"}, ...}}
+
+A component without a stored frame uses the default from its mesh
+(``fluorogui.core.anatomy``), computed when first needed and not written into the project
+until the user sets one.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from fluorogui.core.anatomy import default_frame
+from fluorogui.core.kinematics import (
+    KinematicsError,
+    KneeKinematics,
+    check_frame,
+    check_side,
+    knee_kinematics,
+)
+from fluorogui.core.pose import pose_to_matrix
+from fluorogui.core.session import FAILED, MATCHED, NEEDS_REVIEW, PLACED, PoseRecord
+from fluorogui.workflow.commands import Command
+
+KNEE_KEY = "kinematics"
+KNEE_COMPONENTS = ("femoral", "tibial")
+
+
+@dataclass
+class KneeRow:
+    """One frame's kinematics with what it rests on."""
+
+    frame: int
+    values: KneeKinematics
+    status: str  # "matched", "needs_review" or "missing"
+    reason: str = ""
+    records: dict = field(default_factory=dict)  # component -> PoseRecord or None
+
+
+def row_status(records: dict) -> tuple[str, str]:
+    """The status and reason of a frame's kinematics from its two pose records."""
+    missing = [c for c in KNEE_COMPONENTS if records.get(c) is None]
+    if missing:
+        return "missing", f"no {' or '.join(missing)} pose"
+    failed = [c for c in KNEE_COMPONENTS if records[c].status == FAILED]
+    if failed:
+        return "missing", f"the {' and '.join(failed)} match failed"
+    reasons = []
+    for c in KNEE_COMPONENTS:
+        record: PoseRecord = records[c]
+        if record.status == NEEDS_REVIEW and not record.reviewed:
+            reasons.append(f"{c} needs review" + (f" ({record.reason})" if record.reason else ""))
+        elif record.status == PLACED and not record.reviewed:
+            reasons.append(f"{c} placed by hand, not matched")
+    if reasons:
+        return "needs_review", "; ".join(reasons)
+    return MATCHED, ""
+
+
+class KneeMixin:
+    """Kinematics methods of ``Session`` (a mixin; needs ``project`` and ``raw_mesh``)."""
+
+    def _knee(self) -> dict:
+        knee = self.project.settings.get(KNEE_KEY)
+        if not isinstance(knee, dict):
+            knee = {}
+            self.project.settings[KNEE_KEY] = knee
+        return knee
+
+    # -- side -------------------------------------------------------------------------------
+    @property
+    def side(self) -> str | None:
+        """``right``, ``left``, or None when nobody said (kinematics then assume right)."""
+        value = self.project.settings.get(KNEE_KEY, {}).get("side") if isinstance(
+            self.project.settings.get(KNEE_KEY), dict) else None
+        return value if value in ("right", "left") else None
+
+    def set_side(self, side: str) -> None:
+        """Set the knee's side (an undoable edit)."""
+        self._push_knee("side", check_side(side), "Set knee side")
+
+    def _push_knee(self, key: str, after, text: str) -> None:
+        knee = self._knee()
+        before = knee.get(key) if key == "side" else knee.get("frames", {}).get(key)
+        self.history.push(Command(text, key, before, after, self._store_knee))
+
+    def _store_knee(self, key: str, value) -> None:
+        knee = self._knee()
+        if key == "side":
+            knee["side"] = value
+        elif value is None:
+            knee.get("frames", {}).pop(key, None)
+        else:
+            knee.setdefault("frames", {})[key] = value
+        self._notify("knee", key)
+
+    # -- anatomical frames ----------------------------------------------------------------------
+    def anatomical_frame(self, component: str) -> np.ndarray:
+        """The component's anatomical frame (4×4, anatomical → model): stored, else default."""
+        stored = self._knee().get("frames", {}).get(component)
+        if isinstance(stored, dict) and "matrix" in stored:
+            try:
+                return check_frame(stored["matrix"])
+            except KinematicsError:
+                pass  # a broken stored frame falls back to the default, as if never set
+        cache = self.__dict__.setdefault("_default_frames", {})
+        if component not in cache:
+            vertices, faces = self.raw_mesh(component)
+            cache[component] = default_frame(component, vertices, faces)
+        return cache[component].copy()
+
+    def anatomical_frame_source(self, component: str) -> str:
+        stored = self._knee().get("frames", {}).get(component)
+        return "user" if isinstance(stored, dict) and "matrix" in stored else "default"
+
+    def set_anatomical_frame(self, component: str, matrix) -> None:
+        """Keep a user's frame (checked: rigid, det +1) in the project (an undoable edit)."""
+        matrix = check_frame(matrix)
+        self._push_knee(component, {"matrix": matrix.tolist(), "source": "user"},
+                        f"Set {component} anatomical frame")
+
+    def reset_anatomical_frame(self, component: str) -> None:
+        """Go back to the default frame from the mesh (an undoable edit)."""
+        self._push_knee(component, None, f"Default {component} anatomical frame")
+
+    # -- kinematics ----------------------------------------------------------------------------
+    def knee_rows(self, frames=None) -> list[KneeRow]:
+        """Kinematics of every frame (NaN with a reason where a component has no pose)."""
+        side = self.side or "right"
+        anat = {c: self.anatomical_frame(c) for c in KNEE_COMPONENTS}
+        rows = []
+        for frame in (self.frames if frames is None else frames):
+            records = {c: self.project.poses.get((frame, c)) for c in KNEE_COMPONENTS}
+            status, reason = row_status(records)
+            if status == "missing":
+                values = KneeKinematics.missing()
+            else:
+                values = knee_kinematics(pose_to_matrix(records["femoral"].pose), pose_to_matrix(records["tibial"].pose),
+                                         anat["femoral"], anat["tibial"], side)
+            rows.append(KneeRow(frame, values, status, reason, records))
+        return rows
+
+    def knee_at(self, frame: int) -> KneeRow:
+        return self.knee_rows([frame])[0]
+
+
+__all__ = ["KNEE_COMPONENTS", "KNEE_KEY", "KneeMixin", "KneeRow", "row_status", "MATCHED", "NEEDS_REVIEW"]

@@ -1,0 +1,98 @@
+"""The kinematics figure: the six joint values against frame or flexion, with frames that
+need review marked, residuals and SD bands where the matches give them. Built on a plain
+matplotlib ``Figure`` (no pyplot, no Qt), so the app embeds the same drawing that
+``fluorogui export --plot`` saves."""
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
+
+from fluorogui.core.kinematics import KINEMATICS_COLUMNS, KINEMATICS_LABELS
+
+UNITS = ("°", "°", "°", "mm", "mm", "mm")
+REVIEW_COLOUR = "#d62728"
+LINE_COLOUR = "#1f77b4"
+
+
+def kinematics_arrays(rows) -> dict[str, np.ndarray]:
+    """Columns of the rows as arrays: frame, the six values, needs-review mask, residual."""
+    frames = np.array([r.frame for r in rows], dtype=float)
+    values = np.array([r.values.values() for r in rows], dtype=float).reshape(len(rows), 6)
+    review = np.array([r.status == "needs_review" for r in rows], dtype=bool)
+    residual = np.full(len(rows), np.nan)
+    for i, r in enumerate(rows):
+        objectives = [rec.match.objective_mm for rec in r.records.values() if rec is not None and rec.match is not None]
+        if objectives:
+            residual[i] = max(objectives)
+    return {"frame": frames, "values": values, "review": review, "residual": residual}
+
+
+def draw_kinematics(figure: Figure, rows, side: str = "right", against: str = "frame", title: str = "",
+                    current_frame: int | None = None) -> list:
+    """Draw on ``figure`` (cleared first); returns the seven axes (six values, residual).
+
+    Each axes' ``gid`` is its column name, so a click can be mapped back to a frame.
+    """
+    figure.clear()
+    data = kinematics_arrays(rows)
+    x = data["frame"] if against == "frame" else data["values"][:, 0]
+    x_label = "frame" if against == "frame" else "flexion (°)"
+    grid = figure.add_gridspec(4, 2, height_ratios=[1, 1, 1, 0.7], hspace=0.55, wspace=0.28)
+    axes = []
+    for k, (column, label, unit) in enumerate(zip(KINEMATICS_COLUMNS, KINEMATICS_LABELS, UNITS)):
+        ax = figure.add_subplot(grid[k % 3, k // 3])
+        ax.set_gid(column)
+        y = data["values"][:, k]
+        order = np.argsort(x, kind="stable") if against != "frame" else np.arange(len(x))
+        ax.plot(x[order], y[order], "-", color=LINE_COLOUR, lw=1.2, marker=".", ms=4, picker=5)
+        review = data["review"]
+        if review.any():
+            ax.plot(x[review], y[review], "o", mfc="none", mec=REVIEW_COLOUR, ms=6, label="needs review")
+        if current_frame is not None and against == "frame":
+            ax.axvline(current_frame, color="0.5", lw=0.8, ls="--")
+        if against == "frame":
+            ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.set_title(f"{label} ({unit})", fontsize=9)
+        ax.tick_params(labelsize=8)
+        ax.grid(True, alpha=0.3)
+        axes.append(ax)
+    ax = figure.add_subplot(grid[3, :])
+    ax.set_gid("residual_mm")
+    ax.plot(data["frame"], data["residual"], "-", color="0.3", lw=1.0, marker=".", ms=3, picker=5)
+    if data["review"].any():
+        ax.plot(data["frame"][data["review"]], data["residual"][data["review"]], "o", mfc="none",
+                mec=REVIEW_COLOUR, ms=6)
+    ax.set_title("Worst match residual per frame (mm); red rings: needs review", fontsize=9)
+    ax.set_xlabel("frame", fontsize=8)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.tick_params(labelsize=8)
+    ax.grid(True, alpha=0.3)
+    axes.append(ax)
+    for ax in axes[2::3][:2]:
+        ax.set_xlabel(x_label, fontsize=8)
+    heading = f"Knee kinematics ({side} knee; tibia relative to femur, Grood & Suntay)"
+    figure.suptitle(f"{title}: {heading}" if title else heading, fontsize=10)
+    return axes
+
+
+def save_kinematics_figure(rows, path, side: str = "right", against: str = "frame", title: str = "") -> None:
+    """Write the figure as PNG, SVG or PDF (by the suffix), atomically."""
+    import os
+    import tempfile
+    from pathlib import Path
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    path = Path(path)
+    figure = Figure(figsize=(10, 8), dpi=120)
+    FigureCanvasAgg(figure)
+    draw_kinematics(figure, rows, side, against, title)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        figure.savefig(tmp, format=path.suffix.lstrip(".").lower())
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
