@@ -8,14 +8,16 @@ Sections (all by default, or name some):
   (``fluorogui.io.synthetic``: overlapping components in one view, non-orthogonal views,
   varying speed), tracked from nothing (find implants on the first frame); frames shown
   as matched more than 1 mm / 1 deg from the truth (target 0), RMS error over matched
-  frames (target <= 0.05 mm / 0.05 deg), wall time (target <= 20 s with the workers).
+  frames (target <= 0.05 mm / 0.05 deg), wall time (target <= 20 s with the workers), and
+  the knee kinematics against the truth's (target <= 0.05 deg / 0.05 mm RMS each).
 * ``real``: all pairs of ../shared/data/biplane-tka, both components, from nothing;
   every frame either within 0.5 mm / 0.5 deg of tests/data/biplane_reference_poses.csv
-  or flagged; flagged frames and why; frame-to-frame jitter per degree of freedom.
+  or flagged; flagged frames and why; frame-to-frame jitter per degree of freedom; the six
+  knee kinematics curves and their jitter (``--figure`` saves their figure).
 
 Errors are body-fixed (``core.pose.pose_error``): translation mm, rotation angles deg.
 Usage: .venv/bin/python packaging/bench_tracking.py [demo] [synthetic] [real]
-           [--workers N] [--frames N] [--no-occlusion] [--json OUT]
+           [--workers N] [--frames N] [--no-occlusion] [--json OUT] [--figure OUT.png]
 """
 from __future__ import annotations
 
@@ -129,8 +131,57 @@ def bench_synthetic(args) -> dict:
         out[c] = {"matched": len(E), "rms_mm": rms_mm, "rms_deg": rms_deg}
     for f in flagged:
         print(f"  flagged: frame {f[0]} {f[1]} {f[2]} ({f[3]:.3f} mm / {f[4]:.3f} deg off): {f[5]}")
-    print(f"  matched frames more than 1 mm / 1 deg off: {len(wrong)} (target 0) {wrong if wrong else ''}\n")
+    print(f"  matched frames more than 1 mm / 1 deg off: {len(wrong)} (target 0) {wrong if wrong else ''}")
+    out["kinematics"] = _knee_against_truth(session, truth)
+    print()
     return out
+
+
+def _knee_against_truth(session: Session, truth: dict) -> dict:
+    """Kinematics of the tracked poses against those of the true poses (same anatomical
+    frames): RMS per degree of freedom over frames where both components are matched."""
+    from fluorogui.core.kinematics import KINEMATICS_COLUMNS, knee_kinematics
+    from fluorogui.core.pose import pose_to_matrix
+
+    anat = {c: session.anatomical_frame(c) for c in COMPONENTS}
+    side = session.side or "right"
+    errors = []
+    for row in session.knee_rows():
+        if row.status != "matched":
+            continue
+        t = truth[row.frame]
+        expected = knee_kinematics(pose_to_matrix(t["femoral"]), pose_to_matrix(t["tibial"]),
+                                   anat["femoral"], anat["tibial"], side)
+        errors.append(row.values.values() - expected.values())
+    E = np.array(errors)
+    rms = np.sqrt((E ** 2).mean(axis=0)) if len(E) else np.full(6, np.nan)
+    print(f"  kinematics vs truth over {len(E)} frames, RMS (target <= 0.05 deg / 0.05 mm each): "
+          + ", ".join(f"{c} {v:.4f}" for c, v in zip(KINEMATICS_COLUMNS, rms)))
+    return {"frames": len(E), **{c: float(v) for c, v in zip(KINEMATICS_COLUMNS, rms)}}
+
+
+def _knee_curves(session: Session, figure: Path | None) -> dict:
+    """The six curves of a tracked real sequence, their jitter over frames 50-69 (noise SD
+    from second differences, var = 6 sigma^2 for white noise) and, if asked, the figure."""
+    from fluorogui.core.kinematics import KINEMATICS_COLUMNS
+    from fluorogui.workflow.knee_plot import save_kinematics_figure
+
+    rows = session.knee_rows()
+    print("  kinematics (right knee, default anatomical frames): frame " + " ".join(f"{c:>14s}" for c in KINEMATICS_COLUMNS))
+    for row in rows:
+        print(f"    {row.frame:4d} {row.status[:7]:7s} " + " ".join(f"{v:14.2f}" for v in row.values.values()))
+    run = [r for r in rows if 50 <= r.frame <= 69 and r.status == "matched"]
+    jitter = {}
+    if len(run) >= 5 and all(b.frame - a.frame == 1 for a, b in zip(run, run[1:])):
+        V = np.array([r.values.values() for r in run])
+        second = np.diff(V, n=2, axis=0)
+        jitter = {c: float(v) for c, v in zip(KINEMATICS_COLUMNS, np.sqrt((second ** 2).mean(axis=0) / 6.0))}
+        print("  kinematics jitter (frames 50-69): " + ", ".join(f"{c} {v:.3f}" for c, v in jitter.items()))
+    if figure is not None:
+        save_kinematics_figure(rows, figure, side="right", title="biplane-tka")
+        print(f"  figure: {figure}")
+    return {"jitter": jitter, "flexion_range": [float(np.nanmin([r.values.flexion_deg for r in rows])),
+                                                float(np.nanmax([r.values.flexion_deg for r in rows]))]}
 
 
 def bench_real(args) -> dict:
@@ -184,8 +235,9 @@ def bench_real(args) -> dict:
             print(f"  jitter {c:8s} (frames 50-69): centroid x/y/z "
                   + " ".join(f"{v:.3f}" for v in jitter[c][:3]) + " mm, turn about the model's x/y/z "
                   + " ".join(f"{v:.3f}" for v in jitter[c][3:]) + " deg")
+    knee = _knee_curves(session, args.figure)
     print()
-    return {"seconds": wall, **counts, "jitter": jitter, "reasons": reasons}
+    return {"seconds": wall, **counts, "jitter": jitter, "reasons": reasons, "kinematics": knee}
 
 
 def main(argv=None) -> int:
@@ -196,6 +248,7 @@ def main(argv=None) -> int:
     ap.add_argument("--no-occlusion", action="store_true",
                     help="synthetic: track without masking the other component (to compare)")
     ap.add_argument("--json", type=Path, help="write the numbers here")
+    ap.add_argument("--figure", type=Path, help="write the real sequence's kinematics figure here (png/svg/pdf)")
     args = ap.parse_args(argv)
     sections = args.sections or ["demo", "synthetic", "real"]
     if any(s in sections for s in ("synthetic", "real")) and not DATA.is_dir():

@@ -46,6 +46,7 @@ class SessionController(QObject):
     component_changed = Signal(str)
     pose_changed = Signal(int, str)  # frame number, component
     outline_changed = Signal(object, str)  # (frame, view, component) key, component
+    knee_changed = Signal(str)  # "side" or the component whose anatomical frame changed
     dirty_changed = Signal(bool)
     path_changed = Signal(object)
 
@@ -67,6 +68,8 @@ class SessionController(QObject):
             self.pose_changed.emit(int(what[0]), str(what[1]))
         elif event == "outline":
             self.outline_changed.emit(tuple(what), str(what[2]))
+        elif event == "knee":
+            self.knee_changed.emit(str(what))
         elif event == "saved":
             self.path_changed.emit(self.session.path)
 

@@ -29,6 +29,7 @@ from fluorogui import __version__
 from fluorogui.gui import theme
 from fluorogui.gui.controller import SessionController
 from fluorogui.gui.image_panel import ImagePanel, Tool
+from fluorogui.gui.knee_actions import KneeActions
 from fluorogui.gui.match_control import MatchControl
 from fluorogui.gui.matcher_panel import MatcherPanel
 from fluorogui.gui.pose_editor import PoseEditor
@@ -53,7 +54,7 @@ TOOLS = (
 )
 
 
-class MainWindow(SessionFiles, SessionView, MatchControl, QMainWindow):
+class MainWindow(SessionFiles, SessionView, MatchControl, KneeActions, QMainWindow):
     """The fluorogui main window."""
 
     frame_shown = Signal(int)  # frame number, emitted after its images and overlays are on screen
@@ -131,6 +132,8 @@ class MainWindow(SessionFiles, SessionView, MatchControl, QMainWindow):
         self.session_dock = self._dock("Session", self.tree, right, "sessionDock")
         self.tabifyDockWidget(self.matcher_dock, self.pose_dock)
         self.tabifyDockWidget(self.pose_dock, self.session_dock)
+        self._build_knee_dock(right)
+        self.tabifyDockWidget(self.session_dock, self.knee_dock)
         self.matcher_dock.raise_()
         frames = QWidget()
         row = QHBoxLayout(frames)
@@ -175,6 +178,7 @@ class MainWindow(SessionFiles, SessionView, MatchControl, QMainWindow):
         file_menu.addAction(self.save_as_action)
         file_menu.addSeparator()
         file_menu.addAction(self.quit_action)
+        self._knee_menu_actions(file_menu, self.quit_action)
 
         edit_menu = menu.addMenu("&Edit")
         self.undo_action = c.undo_stack.createUndoAction(self, "&Undo")

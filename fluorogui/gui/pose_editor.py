@@ -10,14 +10,14 @@ from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QComboBox, QDoubleSpinBox, QFormLayout, QGridLayout, QLabel, QVBoxLayout, QWidget
 
 AXES = ("x", "y", "z", "alpha", "beta", "gamma")
-AXIS_LABELS = ("x (mm)", "y (mm)", "z (mm)", "α flexion (°)", "β rotation (°)", "γ varus (°)")
+AXIS_LABELS = ("x (mm)", "y (mm)", "z (mm)", "α about x (°)", "β about y (°)", "γ about z (°)")
 AXIS_TIPS = (
     "Translation along the calibration's x axis",
     "Translation along the calibration's y axis",
     "Translation along the calibration's z axis",
-    "Rotation about the model's x axis (applied first, Y-Z-X order)",
-    "Rotation about the y axis (applied last)",
-    "Rotation about the z axis",
+    "Rotation about the calibration's x axis (applied first; R = Ry(β) Rz(γ) Rx(α)); not a knee angle",
+    "Rotation about the calibration's y axis (applied last); not a knee angle",
+    "Rotation about the calibration's z axis; not a knee angle",
 )
 TRANSLATION_STEPS = (0.1, 0.5, 1.0, 5.0, 10.0)
 ROTATION_STEPS = (0.1, 0.5, 1.0, 5.0, 10.0)
@@ -35,6 +35,10 @@ class PoseEditor(QWidget):
         font = self.title.font()
         font.setBold(True)
         self.title.setFont(font)
+        self.frame_note = QLabel("Pose of the model in the calibration frame. Knee angles (flexion, varus, "
+                                 "rotation) are in the Kinematics panel.")
+        self.frame_note.setObjectName("hint")
+        self.frame_note.setWordWrap(True)
         self.spins: list[QDoubleSpinBox] = []
         grid = QGridLayout()
         grid.setHorizontalSpacing(8)
@@ -69,6 +73,7 @@ class PoseEditor(QWidget):
         hint.setObjectName("hint")
         layout = QVBoxLayout(self)
         layout.addWidget(self.title)
+        layout.addWidget(self.frame_note)
         layout.addLayout(grid)
         layout.addLayout(steps_form)
         layout.addWidget(hint)
@@ -81,7 +86,7 @@ class PoseEditor(QWidget):
             spin.setSingleStep(self.translation_step.currentData() if i < 3 else self.rotation_step.currentData())
 
     def set_component(self, name: str | None) -> None:
-        self.title.setText(f"Pose of the {name} component" if name else "No model")
+        self.title.setText(f"Pose of the {name} component (calibration frame)" if name else "No model")
         self.setEnabled(bool(name))
 
     def set_pose(self, pose) -> None:

@@ -110,6 +110,10 @@ class KneeMixin:
                 return check_frame(stored["matrix"])
             except KinematicsError:
                 pass  # a broken stored frame falls back to the default, as if never set
+        return self.default_anatomical_frame(component)
+
+    def default_anatomical_frame(self, component: str) -> np.ndarray:
+        """The frame ``fluorogui.core.anatomy`` finds on the component's mesh (cached)."""
         cache = self.__dict__.setdefault("_default_frames", {})
         if component not in cache:
             vertices, faces = self.raw_mesh(component)

@@ -1,0 +1,102 @@
+"""The Kinematics dock, Export and Import poses in the main window on the demo: values follow
+the frame, the side is a session edit, a click on the curves goes to that frame, exports
+are written and imports land as placed poses."""
+import numpy as np
+import pytest
+
+pytest.importorskip("pytestqt")
+from PySide6.QtWidgets import QDialog  # noqa: E402
+
+from fluorogui.core.session import PoseRecord  # noqa: E402
+from fluorogui.gui.knee_actions import ExportDialog  # noqa: E402
+
+
+def put_truth(session):
+    for frame, by in session.project.settings["demo_truth"].items():
+        for c, pose in by.items():
+            session.project.poses[(int(frame), c)] = PoseRecord(np.asarray(pose, float))
+
+
+def test_dock_shows_the_current_frame_and_follows_clicks(window, demo, qtbot):
+    window.open_project(demo)
+    session = window.session
+    put_truth(session)
+    window.refresh_knee()
+    panel = window.knee_panel
+    row = session.knee_at(window.controller.frame)
+    assert panel.value_labels[0].text() == f"{row.values.flexion_deg:.2f}"
+    assert "Needs review: femoral placed by hand, not matched" in panel.status.text()  # no match record
+    window.controller.set_frame(2)
+    assert panel.value_labels[0].text() == f"{session.knee_at(2).values.flexion_deg:.2f}"
+    qtbot.waitUntil(lambda: len(panel.axes) == 7, timeout=3000)
+    # a click near frame 1 on the flexion curve goes there
+    with qtbot.waitSignal(panel.frame_selected):
+        panel.frame_selected.emit(panel.frame_near(1.2, None, "flexion_deg"))
+    assert window.controller.frame == 1
+    panel.against.setCurrentIndex(1)  # against flexion: the nearest flexion wins
+    flexions = {r.frame: r.values.flexion_deg for r in panel.rows}
+    assert panel.frame_near(flexions[2] + 0.1, None, "varus_deg") == 2
+
+
+def test_side_is_an_undoable_session_setting(window, demo):
+    window.open_project(demo)
+    panel = window.knee_panel
+    assert panel.side.currentData() is None
+    panel.side.setCurrentIndex(2)
+    panel.side.activated.emit(2)
+    assert window.session.side == "left" and window.isWindowModified()
+    window.controller.undo_stack.undo()
+    assert window.session.side is None
+    assert panel.side.currentData() is None
+
+
+def test_missing_poses_say_why(window, demo):
+    window.open_project(demo)
+    window.session.project.poses.clear()
+    window.refresh_knee()
+    assert "No kinematics" in window.knee_panel.status.text()
+    assert window.knee_panel.value_labels[0].text() == "–"
+
+
+def test_export_dialog_writes_the_chosen_files(window, demo, tmp_path, monkeypatch):
+    window.open_project(demo)
+    put_truth(window.session)
+
+    def exec_(dialog):
+        dialog.folder.setText(str(tmp_path / "out"))
+        dialog.checks["tra"].setChecked(True)
+        dialog.checks["plot"].setChecked(True)
+        return QDialog.DialogCode.Accepted
+
+    (tmp_path / "out").mkdir()
+    monkeypatch.setattr(ExportDialog, "exec", exec_)
+    window.export_results()
+    names = sorted(p.name for p in (tmp_path / "out").iterdir())
+    assert names == ["demo.tra", "demo_kinematics.csv", "demo_kinematics.png", "demo_poses.csv"]
+    assert "Exported 4 files" in window.statusBar().currentMessage()
+
+
+def test_export_to_a_missing_folder_gives_one_dialog(window, demo, tmp_path, monkeypatch, dialogs):
+    window.open_project(demo)
+
+    def exec_(dialog):
+        dialog.folder.setText(str(tmp_path / "absent"))
+        return QDialog.DialogCode.Accepted
+
+    monkeypatch.setattr(ExportDialog, "exec", exec_)
+    window.export_results()
+    assert len(dialogs["warning"]) == 1 and "folder does not exist" in dialogs["warning"][0][2]
+
+
+def test_import_poses_lands_as_placed_and_undoes_in_one_step(window, demo, tmp_path):
+    window.open_project(demo)
+    session = window.session
+    put_truth(session)
+    from fluorogui.workflow.exports import export_tra
+
+    export_tra(session, tmp_path / "p.tra")
+    session.project.poses.clear()
+    assert window.import_poses_file(str(tmp_path / "p.tra")) == 2 * len(session.frames)
+    assert all(r.status == "placed" for r in session.project.poses.values())
+    window.controller.undo_stack.undo()
+    assert not session.project.poses
