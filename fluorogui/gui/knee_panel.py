@@ -11,6 +11,7 @@ import numpy as np
 from matplotlib.backends.backend_qtagg import FigureCanvasQTAgg
 from matplotlib.figure import Figure
 from PySide6.QtCore import Qt, QTimer, Signal
+from PySide6.QtGui import QPalette
 from PySide6.QtWidgets import (
     QComboBox,
     QDialog,
@@ -125,7 +126,24 @@ class KneePanel(QWidget):
         side = self.side.currentData() or "right"
         self.axes = draw_kinematics(self.figure, self.rows, side, self.against.currentData(),
                                     current_frame=self.current_frame)
+        self._apply_palette()
         self.canvas.draw_idle()
+
+    def _apply_palette(self) -> None:
+        """Colours of the figure from the widget's palette (light or dark theme)."""
+        palette = self.palette()
+        window, base, text = (palette.color(role).name() for role in (
+            QPalette.ColorRole.Window, QPalette.ColorRole.Base, QPalette.ColorRole.Text))
+        self.figure.set_facecolor(window)
+        if self.figure._suptitle is not None:
+            self.figure._suptitle.set_color(text)
+        for ax in self.axes:
+            ax.set_facecolor(base)
+            ax.title.set_color(text)
+            ax.xaxis.label.set_color(text)
+            ax.tick_params(colors=text)
+            for spine in ax.spines.values():
+                spine.set_color(text)
 
     # -- what the user does ------------------------------------------------------------------------
     def _side_activated(self, _index: int) -> None:

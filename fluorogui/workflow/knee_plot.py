@@ -35,10 +35,11 @@ def draw_kinematics(figure: Figure, rows, side: str = "right", against: str = "f
     Each axes' ``gid`` is its column name, so a click can be mapped back to a frame.
     """
     figure.clear()
+    figure.set_layout_engine("constrained")
     data = kinematics_arrays(rows)
     x = data["frame"] if against == "frame" else data["values"][:, 0]
     x_label = "frame" if against == "frame" else "flexion (°)"
-    grid = figure.add_gridspec(4, 2, height_ratios=[1, 1, 1, 0.7], hspace=0.55, wspace=0.28)
+    grid = figure.add_gridspec(4, 2, height_ratios=[1, 1, 1, 0.7])
     axes = []
     for k, (column, label, unit) in enumerate(zip(KINEMATICS_COLUMNS, KINEMATICS_LABELS, UNITS)):
         ax = figure.add_subplot(grid[k % 3, k // 3])
@@ -53,8 +54,8 @@ def draw_kinematics(figure: Figure, rows, side: str = "right", against: str = "f
             ax.axvline(current_frame, color="0.5", lw=0.8, ls="--")
         if against == "frame":
             ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-        ax.set_title(f"{label} ({unit})", fontsize=9)
-        ax.tick_params(labelsize=8)
+        ax.set_title(f"{label} ({unit})", fontsize=8, pad=2)
+        ax.tick_params(labelsize=7)
         ax.grid(True, alpha=0.3)
         axes.append(ax)
     ax = figure.add_subplot(grid[3, :])
@@ -63,16 +64,16 @@ def draw_kinematics(figure: Figure, rows, side: str = "right", against: str = "f
     if data["review"].any():
         ax.plot(data["frame"][data["review"]], data["residual"][data["review"]], "o", mfc="none",
                 mec=REVIEW_COLOUR, ms=6)
-    ax.set_title("Worst match residual per frame (mm); red rings: needs review", fontsize=9)
-    ax.set_xlabel("frame", fontsize=8)
+    ax.set_title("Worst match residual per frame (mm); red rings: needs review", fontsize=8, pad=2)
+    ax.set_xlabel("frame", fontsize=7)
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-    ax.tick_params(labelsize=8)
+    ax.tick_params(labelsize=7)
     ax.grid(True, alpha=0.3)
     axes.append(ax)
     for ax in axes[2::3][:2]:
-        ax.set_xlabel(x_label, fontsize=8)
+        ax.set_xlabel(x_label, fontsize=7)
     heading = f"Knee kinematics ({side} knee; tibia relative to femur, Grood & Suntay)"
-    figure.suptitle(f"{title}: {heading}" if title else heading, fontsize=10)
+    figure.suptitle(f"{title}: {heading}" if title else heading, fontsize=9)
     return axes
 
 
