@@ -24,6 +24,7 @@ def add_parsers(sub) -> None:
     i.add_argument("--images2", metavar="DIR", help="images of camera 2")
     i.add_argument("--pairs", metavar="CSV", help="frame,cam1,cam2 pairs (instead of --images1/--images2)")
     i.add_argument("--model", action="append", metavar="NAME=MESH", help="femoral=MESH and tibial=MESH")
+    i.add_argument("--side", choices=("right", "left"), help="which knee (sets the signs of the kinematics)")
     i.add_argument("--force", action="store_true", help="replace an existing project file")
     i.set_defaults(func=run_import)
 
@@ -92,6 +93,10 @@ def run_import(args) -> int:
         short = min(range(len(counts)), key=lambda k: counts[k])
         warn(f"camera {short + 1} has {counts[short]} images but the project has {len(project.frames)} frames; "
              f"frames {project.frames[counts[short]]}..{project.frames[-1]} will be flagged when matched")
+    if args.side:
+        from fluorogui.workflow.knee import KNEE_KEY
+
+        project.settings.setdefault(KNEE_KEY, {})["side"] = args.side
     save_project(project, out)
     print(f"wrote {out}: {len(project.frames)} frames, {len(project.views)} views, "
           f"components {', '.join(m.component for m in project.models)}")

@@ -94,9 +94,10 @@ def test_demo_and_import_write_projects(tmp_path, capsys):
     assert main(["demo", str(out)]) == 2 and "already exists" in capsys.readouterr().err
     # the demo folder is laid out like a session folder: import it both ways
     data = tmp_path / "d_data"
-    assert main(["import", str(data), "--out", str(tmp_path / "i.fluoro")]) == 0
+    assert main(["import", str(data), "--out", str(tmp_path / "i.fluoro"), "--side", "left"]) == 0
     imported = load_project(tmp_path / "i.fluoro")
     assert imported.frames == [0, 1] and {m.component for m in imported.models} == {"femoral", "tibial"}
+    assert imported.settings["kinematics"]["side"] == "left"
     assert main(["import", "--out", str(tmp_path / "e.fluoro"),
                  "--camera", str(data / "calibration/cam1.json"), "--camera", str(data / "calibration/cam2.json"),
                  "--images1", str(data / "cam1"), "--images2", str(data / "cam2"),
