@@ -28,6 +28,26 @@ def kinematics_arrays(rows) -> dict[str, np.ndarray]:
     return {"frame": frames, "values": values, "review": review, "residual": residual}
 
 
+def _flagged(ax, x, y, trusted) -> None:
+    """Frames that need review: red rings. The axis range follows the matched frames, so a
+    wrong pose does not flatten the curves; rings beyond it sit on the edge as arrows."""
+    finite = trusted[np.isfinite(trusted)]
+    if len(finite):
+        lo, hi = float(finite.min()), float(finite.max())
+        pad = max(0.12 * (hi - lo), 0.05 * max(abs(lo), abs(hi)), 0.05)
+        lo, hi = lo - pad, hi + pad
+        ax.set_ylim(lo, hi)
+    else:
+        lo, hi = -np.inf, np.inf
+    ok = np.isfinite(y)
+    inside = ok & (y >= lo) & (y <= hi)
+    if inside.any():
+        ax.plot(x[inside], y[inside], "o", mfc="none", mec=REVIEW_COLOUR, ms=6)
+    for mask, edge, marker in ((ok & (y > hi), hi, "^"), (ok & (y < lo), lo, "v")):
+        if mask.any():
+            ax.plot(x[mask], np.full(mask.sum(), edge), marker, color=REVIEW_COLOUR, ms=6, clip_on=False)
+
+
 def draw_kinematics(figure: Figure, rows, side: str = "right", against: str = "frame", title: str = "",
                     current_frame: int | None = None) -> list:
     """Draw on ``figure`` (cleared first); returns the seven axes (six values, residual).
@@ -45,11 +65,12 @@ def draw_kinematics(figure: Figure, rows, side: str = "right", against: str = "f
         ax = figure.add_subplot(grid[k % 3, k // 3])
         ax.set_gid(column)
         y = data["values"][:, k]
-        order = np.argsort(x, kind="stable") if against != "frame" else np.arange(len(x))
-        ax.plot(x[order], y[order], "-", color=LINE_COLOUR, lw=1.2, marker=".", ms=4, picker=5)
         review = data["review"]
-        if review.any():
-            ax.plot(x[review], y[review], "o", mfc="none", mec=REVIEW_COLOUR, ms=6, label="needs review")
+        order = np.argsort(x, kind="stable") if against != "frame" else np.arange(len(x))
+        order = order[~review[order]]  # the line joins the frames that do not need review
+        trusted = np.where(review, np.nan, y)
+        ax.plot(x[order], y[order], "-", color=LINE_COLOUR, lw=1.2, marker=".", ms=4, picker=5)
+        _flagged(ax, x[review], y[review], trusted)
         if current_frame is not None and against == "frame":
             ax.axvline(current_frame, color="0.5", lw=0.8, ls="--")
         if against == "frame":
@@ -60,11 +81,11 @@ def draw_kinematics(figure: Figure, rows, side: str = "right", against: str = "f
         axes.append(ax)
     ax = figure.add_subplot(grid[3, :])
     ax.set_gid("residual_mm")
-    ax.plot(data["frame"], data["residual"], "-", color="0.3", lw=1.0, marker=".", ms=3, picker=5)
+    ax.plot(data["frame"], data["residual"], "-", color="0.5", lw=1.0, marker=".", ms=3, picker=5)
     if data["review"].any():
         ax.plot(data["frame"][data["review"]], data["residual"][data["review"]], "o", mfc="none",
                 mec=REVIEW_COLOUR, ms=6)
-    ax.set_title("Worst match residual per frame (mm); red rings: needs review", fontsize=8, pad=2)
+    ax.set_title("Worst match residual per frame (mm); red rings: needs review (arrows: beyond the axis)", fontsize=8, pad=2)
     ax.set_xlabel("frame", fontsize=7)
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.tick_params(labelsize=7)
@@ -91,6 +112,9 @@ def save_kinematics_figure(rows, path, side: str = "right", against: str = "fram
     draw_kinematics(figure, rows, side, against, title)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
     os.close(fd)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)  # an ordinary new file, not mkstemp's private 0600
     try:
         figure.savefig(tmp, format=path.suffix.lstrip(".").lower())
         os.replace(tmp, path)

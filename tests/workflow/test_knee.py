@@ -12,6 +12,7 @@ import pytest
 from fluorogui.core.kinematics import knee_kinematics, relative_pose_from_kinematics
 from fluorogui.core.pose import matrix_to_pose, pose_to_matrix
 from fluorogui.core.session import NEEDS_REVIEW, PoseRecord
+from fluorogui.io.errors import InputError
 from fluorogui.workflow import Session
 from fluorogui.workflow.exports import (
     export_jts,
@@ -163,3 +164,18 @@ def test_export_refuses_an_unwritable_path_before_work(demo, tmp_path):
     run = subprocess.run([sys.executable, "-m", "fluorogui", "export", str(demo), "--jts", str(tmp_path / "j")],
                          capture_output=True, text=True)
     assert run.returncode == 2 and "--jts and --view go together" in run.stderr
+
+
+@pytest.mark.parametrize("suffix, magic", [(".png", b"\x89PNG"), (".svg", b"<?xml"), (".pdf", b"%PDF")])
+def test_figure_export_formats(demo, truth, tmp_path, suffix, magic):
+    from fluorogui.workflow.exports import export_plot
+
+    session = Session.open(demo)
+    put_truth(session, truth)
+    out = tmp_path / "out"
+    out.mkdir()
+    path = export_plot(session, out / f"k{suffix}", against="flexion")
+    assert path.read_bytes()[:len(magic)] == magic
+    assert [p.name for p in out.iterdir()] == [f"k{suffix}"]  # no temporary left
+    with pytest.raises(InputError, match="must be .png, .svg or .pdf"):
+        export_plot(session, out / "k.jpg")
