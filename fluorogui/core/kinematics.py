@@ -149,3 +149,32 @@ def relative_pose_from_kinematics(values, side: str = "right") -> np.ndarray:
     out[:3, :3] = R
     out[:3, 3] = np.column_stack([e1, e2, e3]) @ q
     return out
+
+
+def kinematics_sd(femoral_pose, tibial_pose, femoral_frame, tibial_frame, side: str,
+                  femoral_sd, tibial_sd, pose_matrix) -> np.ndarray:
+    """Standard deviations of the six values from the poses' own (independent) SDs, by
+    first-order propagation through central differences of the pose parameters.
+
+    ``pose_matrix`` maps a 6-vector pose (mm, degrees) to its 4×4 (passed in so this module
+    needs no pose convention); NaN where an SD is missing.
+    """
+    poses = [np.asarray(femoral_pose, dtype=float), np.asarray(tibial_pose, dtype=float)]
+    sds = [np.asarray(femoral_sd, dtype=float).reshape(6), np.asarray(tibial_sd, dtype=float).reshape(6)]
+    if not all(np.all(np.isfinite(s)) for s in sds):
+        return np.full(6, np.nan)
+    frames = [femoral_frame, tibial_frame]
+
+    def values(p0, p1) -> np.ndarray:
+        return knee_kinematics(pose_matrix(p0), pose_matrix(p1), frames[0], frames[1], side).values()
+
+    variance = np.zeros(6)
+    for which in (0, 1):
+        for k in range(6):
+            step = 1e-4
+            plus, minus = [p.copy() for p in poses], [p.copy() for p in poses]
+            plus[which][k] += step
+            minus[which][k] -= step
+            derivative = (values(*plus) - values(*minus)) / (2 * step)
+            variance += (derivative * sds[which][k]) ** 2
+    return np.sqrt(variance)

@@ -36,7 +36,7 @@ from fluorogui.io.pose_files import (
     write_jts,
     write_tra,
 )
-from fluorogui.workflow.knee import KNEE_COMPONENTS, KneeRow
+from fluorogui.workflow.knee import KNEE_COMPONENTS, KneeRow, record_sd
 
 POSE_CONVENTION = ("pose x, y, z (mm), alpha, beta, gamma (deg) of the model in the calibration (world) frame: "
                    "X = R m + t, R = Ry(beta) Rz(gamma) Rx(alpha); m00..m33 the same pose as a 4x4 "
@@ -65,18 +65,6 @@ def header_lines(session, what: str) -> list[str]:
     return lines
 
 
-def _sd(record: PoseRecord | None) -> list[float]:
-    """The six standard deviations of a match, NaN where the match gives none."""
-    if record is None or record.match is None:
-        return [float("nan")] * 6
-    sd = getattr(record.match, "sd", None)
-    if sd is None and isinstance(record.match.quality, dict):
-        sd = record.match.quality.get("sd")
-    if sd is None or len(sd) != 6:
-        return [float("nan")] * 6
-    return [float(v) for v in sd]
-
-
 def pose_columns(views: int) -> list[str]:
     columns = ["frame", "status", "reason"]
     for c in KNEE_COMPONENTS:
@@ -84,7 +72,7 @@ def pose_columns(views: int) -> list[str]:
                     *(f"{c}_m{r}{k}" for r in range(4) for k in range(4)),
                     f"{c}_objective_mm", *(f"{c}_view{v + 1}_mm" for v in range(views)),
                     *(f"{c}_{k}" for k in SD_KEYS)]
-    return columns + list(KINEMATICS_COLUMNS)
+    return columns + list(KINEMATICS_COLUMNS) + [f"{c}_sd" for c in KINEMATICS_COLUMNS]
 
 
 def pose_rows(session, rows: list[KneeRow]) -> list[list]:
@@ -103,8 +91,8 @@ def pose_rows(session, rows: list[KneeRow]) -> list[list]:
             cells += [record.status + (" (reviewed)" if record.reviewed else ""),
                       *(float(v) for v in record.pose), *(float(v) for v in pose_to_matrix(record.pose).reshape(16)),
                       float(match.objective_mm) if match is not None else float("nan"),
-                      *(float(v) for v in per_view), *_sd(record)]
-        cells += [float(v) for v in row.values.values()]
+                      *(float(v) for v in per_view), *(float(v) for v in record_sd(record))]
+        cells += [float(v) for v in row.values.values()] + [float(v) for v in row.sd]
         out.append(cells)
     return out
 

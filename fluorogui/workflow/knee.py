@@ -23,6 +23,7 @@ from fluorogui.core.kinematics import (
     KneeKinematics,
     check_frame,
     check_side,
+    kinematics_sd,
     knee_kinematics,
 )
 from fluorogui.core.pose import pose_to_matrix
@@ -42,6 +43,21 @@ class KneeRow:
     status: str  # "matched", "needs_review" or "missing"
     reason: str = ""
     records: dict = field(default_factory=dict)  # component -> PoseRecord or None
+    sd: np.ndarray = field(default_factory=lambda: np.full(6, np.nan))  # of the six values, from the matches
+
+
+def record_sd(record: PoseRecord | None) -> np.ndarray:
+    """The six pose SDs a match reported (mm, degrees), NaN where it reported none."""
+    if record is None or record.match is None:
+        return np.full(6, np.nan)
+    sd = getattr(record.match, "sd", None)
+    if sd is None and isinstance(record.match.quality, dict):
+        sd = record.match.quality.get("sd")
+    try:
+        sd = np.asarray(sd, dtype=float).reshape(6)
+    except (TypeError, ValueError):
+        return np.full(6, np.nan)
+    return sd
 
 
 def row_status(records: dict) -> tuple[str, str]:
@@ -143,12 +159,16 @@ class KneeMixin:
         for frame in (self.frames if frames is None else frames):
             records = {c: self.project.poses.get((frame, c)) for c in KNEE_COMPONENTS}
             status, reason = row_status(records)
+            sd = np.full(6, np.nan)
             if status == "missing":
                 values = KneeKinematics.missing()
             else:
-                values = knee_kinematics(pose_to_matrix(records["femoral"].pose), pose_to_matrix(records["tibial"].pose),
-                                         anat["femoral"], anat["tibial"], side)
-            rows.append(KneeRow(frame, values, status, reason, records))
+                femur, tibia = records["femoral"].pose, records["tibial"].pose
+                values = knee_kinematics(pose_to_matrix(femur), pose_to_matrix(tibia), anat["femoral"], anat["tibial"],
+                                         side)
+                sd = kinematics_sd(femur, tibia, anat["femoral"], anat["tibial"], side,
+                                   record_sd(records["femoral"]), record_sd(records["tibial"]), pose_to_matrix)
+            rows.append(KneeRow(frame, values, status, reason, records, sd))
         return rows
 
     def knee_at(self, frame: int) -> KneeRow:

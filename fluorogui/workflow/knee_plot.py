@@ -20,12 +20,13 @@ def kinematics_arrays(rows) -> dict[str, np.ndarray]:
     frames = np.array([r.frame for r in rows], dtype=float)
     values = np.array([r.values.values() for r in rows], dtype=float).reshape(len(rows), 6)
     review = np.array([r.status == "needs_review" for r in rows], dtype=bool)
+    sd = np.array([getattr(r, "sd", np.full(6, np.nan)) for r in rows], dtype=float).reshape(len(rows), 6)
     residual = np.full(len(rows), np.nan)
     for i, r in enumerate(rows):
         objectives = [rec.match.objective_mm for rec in r.records.values() if rec is not None and rec.match is not None]
         if objectives:
             residual[i] = max(objectives)
-    return {"frame": frames, "values": values, "review": review, "residual": residual}
+    return {"frame": frames, "values": values, "review": review, "residual": residual, "sd": sd}
 
 
 def _flagged(ax, x, y, trusted) -> None:
@@ -70,6 +71,9 @@ def draw_kinematics(figure: Figure, rows, side: str = "right", against: str = "f
         order = order[~review[order]]  # the line joins the frames that do not need review
         trusted = np.where(review, np.nan, y)
         ax.plot(x[order], y[order], "-", color=LINE_COLOUR, lw=1.2, marker=".", ms=4, picker=5)
+        band = data["sd"][order, k]
+        if np.isfinite(band).any():  # ±2 SD from the matches' own uncertainty
+            ax.fill_between(x[order], y[order] - 2 * band, y[order] + 2 * band, color=LINE_COLOUR, alpha=0.2, lw=0)
         _flagged(ax, x[review], y[review], trusted)
         if current_frame is not None and against == "frame":
             ax.axvline(current_frame, color="0.5", lw=0.8, ls="--")

@@ -144,3 +144,22 @@ def test_frames_that_are_not_rigid_are_refused(matrix, words):
 def test_a_rotation_within_tolerance_is_accepted():
     R = Rotation.from_euler("xyz", [10, 20, 30], degrees=True).as_matrix()
     assert check_frame(frame(R + 1e-8))[0, 0] == pytest.approx(R[0, 0] + 1e-8)
+
+
+def test_sd_propagation_matches_a_monte_carlo_spread():
+    from fluorogui.core.kinematics import kinematics_sd
+    from fluorogui.core.pose import matrix_to_pose, pose_to_matrix
+
+    femur = np.array([10.0, -20.0, 30.0, 40.0, 50.0, 20.0])
+    tibia = matrix_to_pose(pose_to_matrix(femur) @ relative_pose_from_kinematics([60, 2, 8, 1, 3, 35]))
+    sd_f = np.array([0.05, 0.2, 0.05, 0.05, 0.1, 0.05])
+    sd_t = np.array([0.08, 0.1, 0.3, 0.1, 0.05, 0.2])
+    eye = np.eye(4)
+    predicted = kinematics_sd(femur, tibia, eye, eye, "right", sd_f, sd_t, pose_to_matrix)
+    rng = np.random.default_rng(3)
+    samples = np.array([knee_kinematics(pose_to_matrix(femur + rng.normal(size=6) * sd_f),
+                                        pose_to_matrix(tibia + rng.normal(size=6) * sd_t), eye, eye).values()
+                        for _ in range(4000)])
+    observed = samples.std(axis=0)
+    assert predicted == pytest.approx(observed, rel=0.06)  # 4000 samples: SD known to about 2 %
+    assert np.all(np.isnan(kinematics_sd(femur, tibia, eye, eye, "right", sd_f, [np.nan] * 6, pose_to_matrix)))

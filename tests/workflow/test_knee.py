@@ -179,3 +179,20 @@ def test_figure_export_formats(demo, truth, tmp_path, suffix, magic):
     assert [p.name for p in out.iterdir()] == [f"k{suffix}"]  # no temporary left
     with pytest.raises(InputError, match="must be .png, .svg or .pdf"):
         export_plot(session, out / "k.jpg")
+
+
+def test_match_sds_become_kinematics_sds_and_export_columns(demo, truth, tmp_path):
+    from fluorogui.core.session import MatchRecord
+
+    session = Session.open(demo)
+    for c, pose in truth(session)[1].items():
+        match = MatchRecord(0.05, [0.05, 0.05], 10, 0.1, True, "fast", quality={"sd": [0.01, 0.02, 0.01, 0.03, 0.02, 0.01]})
+        session.project.poses[(1, c)] = PoseRecord(pose, match)
+    row = session.knee_at(1)
+    assert row.status == "matched" and np.all(np.isfinite(row.sd)) and np.all(row.sd > 0)
+    export_poses_csv(session, tmp_path / "p.csv")
+    lines = [line for line in (tmp_path / "p.csv").read_text().splitlines() if not line.startswith("#")]
+    header = lines[0].split(",")
+    one = dict(zip(header, lines[2].split(",")))
+    assert float(one["femoral_sd_y"]) == pytest.approx(0.02)
+    assert float(one["flexion_deg_sd"]) == pytest.approx(row.sd[0])
