@@ -44,11 +44,12 @@ from fluorogui.core.session import (
     Project,
     SplineRecord,
 )
-from fluorogui.io.errors import InputError, atomic_write_text, describe_os_error
+from fluorogui.io.errors import InputError, atomic_write_text, clean_stale_temps, read_input_bytes
 
 PROJECT_FORMAT = "fluorogui-project"
 PROJECT_SUFFIX = ".fluoro"
 SCHEMA_VERSION = 3
+MAX_PROJECT_BYTES = 1 << 30  # 1 GiB
 
 
 class _Malformed(Exception):
@@ -118,16 +119,12 @@ def upgrade(document: dict) -> dict:
 def load_project(path) -> Project:
     """Read a ``.fluoro`` project file; paths in it are resolved against its folder."""
     path = Path(path)
-    if not path.exists():
-        raise InputError(path, "file not found")
-    if path.is_dir():
-        raise InputError(path, "is a folder, not a project file")
+    raw = read_input_bytes(path, "project file", MAX_PROJECT_BYTES)
+    clean_stale_temps(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = raw.decode("utf-8")
     except UnicodeDecodeError:
         raise InputError(path, "not a fluorogui project (not a text file)") from None
-    except OSError as exc:
-        raise InputError(path, f"cannot read the file: {describe_os_error(exc)}") from None
     try:
         document = json.loads(text)
     except json.JSONDecodeError:
