@@ -26,16 +26,15 @@ from __future__ import annotations
 
 import copy
 import json
-import math
 import os
 from pathlib import Path, PurePosixPath
 
 import numpy as np
+from pydantic import ValidationError
 
 from fluorogui import __version__
 from fluorogui.core.geometry import GeometryError, View
 from fluorogui.core.session import (
-    POSE_STATUSES,
     ImageSequence,
     MatchRecord,
     ModelEntry,
@@ -45,6 +44,8 @@ from fluorogui.core.session import (
     SplineRecord,
 )
 from fluorogui.io.errors import InputError, atomic_write_text, clean_stale_temps, read_input_bytes
+from fluorogui.io.schema import DocumentError, ProjectDocument, check_settings, describe, parse_json
+from fluorogui.logs import log_exception
 
 PROJECT_FORMAT = "fluorogui-project"
 PROJECT_SUFFIX = ".fluoro"
@@ -117,7 +118,9 @@ def upgrade(document: dict) -> dict:
 
 # -- public API -----------------------------------------------------------------------------------
 def load_project(path) -> Project:
-    """Read a ``.fluoro`` project file; paths in it are resolved against its folder."""
+    """Read a ``.fluoro`` project file; paths in it are resolved against its folder.
+
+    Every problem, whatever the file holds, is one InputError naming the file and the field."""
     path = Path(path)
     raw = read_input_bytes(path, "project file", MAX_PROJECT_BYTES)
     clean_stale_temps(path)
@@ -126,9 +129,20 @@ def load_project(path) -> Project:
     except UnicodeDecodeError:
         raise InputError(path, "not a fluorogui project (not a text file)") from None
     try:
-        document = json.loads(text)
-    except json.JSONDecodeError:
-        raise InputError(path, "file is truncated or not valid JSON") from None
+        return _project_from_text(text, path)
+    except InputError:
+        raise
+    except (RecursionError, ValueError, OverflowError, TypeError, KeyError, IndexError, AttributeError,
+            MemoryError) as exc:  # a check we lack: refuse the file, keep the traceback in the log
+        log_exception(f"unexpected problem in project {path}")
+        raise InputError(path, f"malformed project file ({type(exc).__name__})") from None
+
+
+def _project_from_text(text: str, path: Path) -> Project:
+    try:
+        document = parse_json(text)
+    except DocumentError as exc:
+        raise InputError(path, str(exc)) from None
     if not isinstance(document, dict) or document.get("format") != PROJECT_FORMAT:
         raise InputError(path, "not a fluorogui project")
     version = document.get("schema_version")
@@ -260,107 +274,55 @@ def _relative(p: Path, base: Path) -> str:
 
 # -- document -> Project --------------------------------------------------------------------------
 def project_from_document(document: dict, base: Path) -> Project:
-    """A Project from a current-schema document; relative paths are joined to ``base``."""
+    """A Project from a current-schema document (checked against ``ProjectDocument`` and its
+    invariants); relative paths are joined to ``base``. Raises _Malformed naming the field."""
+    try:
+        doc = ProjectDocument.model_validate(document)
+    except ValidationError as exc:
+        raise _Malformed(describe(exc)) from None
+    try:
+        check_settings(doc.settings)
+    except ValidationError as exc:
+        raise _Malformed(describe(exc, "settings")) from None
     views = []
-    for i, raw in enumerate(_get(document, "views", "", list)):
-        if not isinstance(raw, dict):
-            raise _Malformed(f"'views[{i}]' must be an object")
+    for i, raw in enumerate(doc.views):
         try:
-            views.append(View.from_dict(raw))
+            views.append(View.from_dict(raw.model_dump()))
         except GeometryError as exc:
             raise _Malformed(f"'views[{i}]': {exc}") from None
-    sequences = []
-    for i, raw in enumerate(_get(document, "sequences", "", list)):
-        where = f"sequences[{i}]"
-        paths = _get(_object(raw, where), "paths", where, list)
-        sequences.append(ImageSequence([_absolute(_string(p, f"{where}.paths"), base) for p in paths]))
-    frames = [_integer(f, "frames") for f in _get(document, "frames", "", list)]
-    models = []
-    for i, raw in enumerate(_get(document, "models", "", list)):
-        where = f"models[{i}]"
-        raw = _object(raw, where)
-        models.append(
-            ModelEntry(
-                component=_get(raw, "component", where, str),
-                mesh_path=_absolute(_get(raw, "mesh_path", where, str), base),
-                point_density=_integer(_get(raw, "point_density", where), f"{where}.point_density"),
-                local_frame=_array(_get(raw, "local_frame", where), f"{where}.local_frame", (4, 4)),
-            )
-        )
     records = {}
-    for i, raw in enumerate(_get(document, "records", "", list)):
-        where = f"records[{i}]"
-        raw = _object(raw, where)
-        key = (
-            _integer(_get(raw, "frame", where), f"{where}.frame"),
-            _integer(_get(raw, "view", where), f"{where}.view"),
-            _get(raw, "component", where, str),
-        )
-        if views and not 0 <= key[1] < len(views):
-            raise _Malformed(f"'{where}.view' is {key[1]} but the project has {len(views)} views")
+    for i, raw in enumerate(doc.records):
+        key = (raw.frame, raw.view, raw.component)
         if key in records:
-            raise _Malformed(f"'{where}' repeats the outline of frame {key[0]}, view {key[1]}, {key[2]}")
-        spline = _get(raw, "spline", where)
+            raise _Malformed(f"'records[{i}]' repeats the outline of frame {key[0]}, view {key[1]}, {key[2]}")
+        spline = raw.spline
         records[key] = OutlineRecord(
-            points=_array(_get(raw, "points", where), f"{where}.points", (None, 2)),
-            spline=None if spline is None else _spline_from_dict(_object(spline, f"{where}.spline"), f"{where}.spline"),
-            reviewed=_get(raw, "reviewed", where, bool),
+            points=np.array(raw.points, dtype=float).reshape(-1, 2),
+            spline=None if spline is None else SplineRecord(np.array(spline.knots), np.array(spline.coefficients),
+                                                            spline.degree, tuple(spline.t_range)),
+            reviewed=raw.reviewed,
         )
     poses = {}
-    for i, raw in enumerate(_get(document, "poses", "", list)):
-        where = f"poses[{i}]"
-        raw = _object(raw, where)
-        key = (_integer(_get(raw, "frame", where), f"{where}.frame"), _get(raw, "component", where, str))
+    for i, raw in enumerate(doc.poses):
+        key = (raw.frame, raw.component)
         if key in poses:
-            raise _Malformed(f"'{where}' repeats the pose of frame {key[0]}, {key[1]}")
-        match = _get(raw, "match", where)
-        status = _get(raw, "status", where, str)
-        if status not in POSE_STATUSES:
-            raise _Malformed(f"'{where}.status' is {status!r}; it must be one of {', '.join(POSE_STATUSES)}")
+            raise _Malformed(f"'poses[{i}]' repeats the pose of frame {key[0]}, {key[1]}")
         poses[key] = PoseRecord(
-            pose=_array(_get(raw, "pose", where), f"{where}.pose", (6,)),
-            match=None if match is None else _match_from_dict(_object(match, f"{where}.match"), f"{where}.match"),
-            reviewed=_optional_bool(raw, "reviewed", where),
-            status=status,
-            reason=_get(raw, "reason", where, str),
+            pose=np.array(raw.pose, dtype=float),
+            match=None if raw.match is None else MatchRecord(**raw.match.model_dump()),
+            reviewed=raw.reviewed,
+            status=raw.status,
+            reason=raw.reason,
         )
     return Project(
         views=views,
-        sequences=sequences,
-        frames=frames,
-        models=models,
+        sequences=[ImageSequence([_absolute(p, base) for p in seq.paths]) for seq in doc.sequences],
+        frames=list(doc.frames),
+        models=[ModelEntry(m.component, _absolute(m.mesh_path, base), m.point_density, np.array(m.local_frame))
+                for m in doc.models],
         records=records,
         poses=poses,
-        settings=_get(document, "settings", "", dict),
-    )
-
-
-def _optional_bool(container: dict, key: str, where: str) -> bool:
-    """A flag added within schema 2 (older files lack it: False)."""
-    return bool(_get(container, key, where, bool)) if key in container else False
-
-
-def _spline_from_dict(raw: dict, where: str) -> SplineRecord:
-    t_range = _array(_get(raw, "t_range", where), f"{where}.t_range", (2,))
-    return SplineRecord(
-        knots=_array(_get(raw, "knots", where), f"{where}.knots", (None,)),
-        coefficients=_array(_get(raw, "coefficients", where), f"{where}.coefficients", (None, None)),
-        degree=_integer(_get(raw, "degree", where), f"{where}.degree"),
-        t_range=(float(t_range[0]), float(t_range[1])),
-    )
-
-
-def _match_from_dict(raw: dict, where: str) -> MatchRecord:
-    return MatchRecord(
-        objective_mm=_number(_get(raw, "objective_mm", where), f"{where}.objective_mm"),
-        per_view_mean_mm=[float(v) for v in _array(_get(raw, "per_view_mean_mm", where), f"{where}.per_view_mean_mm", (None,))],
-        calls=_integer(_get(raw, "calls", where), f"{where}.calls"),
-        seconds=_number(_get(raw, "seconds", where), f"{where}.seconds"),
-        converged=_get(raw, "converged", where, bool),
-        method=_get(raw, "method", where, str),
-        settings=_get(raw, "settings", where, dict),
-        quality=_get(raw, "quality", where, dict) if "quality" in raw else {},
-        history=[float(v) for v in _array(raw["history"], f"{where}.history", (None,))] if "history" in raw else [],
+        settings=document["settings"],
     )
 
 
@@ -388,36 +350,3 @@ def _object(value, where: str) -> dict:
     if not isinstance(value, dict):
         raise _Malformed(f"'{where}' must be an object")
     return value
-
-
-def _string(value, where: str) -> str:
-    if not isinstance(value, str):
-        raise _Malformed(f"'{where}' must hold texts")
-    return value
-
-
-def _integer(value, where: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise _Malformed(f"'{where}' must be a whole number")
-    return value
-
-
-def _number(value, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise _Malformed(f"'{where}' must be a finite number")
-    return float(value)
-
-
-def _array(value, where: str, shape: tuple) -> np.ndarray:
-    try:
-        array = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise _Malformed(f"'{where}' must be a regular array of numbers") from None
-    if array.size == 0 and len(shape) == 2 and shape[1] is not None:
-        array = array.reshape(0, shape[1])  # an empty point list
-    if array.ndim != len(shape) or any(s is not None and s != n for s, n in zip(shape, array.shape)):
-        wanted = "x".join("N" if s is None else str(s) for s in shape)
-        raise _Malformed(f"'{where}' must be a {wanted} array, got shape {array.shape}")
-    if not np.all(np.isfinite(array)):
-        raise _Malformed(f"'{where}' contains NaN or infinite numbers")
-    return array

@@ -1,0 +1,325 @@
+"""The schemas of fluorogui's own file formats, checked once at the boundary (pydantic v2).
+
+* ``ProjectDocument``: a ``.fluoro`` project of the current schema (``io.project``);
+* ``CalibrationDocument``: a fluorogui calibration JSON (``io.calibration``);
+* ``PairRow`` / ``ReferencePoseRow``: rows of a pairs CSV and of a reference-pose CSV.
+
+Every model is strict: numbers must be JSON numbers (``"12"`` is refused), finite, and in
+a stated range; lists have bounded lengths. Cross-field invariants (counts agree, the
+frames, views and components referred to exist) are model validators. ``parse_json`` reads
+a document with limits on nesting, integer digits and NaN/Infinity before anything else
+sees it, and ``describe`` turns a pydantic ``ValidationError`` into one line naming the
+field. Nothing here knows about paths on disk or numpy: ``io.project`` converts.
+"""
+from __future__ import annotations
+
+import json
+import math
+import re
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+MAX_NESTING = 64  # a project is 6 deep; a file nested deeper is not ours
+MAX_INTEGER_DIGITS = 30
+MAX_VIEWS = 16
+MAX_FRAMES = 1_000_000
+MAX_OUTLINE_POINTS = 1_000_000
+MAX_TEXT = 4096  # names, paths, reasons
+POSE_STATUSES = ("matched", "needs_review", "failed", "placed")  # = core.session.POSE_STATUSES
+
+
+class DocumentError(ValueError):
+    """A document that is not valid JSON within our limits; the message says why."""
+
+
+# -- reading JSON within limits -----------------------------------------------------------------
+_TOKENS = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}]')
+
+
+def nesting_depth(text: str, limit: int = MAX_NESTING) -> int:
+    """The deepest nesting of ``[`` / ``{`` in JSON ``text`` (strings skipped); stops counting
+    once ``limit`` is passed so a hostile file costs no more than a scan."""
+    depth = deepest = 0
+    for match in _TOKENS.finditer(text):
+        token = match.group()
+        if token in "[{":
+            depth += 1
+            if depth > deepest:
+                deepest = depth
+                if deepest > limit:
+                    return deepest
+        elif token in "]}":
+            depth -= 1
+    return deepest
+
+
+def _parse_int(text: str) -> int:
+    if len(text.lstrip("-")) > MAX_INTEGER_DIGITS:
+        raise DocumentError(f"a whole number with {len(text)} digits")
+    return int(text)
+
+
+def _parse_float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise DocumentError(f"the number {text[:20]} is too large")
+    return value
+
+
+def _parse_constant(text: str):
+    raise DocumentError(f"{text} is not a number JSON allows")
+
+
+def parse_json(text: str, limit: int = MAX_NESTING) -> Any:
+    """JSON ``text`` as Python data; DocumentError when it is malformed, nested more than
+    ``limit`` deep, or holds NaN, Infinity, huge integers or overflowing numbers."""
+    if nesting_depth(text, limit) > limit:
+        raise DocumentError(f"nested more than {limit} levels deep")
+    try:
+        return json.loads(text, parse_int=_parse_int, parse_float=_parse_float, parse_constant=_parse_constant)
+    except DocumentError:
+        raise
+    except (ValueError, RecursionError):  # JSONDecodeError is a ValueError
+        raise DocumentError("file is truncated or not valid JSON") from None
+
+
+_KINDS = {
+    "float_type": "a number", "int_type": "a whole number", "int_from_float": "a whole number",
+    "finite_number": "a finite number", "bool_type": "true or false", "string_type": "a text",
+    "dict_type": "an object", "model_type": "an object", "model_attributes_type": "an object",
+    "list_type": "a list", "none_required": "null",
+}
+_LIMITS = {"greater_than": ">", "greater_than_equal": ">=", "less_than": "<", "less_than_equal": "<="}
+
+
+def _shown(value) -> str:
+    if isinstance(value, (dict, list)):
+        return "an object" if isinstance(value, dict) else f"a list of {len(value)}"
+    return repr(value)[:40]
+
+
+def describe(error: ValidationError, prefix: str = "") -> str:
+    """The first problem of a ValidationError as ``field 'a.b[2]' must be ...``, in plain words."""
+    first = error.errors(include_url=False)[0]
+    where = prefix
+    for part in first["loc"]:
+        if isinstance(part, int):
+            where += f"[{part}]"
+        elif str(part) and not str(part).startswith("function-"):
+            where += f".{part}" if where else str(part)
+    kind, ctx, value = first["type"], first.get("ctx", {}), first.get("input")
+    field = f"field '{where}'" if where else "the document"
+    if kind == "missing":
+        return f"missing field '{where}'"
+    if kind in _KINDS:
+        return f"{field} must be {_KINDS[kind]}, not {_shown(value)}"
+    if kind in _LIMITS:
+        limit = next(iter(ctx.values()), "?")
+        return f"{field} must be {_LIMITS[kind]} {limit}, not {_shown(value)}"
+    if kind == "too_short":
+        return f"{field} has {ctx.get('actual_length', '?')} values, fewer than the {ctx.get('min_length')} it needs"
+    if kind == "too_long":
+        return f"{field} has {ctx.get('actual_length', '?')} values, more than the {ctx.get('max_length')} allowed"
+    if kind == "string_too_long":
+        return f"{field} is longer than {ctx.get('max_length')} characters"
+    if kind == "string_too_short":
+        return f"{field} must not be empty"
+    if kind == "literal_error":
+        return f"{field} must be {ctx.get('expected', '?')}, not {_shown(value)}"
+    message = first["msg"].removeprefix("Value error, ")
+    return f"field '{where}': {message}" if where else message
+
+
+# -- field types ------------------------------------------------------------------------------
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+NonNegative = Annotated[float, Field(allow_inf_nan=False, ge=0)]
+Positive = Annotated[float, Field(allow_inf_nan=False, gt=0)]
+Coordinate = Annotated[float, Field(allow_inf_nan=False, ge=-1e7, le=1e7)]  # mm or px
+Count = Annotated[int, Field(ge=0, le=10**12)]
+FrameNumber = Annotated[int, Field(ge=0, le=10**9)]
+Text = Annotated[str, Field(max_length=MAX_TEXT)]
+Name = Annotated[str, Field(min_length=1, max_length=200)]
+
+
+def fixed(n: int, item=Finite):
+    """A list of exactly ``n`` items."""
+    return Annotated[list[item], Field(min_length=n, max_length=n)]
+
+
+def bounded(item, most: int, least: int = 0):
+    return Annotated[list[item], Field(min_length=least, max_length=most)]
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(strict=True, extra="ignore", frozen=False)
+
+
+# -- views / calibrations --------------------------------------------------------------------------
+class ViewDocument(_Strict):
+    """``View.to_dict()``; the geometry itself (unit, orthogonal axes) is checked by View."""
+
+    name: Text = ""
+    source_mm: fixed(3, Coordinate)
+    normal: fixed(3)
+    e_u: fixed(3)
+    e_v: fixed(3)
+    distance_mm: Annotated[float, Field(allow_inf_nan=False, gt=0, le=1e5)]
+    pitch_mm: fixed(2, Annotated[float, Field(allow_inf_nan=False, gt=0, le=100)])
+    principal_point_px: fixed(2, Coordinate)
+    image_size_px: fixed(2, Annotated[int, Field(ge=1, le=100_000)])
+
+
+class CalibrationDocument(_Strict):
+    format: Literal["fluorogui-calibration"]
+    version: Annotated[int, Field(ge=1, le=10**6)]
+    view: ViewDocument
+
+
+# -- projects ---------------------------------------------------------------------------------
+class SequenceDocument(_Strict):
+    paths: bounded(Text, MAX_FRAMES)
+
+
+class ModelDocument(_Strict):
+    component: Name
+    mesh_path: Text
+    point_density: Annotated[int, Field(ge=10, le=10_000_000)]
+    local_frame: fixed(4, fixed(4))
+
+
+class SplineDocument(_Strict):
+    knots: bounded(Finite, MAX_OUTLINE_POINTS, 2)
+    coefficients: fixed(2, bounded(Finite, MAX_OUTLINE_POINTS, 1))
+    degree: Annotated[int, Field(ge=1, le=5)]
+    t_range: fixed(2)
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        n = len(self.coefficients[0])
+        if len(self.coefficients[1]) != n:
+            raise ValueError("coefficients: the u and v rows differ in length")
+        if len(self.knots) != n + self.degree + 1:
+            raise ValueError(f"{len(self.knots)} knots do not fit {n} coefficients of degree {self.degree}")
+        if not self.t_range[0] < self.t_range[1]:
+            raise ValueError("t_range must increase")
+        return self
+
+
+class RecordDocument(_Strict):
+    frame: FrameNumber
+    view: Annotated[int, Field(ge=0, lt=MAX_VIEWS)]
+    component: Name
+    points: bounded(fixed(2, Coordinate), MAX_OUTLINE_POINTS)
+    spline: SplineDocument | None
+    reviewed: bool
+
+
+class MatchDocument(_Strict):
+    objective_mm: NonNegative
+    per_view_mean_mm: bounded(NonNegative, MAX_VIEWS)
+    calls: Count
+    seconds: NonNegative
+    converged: bool
+    method: Text
+    settings: dict[str, Any]
+    quality: dict[str, Any] = Field(default_factory=dict)
+    history: bounded(Finite, 10**6) = Field(default_factory=list)
+
+
+class PoseDocument(_Strict):
+    frame: FrameNumber
+    component: Name
+    pose: fixed(6, Coordinate)
+    match: MatchDocument | None
+    reviewed: bool = False
+    status: Literal[POSE_STATUSES]
+    reason: Text
+
+
+class SettingsDocument(_Strict):
+    """Free-form settings; the parts fluorogui reads must have the right kind."""
+
+    model_config = ConfigDict(strict=True, extra="allow")
+    gui: dict[str, Any] = Field(default_factory=dict)
+    workflow: dict[str, dict[str, Any]] = Field(default_factory=dict)
+
+
+class ProjectDocument(_Strict):
+    format: Literal["fluorogui-project"]
+    schema_version: Annotated[int, Field(ge=1)]
+    app_version: Text = ""
+    views: bounded(ViewDocument, MAX_VIEWS)
+    sequences: bounded(SequenceDocument, MAX_VIEWS)
+    frames: bounded(FrameNumber, MAX_FRAMES)
+    models: bounded(ModelDocument, 64)
+    records: bounded(RecordDocument, 10**7)
+    poses: bounded(PoseDocument, 10**7)
+    settings: dict[str, Any]
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        if len(self.sequences) != len(self.views):
+            raise ValueError(f"{len(self.views)} views but {len(self.sequences)} image sequences")
+        if len(set(self.frames)) != len(self.frames):
+            raise ValueError("frames: a frame number is listed twice")
+        for k, sequence in enumerate(self.sequences):
+            if len(sequence.paths) > len(self.frames):
+                raise ValueError(f"sequences[{k}] has {len(sequence.paths)} images for {len(self.frames)} frames")
+        components = [m.component for m in self.models]
+        if len(set(components)) != len(components):
+            raise ValueError("models: a component is listed twice")
+        frames = set(self.frames)
+        for kind, items in (("records", self.records), ("poses", self.poses)):
+            for i, item in enumerate(items):
+                if item.frame not in frames:
+                    raise ValueError(f"{kind}[{i}] is for frame {item.frame}, which the project does not have")
+                if item.component not in components:
+                    raise ValueError(f"{kind}[{i}] is for component {item.component!r}, which has no model")
+                if kind == "records" and item.view >= len(self.views):
+                    raise ValueError(f"{kind}[{i}] is for view {item.view} but the project has "
+                                     f"{len(self.views)} views")
+        return self
+
+
+def check_settings(settings: dict) -> None:
+    """Raise ValidationError when the parts of ``settings`` fluorogui reads have the wrong kind."""
+    SettingsDocument.model_validate(settings)
+
+
+# -- CSV rows -----------------------------------------------------------------------------------
+def _csv_number(text: str) -> float:
+    value = float(text)  # ValueError names nothing; the caller names the line and column
+    if not math.isfinite(value):
+        raise ValueError("not a finite number")
+    return value
+
+
+class PairRow(BaseModel):
+    """One line of a pairs CSV: ``frame,cam1,cam2[,…]``."""
+
+    model_config = ConfigDict(strict=True)
+    frame: Annotated[str, Field(min_length=1, max_length=64)]
+    images: bounded(Annotated[str, Field(min_length=1, max_length=MAX_TEXT)], MAX_VIEWS, 1)
+
+
+class ReferencePoseRow(BaseModel):
+    """One line of a reference-pose CSV: ``frame,component,x,y,z,alpha,beta,gamma``."""
+
+    model_config = ConfigDict(strict=True)
+    frame: Annotated[str, Field(min_length=1, max_length=64)]
+    component: Name
+    pose: fixed(6, Coordinate)
+
+    @classmethod
+    def from_csv(cls, row: dict) -> "ReferencePoseRow":
+        pose = []
+        for key in ("x", "y", "z", "alpha", "beta", "gamma"):
+            try:
+                pose.append(_csv_number(row[key]))
+            except ValueError:
+                raise ValueError(f"column '{key}' is not a finite number: {str(row[key])[:30]!r}") from None
+        return cls(frame=row["frame"], component=row["component"], pose=pose)
+
+
+REFERENCE_COLUMNS = ("frame", "component", "x", "y", "z", "alpha", "beta", "gamma")
