@@ -1,6 +1,7 @@
 """Load implant surface models (STL, PLY, OBJ, VTK, VTP) as triangle arrays in millimetres.
 
-The mesh is read through pyvista, reduced to its surface, triangulated and cleaned of
+The header is checked first (``mesh_headers``: counts the file cannot hold are refused
+before VTK allocates for them). The mesh is read through pyvista, reduced to its surface, triangulated and cleaned of
 duplicate points. The local coordinate system is the file's own.
 """
 from __future__ import annotations
@@ -10,26 +11,30 @@ from pathlib import Path
 
 import numpy as np
 
-from fluorogui.io.errors import InputError, describe_os_error
+from fluorogui.io.errors import InputError, check_input_file, describe_os_error
+from fluorogui.io.mesh_headers import HeaderError, check_mesh_header
 
 MESH_SUFFIXES = (".stl", ".ply", ".obj", ".vtk", ".vtp")
 MIN_DIAGONAL_MM = 1.0
 MAX_DIAGONAL_MM = 1000.0
+MAX_MESH_BYTES = 2_000_000_000
 
 
 def load_mesh(path) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (N, 3) float64 in mm and triangles (M, 3) int64 of a surface model file."""
-    path = Path(path)
-    if not path.exists():
-        raise InputError(path, "file not found")
-    if path.is_dir():
-        raise InputError(path, "is a folder, not a file")
+    path = check_input_file(path, "mesh file")
     suffix = path.suffix.lower()
     if suffix not in MESH_SUFFIXES:
         raise InputError(path, f"unsupported mesh type '{suffix or '(none)'}' (use STL, PLY, OBJ, VTK or VTP)")
     try:
-        if path.stat().st_size == 0:
+        size = path.stat().st_size
+        if size == 0:
             raise InputError(path, "file is empty")
+        if size > MAX_MESH_BYTES:
+            raise InputError(path, f"mesh file is too large ({size / 1e6:.0f} MB; at most {MAX_MESH_BYTES / 1e6:.0f} MB)")
+        check_mesh_header(path)  # before VTK allocates what the header claims
+    except HeaderError as exc:
+        raise InputError(path, f"unreadable mesh file: {exc}") from None
     except OSError as exc:
         raise InputError(path, f"cannot read the file: {describe_os_error(exc)}") from None
 

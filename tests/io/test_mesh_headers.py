@@ -1,0 +1,69 @@
+"""Mesh headers are checked before VTK allocates: counts a file cannot hold are refused."""
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+import pytest
+import pyvista as pv
+
+from fluorogui.io.errors import InputError
+from fluorogui.io.meshes import load_mesh
+
+CORPUS = Path(__file__).resolve().parents[1] / "fuzz" / "corpus"
+
+
+def refusal(path) -> str:
+    with pytest.raises(InputError) as info:
+        load_mesh(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: ") and "\n" not in message
+    return message[len(str(path)) + 2:]
+
+
+def test_tiny_ply_claiming_billions_of_vertices():
+    path = CORPUS / "billions.ply"
+    assert path.stat().st_size == 278
+    assert refusal(path) == ("unreadable mesh file: the header claims 4,000,000,000 vertex elements "
+                             "(at most 20,000,000 are read)")
+
+
+@pytest.mark.parametrize("fmt", ["ascii", "binary_little_endian"])
+def test_ply_claiming_more_than_it_holds(tmp_path, fmt):
+    path = tmp_path / "short.ply"
+    path.write_bytes(f"ply\nformat {fmt} 1.0\nelement vertex 1000000\nproperty float x\nproperty float y\n"
+                     "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                     "0 0 0\n".encode())
+    assert refusal(path) == ("unreadable mesh file: the header claims more elements than the file holds "
+                             "(truncated or corrupt)")
+
+
+def test_binary_stl_count_beyond_its_size(tmp_path):
+    path = tmp_path / "short.stl"
+    path.write_bytes(b"\0" * 80 + struct.pack("<I", 10_000_000) + b"\0" * 100)
+    assert refusal(path) == ("unreadable mesh file: the header claims 10,000,000 triangles but the file is too "
+                             "small to hold them (truncated or corrupt)")
+
+
+def test_legacy_vtk_and_vtp_counts(tmp_path):
+    path = tmp_path / "big.vtk"
+    path.write_text("# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 900000000 float\n0 0 0\n")
+    assert refusal(path) == "unreadable mesh file: the header claims 900,000,000 points (at most 20,000,000 are read)"
+    path.write_text("# vtk DataFile Version 3.0\nx\nASCII\nDATASET POLYDATA\nPOINTS 5000 float\n0 0 0\n")
+    assert "claims 5,000 points but the file is too small" in refusal(path)
+    path = tmp_path / "big.vtp"
+    path.write_text('<VTKFile type="PolyData"><PolyData><Piece NumberOfPoints="99999999999" NumberOfPolys="1">')
+    assert "claims 99,999,999,999 points" in refusal(path)
+
+
+@pytest.mark.parametrize("suffix", [".stl", ".ply", ".vtk", ".vtp"])
+def test_real_files_pass_the_check(tmp_path, suffix):
+    for binary in (True, False):
+        path = tmp_path / f"ball{binary}{suffix}"
+        sphere = pv.Sphere(radius=20.0)
+        if suffix == ".vtp":
+            sphere.save(path)
+        else:
+            sphere.save(path, binary=binary)
+        vertices, faces = load_mesh(path)
+        assert len(faces) == sphere.n_cells
