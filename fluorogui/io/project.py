@@ -340,7 +340,7 @@ def _get(container: dict, key: str, where: str, kind=None):
     name = f"{where}.{key}" if where else key
     value = container.get(key, _MISSING)
     if value is _MISSING:
-        raise _Malformed(f"missing field '{name}'")
+        raise _Malformed(f"missing the field '{name}'")
     if kind is not None and not isinstance(value, kind):
         raise _Malformed(f"field '{name}' must be {_TYPE_NAMES.get(kind, kind.__name__)}")
     return value

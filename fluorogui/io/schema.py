@@ -2,7 +2,7 @@
 
 * ``ProjectDocument``: a ``.fluoro`` project of the current schema (``io.project``);
 * ``CalibrationDocument``: a fluorogui calibration JSON (``io.calibration``);
-* ``PairRow`` / ``ReferencePoseRow``: rows of a pairs CSV and of a reference-pose CSV.
+* ``ReferencePoseRow``: a row of a reference-pose CSV (``io.tables``).
 
 Every model is strict: numbers must be JSON numbers (``"12"`` is refused), finite, and in
 a stated range; lists have bounded lengths. Cross-field invariants (counts agree, the
@@ -111,7 +111,7 @@ def describe(error: ValidationError, prefix: str = "") -> str:
     kind, ctx, value = first["type"], first.get("ctx", {}), first.get("input")
     field = f"field '{where}'" if where else "the document"
     if kind == "missing":
-        return f"missing field '{where}'"
+        return f"missing the field '{where}'"
     if kind in _KINDS:
         return f"{field} must be {_KINDS[kind]}, not {_shown(value)}"
     if kind in _LIMITS:
@@ -293,14 +293,6 @@ def _csv_number(text: str) -> float:
     if not math.isfinite(value):
         raise ValueError("not a finite number")
     return value
-
-
-class PairRow(BaseModel):
-    """One line of a pairs CSV: ``frame,cam1,cam2[,…]``."""
-
-    model_config = ConfigDict(strict=True)
-    frame: Annotated[str, Field(min_length=1, max_length=64)]
-    images: bounded(Annotated[str, Field(min_length=1, max_length=MAX_TEXT)], MAX_VIEWS, 1)
 
 
 class ReferencePoseRow(BaseModel):

@@ -197,9 +197,9 @@ def edited(tmp_path, change) -> Path:
 
 
 def test_missing_and_malformed_fields(tmp_path):
-    assert load_error(edited(tmp_path, lambda d: d.pop("views"))).endswith("missing field 'views'")
+    assert load_error(edited(tmp_path, lambda d: d.pop("views"))).endswith("missing the field 'views'")
     assert load_error(edited(tmp_path, lambda d: d["records"][1].pop("points"))).endswith(
-        "missing field 'records[1].points'"
+        "missing the field 'records[1].points'"
     )
     assert "field 'poses[0].pose' has 3 values, fewer than the 6 it needs" in load_error(
         edited(tmp_path, lambda d: d["poses"][0].update(pose=[1, 2, 3]))
