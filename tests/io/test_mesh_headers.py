@@ -67,3 +67,35 @@ def test_real_files_pass_the_check(tmp_path, suffix):
             sphere.save(path, binary=binary)
         vertices, faces = load_mesh(path)
         assert len(faces) == sphere.n_cells
+
+
+LEGACY_42 = """# vtk DataFile Version 4.2
+tetrahedron
+ASCII
+DATASET POLYDATA
+POINTS 4 float
+0 0 0 30 0 0 0 30 0 0 0 30
+POLYGONS 4 16
+3 0 1 2
+3 0 1 3
+3 0 2 3
+3 1 2 {last}
+"""
+
+
+def test_legacy_vtk_42_is_read_and_its_indices_checked(tmp_path):
+    path = tmp_path / "tet.vtk"
+    path.write_text(LEGACY_42.format(last=3))
+    vertices, faces = load_mesh(path)
+    assert vertices.shape == (4, 3) and faces.shape == (4, 3)
+    path.write_text(LEGACY_42.format(last=77))
+    assert refusal(path) == "unreadable VTK file: a polygon refers to a point beyond the 4 the file has"
+    path.write_text(LEGACY_42.format(last=3).replace("POLYGONS 4 16", "POLYGONS 5 16"))
+    assert refusal(path) == "unreadable VTK file: the cell list of 'POLYGONS' is inconsistent with its counts"
+
+
+def test_ply_with_a_face_beyond_its_vertices(tmp_path):
+    path = tmp_path / "bad.ply"
+    path.write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                    "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n30 0 0\n0 30 0\n3 0 1 9\n")
+    assert refusal(path) == "unreadable PLY file: a face refers to a vertex beyond the 3 it has"
