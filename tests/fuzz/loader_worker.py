@@ -35,14 +35,33 @@ def main(argv: list[str]) -> int:
     loader = _loaders()[argv[0]]
     for name in argv[1:]:
         try:
-            loader(name)
+            loaded = loader(name)
             outcome, message = "accepted", ""
+            if argv[0] == "project":
+                outcome, message = _round_trip(loaded, name)
         except InputError as exc:
             outcome, message = "refused", str(exc)
         except Exception as exc:  # noqa: BLE001 - what the fuzz run counts
             outcome, message = "escaped", f"{type(exc).__name__}: {exc}"[:300]
         print(json.dumps({"path": name, "outcome": outcome, "message": message}), flush=True)
     return 0
+
+
+def _round_trip(project, name: str) -> tuple[str, str]:
+    """An accepted project must save and reopen unchanged: else "unsaveable"."""
+    from fluorogui.io.errors import InputError
+    from fluorogui.io.project import load_project, save_project
+
+    again = Path(name).with_name(Path(name).stem + ".again.fluoro")
+    try:
+        save_project(project, again)
+        if load_project(again) != project:
+            return "unsaveable", "reopened differently"
+    except InputError as exc:
+        return "unsaveable", str(exc)
+    finally:
+        again.unlink(missing_ok=True)
+    return "accepted", ""
 
 
 # -- the parent's side --------------------------------------------------------------------------
@@ -80,15 +99,17 @@ def mutate(data: bytes, rng: random.Random) -> bytes:
 
 
 def fuzz_loaders(seeds: dict[str, list[Path]], folder: Path, per_seed: int, seed: int = 0,
-                 timeout: float = 120.0) -> dict:
+                 timeout: float = 120.0, bad: dict[str, list[Path]] | None = None) -> dict:
     """Mutate every seed file ``per_seed`` times, run each loader's files in a child, count.
 
-    ``seeds`` maps a loader name to valid files of its formats. Counts: cases, accepted,
-    refused, escaped exceptions, crashes (child killed by a signal), hangs (timeout),
-    messages not naming the file; ``examples`` keeps the first few problems."""
+    ``seeds`` maps a loader name to valid files of its formats, ``bad`` to files that must
+    be refused. Counts: cases, accepted, refused, escaped exceptions, unsaveable projects
+    (accepted but not saved and reopened unchanged), crashes (child killed by a signal),
+    hangs (timeout), messages not naming the file, known-bad files accepted; ``examples``
+    keeps the first few problems."""
     rng = random.Random(seed)
-    counts = {"cases": 0, "accepted": 0, "refused": 0, "escaped": 0, "crashes": 0, "hangs": 0,
-              "unnamed": 0, "examples": []}
+    counts = {"cases": 0, "accepted": 0, "refused": 0, "escaped": 0, "unsaveable": 0, "crashes": 0, "hangs": 0,
+              "unnamed": 0, "bad_accepted": 0, "examples": []}
     for loader, files in seeds.items():
         cases = []
         for source in files:
@@ -97,6 +118,8 @@ def fuzz_loaders(seeds: dict[str, list[Path]], folder: Path, per_seed: int, seed
                 case = folder / f"{loader}_{Path(source).stem}_{k}{Path(source).suffix}"
                 case.write_bytes(mutate(data, rng))
                 cases.append(case)
+        known_bad = {str(p) for p in (bad or {}).get(loader, [])}
+        cases += [Path(p) for p in known_bad]
         counts["cases"] += len(cases)
         pending = list(cases)
         while pending:  # a crash ends a child: go on after the file that crashed it
@@ -114,9 +137,12 @@ def fuzz_loaders(seeds: dict[str, list[Path]], folder: Path, per_seed: int, seed
             done = [json.loads(line) for line in out.splitlines() if line.startswith("{")]
             for row in done:
                 counts[row["outcome"]] += 1
+                if row["outcome"] == "accepted" and row["path"] in known_bad:
+                    counts["bad_accepted"] += 1
+                    counts["examples"].append(row)
                 unnamed = row["outcome"] == "refused" and not names_the_file(row["message"], row["path"])
                 counts["unnamed"] += unnamed
-                if row["outcome"] == "escaped" or unnamed:
+                if row["outcome"] in ("escaped", "unsaveable") or unnamed:
                     counts["examples"].append(row)
             pending = pending[len(done):]
             if pending:

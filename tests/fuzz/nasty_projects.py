@@ -44,3 +44,40 @@ def nasty_projects() -> list[tuple[str, str]]:
         ("match_not_object", _edit(lambda d: d["poses"][0].update(match="converged"))),
         ("empty", ""),
     ]
+
+
+_ODD_VALUES = [None, True, False, 0, -1, -5, 10**12, 1e300, -1e-300, 0.5, "", "12", "x" * 50, [], {}, [1, 2, 3],
+               {"a": 1}, [[1, 2], [3]], "NaN"]
+
+
+def mutate_document(document, rng) -> object:
+    """A copy of a JSON document with one to three places replaced by an odd value, deleted,
+    or duplicated (a list item repeated)."""
+    import copy
+
+    document = copy.deepcopy(document)
+    for _ in range(rng.randint(1, 3)):
+        places = []
+
+        def walk(value, parent, key):
+            if parent is not None:
+                places.append((parent, key))
+            if isinstance(value, dict):
+                for k, v in value.items():
+                    walk(v, value, k)
+            elif isinstance(value, list):
+                for i, v in enumerate(value):
+                    walk(v, value, i)
+
+        walk(document, None, None)
+        if not places:
+            break
+        parent, key = rng.choice(places)
+        action = rng.randrange(3)
+        if action == 0 and isinstance(parent, dict):
+            del parent[key]
+        elif action == 1 and isinstance(parent, list):
+            parent.insert(key, copy.deepcopy(parent[key]))
+        else:
+            parent[key] = copy.deepcopy(rng.choice(_ODD_VALUES))
+    return document
