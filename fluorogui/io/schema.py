@@ -24,7 +24,7 @@ MAX_NESTING = 64  # a project is 6 deep; a file nested deeper is not ours
 MAX_INTEGER_DIGITS = 30
 MAX_VIEWS = 16
 MAX_FRAMES = 1_000_000
-MAX_OUTLINE_POINTS = 1_000_000
+MAX_OUTLINE_POINTS = 100_000  # a traced outline has hundreds to thousands
 MAX_TEXT = 4096  # names, paths, reasons
 POSE_STATUSES = ("matched", "needs_review", "failed", "placed")  # = core.session.POSE_STATUSES
 
