@@ -1,15 +1,15 @@
 """Project files (``.fluoro``): one JSON document holding a ``fluorogui.core.session.Project``.
 
-Layout (schema 3, the current one)::
+Layout (schema 4, the current one)::
 
-    {"format": "fluorogui-project", "schema_version": 3, "app_version": "...",
+    {"format": "fluorogui-project", "schema_version": 4, "app_version": "...",
      "views": [View.to_dict(), ...],
      "sequences": [{"paths": ["cam1/0001.tif", ...]}, ...],      # one per view
      "frames": [0, 20, ...],
      "models": [{"component": "femur", "mesh_path": "...", "point_density": 15000,
                  "local_frame": 4x4}],
-     "records": [{"frame": 0, "view": 0, "component": "femur", "points": Kx2,
-                  "spline": {"knots": [...], "coefficients": 2xn, "degree": 3,
+     "records": [{"frame": 0, "view": 0, "component": "femur", "points": <Kx2>,
+                  "spline": {"knots": <n+4>, "coefficients": <2xn>, "degree": 3,
                              "t_range": [t0, t1]} or null, "reviewed": true}],
      "poses": [{"frame": 0, "component": "femur", "pose": [x, y, z, a, b, g],
                 "match": {"objective_mm": ..., ..., "quality": {...}, "history": [...]} or null,
@@ -17,10 +17,14 @@ Layout (schema 3, the current one)::
                 "reviewed": false, "status": "matched", "reason": ""}],
      "settings": {...}}
 
-Arrays are nested lists of numbers; file paths are stored relative to the project file's
-folder (with "/" separators) and made absolute on load; the files they name need not exist.
-Older schemas are upgraded step by step through ``MIGRATIONS``; newer ones are refused.
-Saving is atomic and keeps the previous file as ``<name>.fluoro.bak``.
+``<...>`` arrays are written packed (``{"dtype": "<f8", "shape": [...], "base64": ...}``,
+exact float64) and read packed or as nested lists (schemas 1-3); small arrays are lists.
+A file is checked once against ``schema.ProjectDocument`` (types, ranges, counts, the
+frames / views / components referred to); any problem is one InputError naming the file
+and the field. File paths are stored relative to the project file's folder (with "/"
+separators) and made absolute on load; the files they name need not exist. Older schemas
+are upgraded step by step through ``MIGRATIONS``; newer ones are refused. Saving is atomic
+(``errors.atomic_write_text``) and keeps the previous file as ``<name>.fluoro.bak``.
 """
 from __future__ import annotations
 
@@ -44,12 +48,12 @@ from fluorogui.core.session import (
     SplineRecord,
 )
 from fluorogui.io.errors import InputError, atomic_write_text, clean_stale_temps, read_input_bytes
-from fluorogui.io.schema import DocumentError, ProjectDocument, check_settings, describe, parse_json
+from fluorogui.io.schema import DocumentError, ProjectDocument, check_settings, describe, pack_array, parse_json
 from fluorogui.logs import log_exception
 
 PROJECT_FORMAT = "fluorogui-project"
 PROJECT_SUFFIX = ".fluoro"
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 MAX_PROJECT_BYTES = 1 << 30  # 1 GiB
 
 
@@ -97,7 +101,13 @@ def migrate_2_to_3(document: dict) -> dict:
     return upgraded
 
 
-MIGRATIONS = {1: migrate_1_to_2, 2: migrate_2_to_3}
+def migrate_3_to_4(document: dict) -> dict:
+    """Schema 4 may store outline points and spline arrays packed (``schema.pack_array``);
+    the nested lists of schema 3 are still read as they are, so nothing changes."""
+    return dict(document)
+
+
+MIGRATIONS = {1: migrate_1_to_2, 2: migrate_2_to_3, 3: migrate_3_to_4}
 
 
 def upgrade(document: dict) -> dict:
@@ -213,7 +223,7 @@ def project_to_document(project: Project, base: Path) -> dict:
                 "frame": int(frame),
                 "view": int(view),
                 "component": component,
-                "points": record.points.tolist(),
+                "points": pack_array(record.points),
                 "spline": None if record.spline is None else _spline_to_dict(record.spline),
                 "reviewed": bool(record.reviewed),
             }
@@ -241,8 +251,8 @@ def _sort_key(item):
 
 def _spline_to_dict(spline: SplineRecord) -> dict:
     return {
-        "knots": spline.knots.tolist(),
-        "coefficients": spline.coefficients.tolist(),
+        "knots": pack_array(spline.knots),
+        "coefficients": pack_array(spline.coefficients),
         "degree": spline.degree,
         "t_range": list(spline.t_range),
     }
@@ -297,8 +307,8 @@ def project_from_document(document: dict, base: Path) -> Project:
             raise _Malformed(f"'records[{i}]' repeats the outline of frame {key[0]}, view {key[1]}, {key[2]}")
         spline = raw.spline
         records[key] = OutlineRecord(
-            points=np.array(raw.points, dtype=float).reshape(-1, 2),
-            spline=None if spline is None else SplineRecord(np.array(spline.knots), np.array(spline.coefficients),
+            points=raw.points,
+            spline=None if spline is None else SplineRecord(spline.knots, spline.coefficients,
                                                             spline.degree, tuple(spline.t_range)),
             reviewed=raw.reviewed,
         )
@@ -309,7 +319,8 @@ def project_from_document(document: dict, base: Path) -> Project:
             raise _Malformed(f"'poses[{i}]' repeats the pose of frame {key[0]}, {key[1]}")
         poses[key] = PoseRecord(
             pose=np.array(raw.pose, dtype=float),
-            match=None if raw.match is None else MatchRecord(**raw.match.model_dump()),
+            match=None if raw.match is None else MatchRecord(**(raw.match.model_dump() | {
+                "history": [float(v) for v in raw.match.history]})),
             reviewed=raw.reviewed,
             status=raw.status,
             reason=raw.reason,

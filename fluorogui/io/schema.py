@@ -5,20 +5,24 @@
 * ``ReferencePoseRow``: a row of a reference-pose CSV (``io.tables``).
 
 Every model is strict: numbers must be JSON numbers (``"12"`` is refused), finite, and in
-a stated range; lists have bounded lengths. Cross-field invariants (counts agree, the
+a stated range; lists have bounded lengths. Large arrays (outline points, spline knots and
+coefficients, objective histories) are nested lists or, since project schema 4, packed
+binary (``pack_array``), and are checked with numpy. Cross-field invariants (counts agree, the
 frames, views and components referred to exist) are model validators. ``parse_json`` reads
 a document with limits on nesting, integer digits and NaN/Infinity before anything else
 sees it, and ``describe`` turns a pydantic ``ValidationError`` into one line naming the
-field. Nothing here knows about paths on disk or numpy: ``io.project`` converts.
+field. Nothing here knows about paths on disk: ``io.project`` converts.
 """
 from __future__ import annotations
 
+import base64
 import json
 import math
 import re
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+import numpy as np
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 MAX_NESTING = 64  # a project is 6 deep; a file nested deeper is not ours
 MAX_INTEGER_DIGITS = 30
@@ -151,6 +155,68 @@ def bounded(item, most: int, least: int = 0):
     return Annotated[list[item], Field(min_length=least, max_length=most)]
 
 
+# -- numeric arrays: nested lists (schema <= 3) or packed binary (schema 4) ---------------------
+PACKED_DTYPE = "<f8"
+
+
+def pack_array(array) -> dict:
+    """A float64 array as ``{"dtype": "<f8", "shape": [...], "base64": "..."}``: exact, and
+    several times smaller and faster to read than nested lists of numbers."""
+    array = np.ascontiguousarray(array, dtype=PACKED_DTYPE)
+    return {"dtype": PACKED_DTYPE, "shape": list(array.shape), "base64": base64.b64encode(array.tobytes()).decode()}
+
+
+def _unpack(value: dict) -> np.ndarray:
+    if set(value) != {"dtype", "shape", "base64"} or value["dtype"] != PACKED_DTYPE:
+        raise ValueError(f"must be a list of numbers or a packed array ({PACKED_DTYPE})")
+    shape, data = value["shape"], value["base64"]
+    if not isinstance(shape, list) or not 1 <= len(shape) <= 2 or \
+            not all(isinstance(n, int) and not isinstance(n, bool) and 0 <= n <= 10**7 for n in shape):
+        raise ValueError("the packed array's shape must be one or two sizes")
+    if not isinstance(data, str):
+        raise ValueError("the packed array's data must be base64 text")
+    try:
+        raw = base64.b64decode(data, validate=True)
+    except ValueError:
+        raise ValueError("the packed array's data is not valid base64") from None
+    if len(raw) != 8 * math.prod(shape):
+        raise ValueError(f"the packed array holds {len(raw) // 8} numbers, not the {math.prod(shape)} of its shape")
+    return np.frombuffer(raw, dtype=PACKED_DTYPE).reshape(shape).astype(np.float64)
+
+
+def numeric_array(shape: tuple, least: int = 0, most: int = MAX_OUTLINE_POINTS, limit: float = 1e7):
+    """A field holding an array of finite numbers of ``shape`` (None: any length from
+    ``least`` to ``most``) with values within ``±limit``; nested lists or a packed array.
+    Checked with numpy (fast on large outlines); text, booleans and nulls are refused."""
+    wanted = "x".join("N" if n is None else str(n) for n in shape)
+
+    def check(value) -> np.ndarray:
+        if isinstance(value, dict):
+            array = _unpack(value)
+        else:
+            try:
+                array = np.asarray(value)
+            except (ValueError, TypeError):
+                raise ValueError(f"must be a regular {wanted} array of numbers") from None
+            if array.size and array.dtype.kind not in "iuf":
+                raise ValueError(f"must be a {wanted} array of numbers (not text, true/false or null)")
+            array = array.astype(np.float64)
+        if array.size == 0 and len(shape) == 2 and shape[1] is not None:
+            array = array.reshape(0, shape[1])
+        if array.ndim != len(shape) or any(n is not None and n != m for n, m in zip(shape, array.shape)):
+            raise ValueError(f"must be a {wanted} array, got shape {'x'.join(map(str, array.shape))}")
+        free = [m for n, m in zip(shape, array.shape) if n is None]
+        if free and not least <= free[0] <= most:
+            raise ValueError(f"has {free[0]} entries; {least} to {most} are allowed")
+        if not np.all(np.isfinite(array)):
+            raise ValueError("holds NaN or infinite numbers")
+        if array.size and np.abs(array).max() > limit:
+            raise ValueError(f"holds numbers beyond ±{limit:g}")
+        return array
+
+    return Annotated[Any, AfterValidator(check)]
+
+
 class _Strict(BaseModel):
     model_config = ConfigDict(strict=True, extra="ignore", frozen=False)
 
@@ -189,16 +255,14 @@ class ModelDocument(_Strict):
 
 
 class SplineDocument(_Strict):
-    knots: bounded(Finite, MAX_OUTLINE_POINTS, 2)
-    coefficients: fixed(2, bounded(Finite, MAX_OUTLINE_POINTS, 1))
+    knots: numeric_array((None,), least=2)
+    coefficients: numeric_array((2, None), least=1)
     degree: Annotated[int, Field(ge=1, le=5)]
     t_range: fixed(2)
 
     @model_validator(mode="after")
     def _consistent(self):
-        n = len(self.coefficients[0])
-        if len(self.coefficients[1]) != n:
-            raise ValueError("coefficients: the u and v rows differ in length")
+        n = self.coefficients.shape[1]
         if len(self.knots) != n + self.degree + 1:
             raise ValueError(f"{len(self.knots)} knots do not fit {n} coefficients of degree {self.degree}")
         if not self.t_range[0] < self.t_range[1]:
@@ -210,7 +274,7 @@ class RecordDocument(_Strict):
     frame: FrameNumber
     view: Annotated[int, Field(ge=0, lt=MAX_VIEWS)]
     component: Name
-    points: bounded(fixed(2, Coordinate), MAX_OUTLINE_POINTS)
+    points: numeric_array((None, 2))
     spline: SplineDocument | None
     reviewed: bool
 
@@ -224,7 +288,7 @@ class MatchDocument(_Strict):
     method: Text
     settings: dict[str, Any]
     quality: dict[str, Any] = Field(default_factory=dict)
-    history: bounded(Finite, 10**6) = Field(default_factory=list)
+    history: numeric_array((None,), most=10**6, limit=1e300) = Field(default_factory=list)
 
 
 class PoseDocument(_Strict):

@@ -126,3 +126,38 @@ def test_schema_knows_the_statuses_of_the_engine():
 
 def test_nesting_depth_skips_brackets_in_strings():
     assert schema.nesting_depth('{"a": "[[[[[[", "b": [[1]], "c": "\\"]]"}') == 3
+
+
+def test_packed_arrays_are_written_and_checked(tmp_path):
+    project = load_project(FIXTURES / "project_v2.fluoro")
+    path = tmp_path / "saved.fluoro"
+    save_project(project, path)
+    document = json.loads(path.read_text())
+    packed = document["records"][0]["points"]
+    assert document["schema_version"] == 4 and set(packed) == {"dtype", "shape", "base64"}
+    assert load_project(path) == project  # exact float64
+
+    def broken(change) -> str:
+        bad = json.loads(path.read_text())
+        change(bad["records"][0]["points"])
+        return refusal(tmp_path, bad)
+
+    assert broken(lambda p: p.update(base64="%%%")) == \
+        "field 'records[0].points': the packed array's data is not valid base64"
+    assert broken(lambda p: p.update(shape=[3, 2])).startswith(
+        "field 'records[0].points': the packed array holds")
+    assert broken(lambda p: p.update(dtype="<f4")) == \
+        "field 'records[0].points': must be a list of numbers or a packed array (<f8)"
+
+
+def test_list_arrays_of_older_files_are_checked_with_numpy(tmp_path):
+    def points(value) -> dict:
+        return changed(lambda d: d["records"][0].update(points=value))
+
+    assert refusal(tmp_path, points([["1", "2"]])) == \
+        "field 'records[0].points': must be a Nx2 array of numbers (not text, true/false or null)"
+    assert refusal(tmp_path, points([[1, 2], [3]])) == "field 'records[0].points': must be a regular Nx2 array of numbers"
+    assert refusal(tmp_path, points([[1, 2, 3]])) == "field 'records[0].points': must be a Nx2 array, got shape 1x3"
+    assert refusal(tmp_path, points([[True, False]])) == \
+        "field 'records[0].points': must be a Nx2 array of numbers (not text, true/false or null)"
+    assert refusal(tmp_path, points([[1e300, 0]])) == "field 'records[0].points': holds numbers beyond ±1e+07"
