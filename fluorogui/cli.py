@@ -452,6 +452,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         from fluorogui.io.errors import InputError
         from fluorogui.logs import log_exception
 
+        if isinstance(exc, OSError) and exc.filename and not isinstance(exc, InputError):
+            from fluorogui.io.errors import describe_os_error
+
+            exc = InputError(exc.filename, describe_os_error(exc))  # a path we could not read or write
         if isinstance(exc, InputError):
             print(f"fluorogui: error: {exc}", file=sys.stderr)
             return 2

@@ -48,7 +48,15 @@ from fluorogui.core.session import (
     SplineRecord,
 )
 from fluorogui.io.errors import InputError, atomic_write_text, clean_stale_temps, read_input_bytes
-from fluorogui.io.schema import DocumentError, ProjectDocument, check_settings, describe, pack_array, parse_json
+from fluorogui.io.schema import (
+    DocumentError,
+    ProjectDocument,
+    check_settings,
+    check_typed_settings,
+    describe,
+    pack_array,
+    parse_json,
+)
 from fluorogui.logs import log_exception
 
 PROJECT_FORMAT = "fluorogui-project"
@@ -292,8 +300,13 @@ def project_from_document(document: dict, base: Path) -> Project:
         raise _Malformed(describe(exc)) from None
     try:
         check_settings(doc.settings)
+        for section, defaults in _engine_defaults().items():
+            stored = doc.settings.get("workflow", {}).get(section, {})
+            check_typed_settings(stored, defaults, f"settings.workflow.{section}")
     except ValidationError as exc:
         raise _Malformed(describe(exc, "settings")) from None
+    except ValueError as exc:
+        raise _Malformed(str(exc)) from None
     views = []
     for i, raw in enumerate(doc.views):
         try:
@@ -335,6 +348,19 @@ def project_from_document(document: dict, base: Path) -> Project:
         poses=poses,
         settings=document["settings"],
     )
+
+
+def _engine_defaults() -> dict[str, dict]:
+    """The engine settings a project stores (``settings.workflow``) and their defaults, which
+    give each stored value the kind it must have."""
+    from dataclasses import fields
+
+    from fluorogui.core.matching import MatchSettings
+    from fluorogui.core.pipeline import LoopSettings
+    from fluorogui.core.quality import QualityThresholds
+
+    return {name: {f.name: getattr(cls(), f.name) for f in fields(cls)}
+            for name, cls in (("match", MatchSettings), ("loop", LoopSettings), ("quality", QualityThresholds))}
 
 
 def _absolute(text: str, base: Path) -> Path:

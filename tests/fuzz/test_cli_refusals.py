@@ -158,3 +158,10 @@ def test_native_chatter_goes_to_the_log_unless_verbose(files, capfd, monkeypatch
     assert "libpng warning" in log_folder.read_text()
     assert cli.main(["--verbose", *match_args(files)]) == 0
     assert "libpng warning" in capfd.readouterr().err
+
+
+def test_an_os_error_on_a_named_path_is_a_refusal_naming_it(files, capsys, tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    line = one_line(capsys, ["demo", str(blocker / "sub" / "d.fluoro")])
+    assert line == f"fluorogui: error: {blocker / 'sub'}: a part of the path is not a folder"

@@ -161,3 +161,25 @@ def test_list_arrays_of_older_files_are_checked_with_numpy(tmp_path):
     assert refusal(tmp_path, points([[True, False]])) == \
         "field 'records[0].points': must be a Nx2 array of numbers (not text, true/false or null)"
     assert refusal(tmp_path, points([[1e300, 0]])) == "field 'records[0].points': holds numbers beyond ±1e+07"
+
+
+@pytest.mark.parametrize("section, key, value, problem", [
+    ("match", "starts", "3", "must be a whole number from 0 to 10^9, not '3'"),
+    ("match", "xtol", -1.0, "must be a finite number from 0 to 10^9, not -1.0"),
+    ("match", "symmetric", 1, "must be true or false, not 1"),
+    ("match", "restart_sd", [5.0], "must be a list of 2 numbers, not a list of 1"),
+    ("loop", "max_passes", 2.5, "must be a whole number from 0 to 10^9, not 2.5"),
+    ("quality", "max_view_mm", None, "must be a finite number from 0 to 10^9, not None"),
+])
+def test_engine_settings_of_the_wrong_kind_are_refused(tmp_path, section, key, value, problem):
+    document = changed(lambda d: d["settings"].update(workflow={section: {key: value}}))
+    assert refusal(tmp_path, document) == f"field 'settings.workflow.{section}.{key}' {problem}"
+
+
+def test_engine_settings_that_fluorogui_writes_are_accepted(tmp_path):
+    from fluorogui.workflow.settings import WorkflowSettings
+
+    document = changed(lambda d: d["settings"].update(workflow=WorkflowSettings().to_dict(), gui={"zoom": 2}))
+    path = tmp_path / "p.fluoro"
+    path.write_text(json.dumps(document))
+    assert load_project(path).settings["workflow"] == json.loads(json.dumps(WorkflowSettings().to_dict()))
