@@ -28,8 +28,8 @@ are upgraded step by step through ``MIGRATIONS``; newer ones are refused. Saving
 """
 from __future__ import annotations
 
-import copy
 import json
+import math
 import os
 from pathlib import Path, PurePosixPath
 
@@ -119,9 +119,10 @@ MIGRATIONS = {1: migrate_1_to_2, 2: migrate_2_to_3, 3: migrate_3_to_4}
 
 
 def upgrade(document: dict) -> dict:
-    """Apply the migration chain to a document of any known older schema (a copy is changed)."""
+    """Apply the migration chain to a document of any known older schema; the input is left
+    as it is (each migration returns new containers for what it changes)."""
     version = document["schema_version"]
-    document = copy.deepcopy(document)
+    document = dict(document)  # migrations build new containers; they never change the input
     while version < SCHEMA_VERSION:
         if version not in MIGRATIONS:
             raise _Malformed(f"cannot upgrade schema {version}: no migration known")
@@ -298,6 +299,10 @@ def project_from_document(document: dict, base: Path) -> Project:
         doc = ProjectDocument.model_validate(document)
     except ValidationError as exc:
         raise _Malformed(describe(exc)) from None
+    for where, value in [("settings", doc.settings)] + [
+            (f"poses[{i}].match", p.match.settings | p.match.quality) for i, p in enumerate(doc.poses) if p.match]:
+        if not _all_finite(value):
+            raise _Malformed(f"'{where}' holds a number too large to be finite")
     try:
         check_settings(doc.settings)
         for section, defaults in _engine_defaults().items():
@@ -348,6 +353,17 @@ def project_from_document(document: dict, base: Path) -> Project:
         poses=poses,
         settings=document["settings"],
     )
+
+
+def _all_finite(value) -> bool:
+    """No infinite float (1e999 in the file) anywhere in free-form JSON data."""
+    if isinstance(value, float):
+        return math.isfinite(value)
+    if isinstance(value, dict):
+        return all(_all_finite(v) for v in value.values())
+    if isinstance(value, list):
+        return all(_all_finite(v) for v in value)
+    return True
 
 
 def _engine_defaults() -> dict[str, dict]:

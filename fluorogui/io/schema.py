@@ -18,7 +18,6 @@ from __future__ import annotations
 import base64
 import json
 import math
-import re
 from typing import Annotated, Any, Literal
 
 import numpy as np
@@ -38,24 +37,28 @@ class DocumentError(ValueError):
 
 
 # -- reading JSON within limits -----------------------------------------------------------------
-_TOKENS = re.compile(r'"(?:[^"\\]|\\.)*"|[\[\]{}]')
-
-
 def nesting_depth(text: str, limit: int = MAX_NESTING) -> int:
-    """The deepest nesting of ``[`` / ``{`` in JSON ``text`` (strings skipped); stops counting
-    once ``limit`` is passed so a hostile file costs no more than a scan."""
-    depth = deepest = 0
-    for match in _TOKENS.finditer(text):
-        token = match.group()
-        if token in "[{":
-            depth += 1
-            if depth > deepest:
-                deepest = depth
-                if deepest > limit:
-                    return deepest
-        elif token in "]}":
-            depth -= 1
-    return deepest
+    """The deepest nesting of ``[`` / ``{`` in JSON ``text``, brackets inside strings not
+    counted. Vectorised (numpy over the bracket and quote positions only), so a large
+    project costs a fraction of a second."""
+    data = np.frombuffer(text.encode("utf-8", "surrogatepass"), dtype=np.uint8)
+    quotes = np.flatnonzero(data == 34)
+    escaped = quotes[(quotes > 0) & (data[np.maximum(quotes - 1, 0)] == 92)]
+    if escaped.size:  # a quote after an odd run of backslashes is part of the string (rare)
+        keep = np.ones(quotes.size, dtype=bool)
+        for at in escaped:
+            run = 0
+            while at - 1 - run >= 0 and data[at - 1 - run] == 92:
+                run += 1
+            keep[np.searchsorted(quotes, at)] = run % 2 == 0
+        quotes = quotes[keep]
+    brackets = np.flatnonzero((data == 91) | (data == 123) | (data == 93) | (data == 125))
+    outside = np.searchsorted(quotes, brackets) % 2 == 0  # an even number of quotes before it
+    brackets = brackets[outside]
+    if not brackets.size:
+        return 0
+    steps = np.where((data[brackets] == 91) | (data[brackets] == 123), 1, -1)
+    return int(np.cumsum(steps).max())
 
 
 def _parse_int(text: str) -> int:
@@ -64,24 +67,18 @@ def _parse_int(text: str) -> int:
     return int(text)
 
 
-def _parse_float(text: str) -> float:
-    value = float(text)
-    if not math.isfinite(value):
-        raise DocumentError(f"the number {text[:20]} is too large")
-    return value
-
-
 def _parse_constant(text: str):
     raise DocumentError(f"{text} is not a number JSON allows")
 
 
 def parse_json(text: str, limit: int = MAX_NESTING) -> Any:
     """JSON ``text`` as Python data; DocumentError when it is malformed, nested more than
-    ``limit`` deep, or holds NaN, Infinity, huge integers or overflowing numbers."""
+    ``limit`` deep, or holds NaN, Infinity or huge integers. A number too large for a float
+    (1e999) reads as inf, which the schema's finite checks refuse where it is."""
     if nesting_depth(text, limit) > limit:
         raise DocumentError(f"nested more than {limit} levels deep")
     try:
-        return json.loads(text, parse_int=_parse_int, parse_float=_parse_float, parse_constant=_parse_constant)
+        return json.loads(text, parse_int=_parse_int, parse_constant=_parse_constant)
     except DocumentError:
         raise
     except (ValueError, RecursionError):  # JSONDecodeError is a ValueError

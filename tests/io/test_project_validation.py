@@ -51,7 +51,9 @@ def test_hostile_json(tmp_path):
         "a whole number with 5000 digits"
     text = json.dumps(v2()).replace('"image_size_px": [64, 64]', '"image_size_px": [1e999, 48]')
     assert "1e999" in text
-    assert refusal(tmp_path, text) == "the number 1e999 is too large"
+    assert refusal(tmp_path, text) == "field 'views[0].image_size_px[0]' must be a whole number, not inf"
+    text = json.dumps(changed(lambda d: d["settings"].update(x=[1]))).replace("[1]", "[1e999]")
+    assert refusal(tmp_path, text) == "'settings' holds a number too large to be finite"
     assert refusal(tmp_path, json.dumps(v2()).replace("0.42", "NaN")) == "NaN is not a number JSON allows"
 
 
