@@ -15,7 +15,20 @@ from pathlib import Path
 import numpy as np
 
 from fluorogui import __version__
-from fluorogui.commands.common import UsageError
+from fluorogui.commands.common import (
+    UsageError,
+    check_output_folder,
+    finite_float,
+    int_in,
+    native_stderr_to_log,
+)
+
+
+# ranges of the numeric options (the matcher checks what a method needs beyond them)
+STARTS_RANGE = (1, 1000)
+POINTS_RANGE = (10, 5_000_000)
+OUTLINE_POINTS_RANGE = (1, 100_000)
+SEED_RANGE = (0, 2**32 - 1)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -30,13 +43,15 @@ class _UsageError(Exception):
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="fluorogui", description="Pose of knee-implant components from biplane fluoroscopy.")
     p.add_argument("--version", action="version", version=f"fluorogui {__version__}")
+    p.add_argument("--verbose", action="store_true",
+                   help="also print warnings of the libraries (VTK, image readers) and tracebacks on the terminal")
     sub = p.add_subparsers(dest="command", parser_class=_Parser)
 
     m = sub.add_parser("match", help="match one component in one image pair")
     m.add_argument("--camera", action="append", required=True, metavar="CAM", help="calibration file (twice)")
     m.add_argument("--image", action="append", required=True, metavar="IMG", help="image file (twice)")
     m.add_argument("--model", required=True, metavar="MESH", help="component mesh in mm (STL/PLY/OBJ/VTK)")
-    m.add_argument("--start", nargs=6, type=float, required=True, metavar=("X", "Y", "Z", "ALPHA", "BETA", "GAMMA"))
+    m.add_argument("--start", nargs=6, type=finite_float, required=True, metavar=("X", "Y", "Z", "ALPHA", "BETA", "GAMMA"))
     m.add_argument("--outline", action="append", metavar="CSV", help="ordered outline points u,v (twice)")
     _add_match_options(m)
     m.add_argument("--json", action="store_true", help="print one JSON object")
@@ -46,8 +61,9 @@ def build_parser() -> argparse.ArgumentParser:
     vs = v.add_subparsers(dest="protocol", parser_class=_Parser, required=True)
     vi = vs.add_parser("idealized", help="Tables 1/2: rendered images of a model at flexion poses")
     vi.add_argument("--model", action="append", required=True, metavar="MESH")
-    vi.add_argument("--flexion", nargs="+", type=float, default=[30.0, 45.0, 60.0, 90.0])
-    vi.add_argument("--density", nargs="+", type=int, default=[15000], help="point-model sizes (paper method)")
+    vi.add_argument("--flexion", nargs="+", type=finite_float, default=[30.0, 45.0, 60.0, 90.0])
+    vi.add_argument("--density", nargs="+", type=int_in(*POINTS_RANGE), default=[15000],
+                    help="point-model sizes (paper method)")
     _add_validation_options(vi)
     vi.set_defaults(func=cmd_validate_idealized)
     vp = vs.add_parser("spheres", help="Table 3: eight stacked 12.70 mm spheres")
@@ -57,22 +73,22 @@ def build_parser() -> argparse.ArgumentParser:
     vr.add_argument("--camera", action="append", required=True, metavar="CAM")
     vr.add_argument("--image", action="append", metavar="IMG")
     vr.add_argument("--model", required=True, metavar="MESH")
-    vr.add_argument("--pose", nargs=6, type=float, metavar=("X", "Y", "Z", "ALPHA", "BETA", "GAMMA"))
+    vr.add_argument("--pose", nargs=6, type=finite_float, metavar=("X", "Y", "Z", "ALPHA", "BETA", "GAMMA"))
     vr.add_argument("--outline", action="append", metavar="CSV")
     vr.add_argument("--reference", metavar="CSV", help="poses per frame: frame,component,x,y,z,alpha,beta,gamma")
     vr.add_argument("--pairs", metavar="CSV", help="with --reference: frame,cam1,cam2 image pairs")
     vr.add_argument("--component", help="with --reference: the component of --model")
-    vr.add_argument("--frames", type=int, default=0, help="with --reference: first N frames (0 = all)")
+    vr.add_argument("--frames", type=int_in(0, 1_000_000), default=0, help="with --reference: first N frames (0 = all)")
     _add_validation_options(vr)
     vr.set_defaults(func=cmd_validate_repeatability)
 
     b = sub.add_parser("bench", help="time matches of both methods on the real implant meshes")
     b.add_argument("--model", action="append", metavar="MESH", help="default: the meshes in ../shared/data")
     b.add_argument("--method", nargs="+", choices=["fast", "paper"], default=["fast", "paper"])
-    b.add_argument("--starts", type=int, default=10)
-    b.add_argument("--points", type=int, default=15000)
-    b.add_argument("--outline-points", type=int, default=60)
-    b.add_argument("--seed", type=int, default=0)
+    b.add_argument("--starts", type=int_in(*STARTS_RANGE), default=10)
+    b.add_argument("--points", type=int_in(*POINTS_RANGE), default=15000)
+    b.add_argument("--outline-points", type=int_in(*OUTLINE_POINTS_RANGE), default=60)
+    b.add_argument("--seed", type=int_in(*SEED_RANGE), default=0)
     b.add_argument("--json", action="store_true")
     b.set_defaults(func=cmd_bench)
 
@@ -83,17 +99,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_match_options(p):
-    p.add_argument("--points", type=int, default=15000, help="point-model size (paper method)")
-    p.add_argument("--outline-points", type=int, default=None, help="outline points per view (paper default 60)")
+    p.add_argument("--points", type=int_in(*POINTS_RANGE), default=15000, help="point-model size (paper method)")
+    p.add_argument("--outline-points", type=int_in(*OUTLINE_POINTS_RANGE), default=None, help="outline points per view (paper default 60)")
     p.add_argument("--method", choices=["fast", "paper"], default="fast")
-    p.add_argument("--starts", type=int, default=1, help="independent starts; the best match is kept")
+    p.add_argument("--starts", type=int_in(*STARTS_RANGE), default=1, help="independent starts; the best match is kept")
 
 
 def _add_validation_options(p):
     p.add_argument("--method", nargs="+", choices=["fast", "paper"], default=["fast"])
-    p.add_argument("--starts", type=int, default=10, help="perturbed starts per case")
-    p.add_argument("--outline-points", type=int, default=None)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--starts", type=int_in(*STARTS_RANGE), default=10, help="perturbed starts per case")
+    p.add_argument("--outline-points", type=int_in(*OUTLINE_POINTS_RANGE), default=None)
+    p.add_argument("--seed", type=int_in(*SEED_RANGE), default=0)
     p.add_argument("--out", metavar="DIR", help="write results.json and results.csv here")
     p.add_argument("--json", action="store_true", help="print the results as JSON")
 
@@ -262,6 +278,8 @@ def cmd_match(args) -> int:
 def cmd_validate_idealized(args) -> int:
     from fluorogui.core.validation import idealized_case
 
+    check_output_folder(args.out)
+
     payload, rows = {"protocol": "idealized", "cases": []}, []
     for model_path in args.model:
         mesh = _load_model(model_path)
@@ -289,6 +307,8 @@ def cmd_validate_spheres(args) -> int:
     from fluorogui.core.phantoms import sphere_mesh
     from fluorogui.core.validation import SPHERE_DIAMETER, spheres_case
 
+    check_output_folder(args.out)
+
     vertices, faces = sphere_mesh(SPHERE_DIAMETER)
     payload, rows = {"protocol": "spheres", "methods": {}}, []
     for method in args.method:
@@ -313,6 +333,8 @@ def cmd_validate_spheres(args) -> int:
 def cmd_validate_repeatability(args) -> int:
     from fluorogui.core.matching import MatchProblem
     from fluorogui.core.validation import repeatability_case
+
+    check_output_folder(args.out)
 
     views = _load_views(args.camera)
     mesh = _load_model(args.model)
@@ -348,26 +370,23 @@ def cmd_validate_repeatability(args) -> int:
 
 
 def _reference_cases(args):
-    import csv
-
     from fluorogui.io.errors import InputError
+    from fluorogui.io.importer import read_pairs_csv
+    from fluorogui.io.tables import read_reference_poses
 
     if not args.pairs or not args.component:
         raise _UsageError("fluorogui: --reference needs --pairs and --component")
-    base = Path(args.pairs).resolve().parent
-    try:
-        with open(args.pairs, newline="") as fh:
-            pairs = {row["frame"]: (str(base / row["cam1"]), str(base / row["cam2"])) for row in csv.DictReader(fh)}
-        with open(args.reference, newline="") as fh:
-            refs = [r for r in csv.DictReader(fh) if r["component"] == args.component]
-    except (OSError, KeyError) as exc:
-        raise InputError(args.reference, f"cannot read reference poses or pairs: {exc}") from None
+    frames, paths = read_pairs_csv(args.pairs, 2)
+    pairs = {str(frame): [str(paths[0][i]), str(paths[1][i])] for i, frame in enumerate(frames)}
+    refs = read_reference_poses(args.reference, args.component)
+    if not refs:
+        raise InputError(args.reference, f"has no poses of the component {args.component!r}")
     cases = []
-    for r in refs:
-        if r["frame"] not in pairs:
-            raise InputError(args.reference, f"frame {r['frame']} is not in {args.pairs}")
-        pose = _start_pose([r[k] for k in ("x", "y", "z", "alpha", "beta", "gamma")], f"{args.reference} frame {r['frame']}")
-        cases.append((f"frame {r['frame']}", list(pairs[r["frame"]]), pose))
+    for frame, _, pose in refs:
+        key = str(int(frame)) if frame.strip().lstrip("-").isdigit() else frame
+        if key not in pairs:
+            raise InputError(args.reference, f"frame {frame} is not in {args.pairs}")
+        cases.append((f"frame {frame}", pairs[key], _start_pose(pose, f"{args.reference} frame {frame}")))
     return cases[: args.frames] if args.frames else cases
 
 
@@ -410,12 +429,17 @@ def cmd_bench(args) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run one command; every failure ends in one line on stderr: exit 2 for bad input (the
+    line names the file or option), 1 for an internal error (its traceback in the log file)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    verbose = "--verbose" in argv
+    argv = [a for a in argv if a != "--verbose"]  # allowed anywhere on the line
+    from fluorogui.logs import setup_logging
+
+    log_path = setup_logging(verbose=verbose)
     try:
-        args = build_parser().parse_args(argv)
-        if not getattr(args, "command", None):
-            build_parser().print_help()
-            return 0
-        return args.func(args)
+        with native_stderr_to_log(None if verbose else log_path):
+            return _run(argv)
     except (_UsageError, UsageError) as exc:
         print(str(exc), file=sys.stderr)
         return 2
@@ -426,14 +450,33 @@ def main(argv: Sequence[str] | None = None) -> int:
         from fluorogui.core.geometry import GeometryError
         from fluorogui.core.mesh import MeshError
         from fluorogui.io.errors import InputError
+        from fluorogui.logs import log_exception
 
-        if isinstance(exc, (InputError, GeometryError, MeshError, ValueError, KeyError)):
-            if isinstance(exc, KeyError):
-                exc = exc.args[0] if exc.args else exc
+        if isinstance(exc, OSError) and exc.filename and not isinstance(exc, InputError):
+            from fluorogui.io.errors import describe_os_error
+
+            exc = InputError(exc.filename, describe_os_error(exc))  # a path we could not read or write
+        if isinstance(exc, InputError):
             print(f"fluorogui: error: {exc}", file=sys.stderr)
             return 2
-        print(f"fluorogui: internal error: {type(exc).__name__}: {' '.join(str(exc).split())}", file=sys.stderr)
+        logged = log_exception(f"fluorogui {' '.join(argv)[:500]}")
+        if isinstance(exc, (GeometryError, MeshError, ValueError, KeyError)):
+            if isinstance(exc, KeyError):
+                exc = exc.args[0] if exc.args else exc
+            print(f"fluorogui: error: {' '.join(str(exc).split())}", file=sys.stderr)
+            return 2
+        where = f"; details in {logged}" if logged else ""
+        print(f"fluorogui: internal error: {type(exc).__name__}: {' '.join(str(exc).split())[:300]}{where}",
+              file=sys.stderr)
         return 1
+
+
+def _run(argv: list[str]) -> int:
+    args = build_parser().parse_args(argv)
+    if not getattr(args, "command", None):
+        build_parser().print_help()
+        return 0
+    return args.func(args)
 
 
 if __name__ == "__main__":

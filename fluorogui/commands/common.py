@@ -1,10 +1,15 @@
-"""What the workflow sub-commands share: frame specs, opening a project under its lock,
-per-frame output (JSON lines on stdout, flagged frames on stderr) and a progress bar
-that appears only on a terminal."""
+"""What the sub-commands share: option types with ranges, output paths checked before the
+work starts, native library chatter sent to the log file, frame specs, opening a project
+under its lock, per-frame output (JSON lines on stdout, flagged frames on stderr) and a
+progress bar that appears only on a terminal."""
 from __future__ import annotations
 
+import argparse
 import json
+import math
+import os
 import sys
+import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -13,6 +18,108 @@ COMPONENT_CHOICES = ("femoral", "tibial", "both")
 
 class UsageError(Exception):
     """A command-line mistake: one line on stderr, exit 2."""
+
+
+# -- option types ---------------------------------------------------------------------------------
+def int_in(least: int, most: int):
+    """An argparse type: a whole number from ``least`` to ``most``."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text[:30]!r} is not a whole number") from None
+        if not least <= value <= most:
+            raise argparse.ArgumentTypeError(f"{value} is out of range; give {least} to {most}")
+        return value
+
+    parse.__name__ = "whole number"
+    return parse
+
+
+def finite_float(text: str) -> float:
+    """An argparse type: a finite number (nan and inf refused)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text[:30]!r} is not a number") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{text[:30]!r} is NaN or infinite; give a finite number")
+    if abs(value) > 1e7:
+        raise argparse.ArgumentTypeError(f"{text[:30]!r} is too large (at most 1e7 in size)")
+    return value
+
+
+finite_float.__name__ = "number"
+
+
+# -- output paths -------------------------------------------------------------------------------
+def check_output_folder(folder) -> None:
+    """Make ``folder`` (when given) and prove it writable before any work starts."""
+    from fluorogui.io.errors import InputError, describe_os_error
+
+    if not folder:
+        return
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        raise InputError(folder, f"cannot write results here: {describe_os_error(exc)}") from None
+
+
+def check_output_file(path) -> None:
+    """Prove the folder of the file ``path`` writable (and ``path`` not a folder) before work."""
+    from fluorogui.io.errors import InputError
+
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(path, "is a folder; give a file name to write")
+    if not path.parent.is_dir():
+        raise InputError(path, "cannot write here: the folder does not exist")
+    check_output_folder(path.parent)
+
+
+# -- terminal -----------------------------------------------------------------------------------
+@contextmanager
+def native_stderr_to_log(log_path):
+    """Send what C libraries (VTK, libpng, libtiff) write to the process's stderr into the log
+    file at ``log_path`` while the block runs; Python's own ``sys.stderr`` keeps the terminal.
+    With ``log_path`` None (``--verbose``, or no log file) nothing changes."""
+    if log_path is None or os.name != "posix":
+        yield
+        return
+    try:
+        sys.stderr.flush()
+        Path(log_path).parent.mkdir(parents=True, exist_ok=True)
+        log_fd = os.open(log_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        saved_fd = os.dup(2)
+    except OSError:
+        yield
+        return
+    python_stderr = sys.stderr
+    on_fd2 = _fileno(python_stderr) == 2
+    if on_fd2:  # keep Python's messages on the terminal through a copy of the old fd 2
+        sys.stderr = os.fdopen(os.dup(saved_fd), "w", buffering=1, encoding=python_stderr.encoding,
+                               errors="backslashreplace")
+    os.dup2(log_fd, 2)
+    os.close(log_fd)
+    try:
+        yield
+    finally:
+        if on_fd2:
+            sys.stderr.flush()
+            sys.stderr.close()
+            sys.stderr = python_stderr
+        os.dup2(saved_fd, 2)
+        os.close(saved_fd)
+
+
+def _fileno(stream) -> int | None:
+    try:
+        return stream.fileno()
+    except (AttributeError, OSError, ValueError):
+        return None
 
 
 def parse_frames(spec: str | None, frames: list[int]) -> list[int]:

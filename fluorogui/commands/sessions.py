@@ -5,13 +5,13 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from fluorogui.commands.common import UsageError, warn
+from fluorogui.commands.common import UsageError, check_output_file, int_in, warn
 
 
 def add_parsers(sub) -> None:
     d = sub.add_parser("demo", help="write the built-in demo session (true poses included)")
     d.add_argument("out", metavar="OUT.fluoro", help="project file to write; its data goes to OUT_data/ beside it")
-    d.add_argument("--frames", type=int, default=4, help="frames of the knee bend (default 4)")
+    d.add_argument("--frames", type=int_in(1, 1000), default=4, help="frames of the knee bend (default 4)")
     d.add_argument("--force", action="store_true", help="replace an existing OUT.fluoro and OUT_data/")
     d.set_defaults(func=run_demo)
 
@@ -68,6 +68,7 @@ def run_import(args) -> int:
         raise UsageError(f"fluorogui: import: {args.out}: the project file name must end in .fluoro")
     if out.exists() and not args.force:
         raise InputError(out, "already exists; use --force to replace it")
+    check_output_file(out)  # before the import's work
     if args.folder:
         if args.camera or args.images1 or args.images2 or args.model or args.pairs:
             raise UsageError("fluorogui: import: give a FOLDER or the explicit files, not both")

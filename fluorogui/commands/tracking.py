@@ -15,6 +15,7 @@ from fluorogui.commands.common import (
     COMPONENT_CHOICES,
     components_arg,
     emit_json,
+    int_in,
     locked_session,
     parse_frames,
     progress_bar,
@@ -36,7 +37,7 @@ def add_parsers(sub) -> None:
     t.add_argument("--frames", metavar="A:B", help="frames to track, both ends included (default: all)")
     t.add_argument("--component", choices=COMPONENT_CHOICES, default="both")
     t.add_argument("--redo", action="store_true", help="match again frames already matched (accepted ones are kept)")
-    t.add_argument("--workers", type=int, default=1,
+    t.add_argument("--workers", type=int_in(1, 256), default=1,
                    help="track N consecutive runs of frames in parallel processes (each after the first starts "
                         "with find implants); results then arrive out of frame order")
     t.add_argument("--json", action="store_true", help="one JSON object per frame and component as it finishes")
@@ -109,7 +110,7 @@ def run_track(args) -> int:
 def add_batch_parser(sub) -> None:
     b = sub.add_parser("batch", help="track many projects in parallel (Dask distributed)")
     b.add_argument("projects", nargs="+", metavar="PROJECT")
-    b.add_argument("--workers", type=int, help="local worker processes (default: the machine's cores)")
+    b.add_argument("--workers", type=int_in(1, 1024), help="local worker processes (default: the machine's cores)")
     b.add_argument("--scheduler", metavar="ADDRESS", help="an existing Dask scheduler, e.g. tcp://host:8786")
     b.add_argument("--frames", metavar="A:B", help="frames to track in every project (default: all)")
     b.add_argument("--component", choices=COMPONENT_CHOICES, default="both")

@@ -21,6 +21,7 @@ from PySide6.QtWidgets import QApplication, QFileDialog, QMessageBox
 from fluorogui.io.errors import InputError
 from fluorogui.io.lock import ProjectLocked
 from fluorogui.io.meshes import MESH_SUFFIXES
+from fluorogui.logs import log_exception
 
 PROJECT_FILTER = "fluorogui projects (*.fluoro);;All files (*)"
 MAX_RECENT = 8
@@ -95,6 +96,11 @@ class SessionFiles:
                 self.controller.open(path, read_only=True)
         except InputError as exc:
             self._warn("Cannot open project", str(exc))
+            return False
+        except Exception as exc:  # noqa: BLE001 - a check the loader lacks: one dialog, traceback logged
+            logged = log_exception(f"opening {path}")
+            self._warn("Cannot open project", f"{path}: could not be opened ({type(exc).__name__})"
+                       + (f"; details in {logged}" if logged else ""))
             return False
         self._add_recent(Path(path).resolve())
         self.settings.setValue("last_dir", str(Path(path).resolve().parent))

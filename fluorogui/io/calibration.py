@@ -25,10 +25,12 @@ import re
 from pathlib import Path
 
 import numpy as np
+from pydantic import ValidationError
 
 from fluorogui.core.geometry import DEFAULT_PITCH_MM, GeometryError, View
 from fluorogui.core.pose import angles_from_matrix
-from fluorogui.io.errors import InputError, atomic_write_text, describe_os_error
+from fluorogui.io.errors import InputError, atomic_write_text, read_input_bytes
+from fluorogui.io.schema import CalibrationDocument, DocumentError, describe, parse_json
 
 CALIBRATION_FORMAT = "fluorogui-calibration"
 CALIBRATION_VERSION = 1
@@ -124,14 +126,7 @@ def jointtrack_to_pose(row) -> np.ndarray:
 
 # -- reading helpers --------------------------------------------------------------------------
 def _read_text(path: Path) -> str:
-    if not path.exists():
-        raise InputError(path, "file not found")
-    if path.is_dir():
-        raise InputError(path, "is a folder, not a file")
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise InputError(path, f"cannot read the file: {describe_os_error(exc)}") from None
+    raw = read_input_bytes(path, "calibration file", 10_000_000)  # regular files only, never blocks
     if b"\x00" in raw[:4096]:
         raise InputError(path, "binary file, not a text calibration")
     try:
@@ -271,9 +266,9 @@ def _parse_jointtrack(path: Path, lines: list[str], name: str, image_size) -> Vi
 # -- our JSON -----------------------------------------------------------------------------------
 def _parse_json(path: Path, text: str, name: str) -> View:
     try:
-        document = json.loads(text)
-    except json.JSONDecodeError:
-        raise InputError(path, "calibration file is truncated or not valid JSON") from None
+        document = parse_json(text)
+    except DocumentError as exc:
+        raise InputError(path, f"calibration file: {exc}") from None
     if not isinstance(document, dict) or document.get("format") != CALIBRATION_FORMAT:
         raise InputError(path, "JSON file is not a fluorogui calibration")
     version = document.get("version")
@@ -287,6 +282,10 @@ def _parse_json(path: Path, text: str, name: str) -> View:
         )
     if not isinstance(document.get("view"), dict):
         raise InputError(path, "calibration JSON is missing the field 'view'")
+    try:
+        CalibrationDocument.model_validate(document)
+    except ValidationError as exc:
+        raise InputError(path, describe(exc)) from None
     stored = document["view"]
     view = View.from_dict({**stored, "name": name or stored.get("name") or path.stem})
     view.extra.update(source_format="fluorogui JSON")

@@ -12,7 +12,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from fluorogui.io.errors import InputError, describe_os_error
+from fluorogui.io.errors import InputError, check_input_file, describe_os_error
 
 TIFF_SUFFIXES = (".tif", ".tiff")
 CV2_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
@@ -114,10 +114,7 @@ def write_image(path, array, bits: int = 8) -> None:
 
 # -- format readers ----------------------------------------------------------------------------
 def _check_file(path: Path) -> None:
-    if not path.exists():
-        raise InputError(path, "file not found")
-    if path.is_dir():
-        raise InputError(path, "is a folder, not a file")
+    check_input_file(path, "image file")  # regular files only: a FIFO would block
     try:
         size = path.stat().st_size
     except OSError as exc:
@@ -136,6 +133,7 @@ def _read_tiff(path: Path) -> np.ndarray:
                     path, f"contains a stack of {len(tif.pages)} images; fluorogui needs one 2D image per file"
                 )
             page = tif.pages[0]
+            _check_claimed_pixels(path, int(np.prod(page.shape, dtype=np.float64)))  # before allocating
             pixels = page.asarray()
             if pixels.ndim == 3 and page.planarconfig == tifffile.PLANARCONFIG.SEPARATE:
                 pixels = np.moveaxis(pixels, 0, -1)  # colour planes stored one after another
@@ -153,12 +151,24 @@ def _read_cv2(path: Path) -> np.ndarray:
         data = np.fromfile(path, dtype=np.uint8)  # works with non-ASCII paths, unlike cv2.imread
     except OSError as exc:
         raise InputError(path, f"cannot read the file: {describe_os_error(exc)}") from None
+    if data[:8].tobytes() == b"\x89PNG\r\n\x1a\n" and data.size >= 24:
+        _check_claimed_pixels(path, int.from_bytes(data[16:20].tobytes(), "big") *
+                              int.from_bytes(data[20:24].tobytes(), "big"))  # IHDR, before decoding
     pixels = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
     if pixels is None:
         raise InputError(path, f"corrupt or unreadable {path.suffix.lstrip('.').upper()} image")
     if _looks_truncated(path, data):
         raise InputError(path, f"truncated {path.suffix.lstrip('.').upper()} image")
     return pixels
+
+
+MAX_IMAGE_VALUES = 200_000_000  # pixels x channels a header may claim (a fluoroscope frame: ~10^6)
+
+
+def _check_claimed_pixels(path: Path, values: int) -> None:
+    if values > MAX_IMAGE_VALUES:
+        raise InputError(path, f"the image header claims {values:,} pixel values (at most "
+                               f"{MAX_IMAGE_VALUES:,} are read): corrupt or not a fluoroscopy image")
 
 
 def _looks_truncated(path: Path, data: np.ndarray) -> bool:

@@ -41,6 +41,7 @@ from fluorogui.io.calibration import check_image_size, load_view
 from fluorogui.io.errors import InputError, describe_os_error
 from fluorogui.io.images import IMAGE_SUFFIXES, VIDEO_SUFFIXES, read_image
 from fluorogui.io.meshes import MESH_SUFFIXES, load_mesh
+from fluorogui.io.tables import read_text_table
 
 ImageSource = Union[Path, str, Sequence[Union[Path, str]]]
 
@@ -179,14 +180,7 @@ def list_image_files(folder) -> list[Path]:
 def read_pairs_csv(path, n_views: int = 2) -> tuple[list[int], list[list[Path]]]:
     """Frames and, per view, the image of each frame, from a ``frame,cam1,cam2`` CSV."""
     path = _absolute(path)
-    if not path.is_file():
-        raise InputError(path, "file not found" if not path.exists() else "is a folder, not a CSV file")
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        raise InputError(path, "not a text CSV file") from None
-    except OSError as exc:
-        raise InputError(path, f"cannot read the file: {describe_os_error(exc)}") from None
+    text = read_text_table(path, "CSV file")  # regular text files only
     rows = [(n, [c.strip() for c in row]) for n, row in enumerate(csv.reader(text.splitlines()), start=1)]
     rows = [(n, row) for n, row in rows if any(row)]
     if rows and rows[0][1][0].lower() == "frame":

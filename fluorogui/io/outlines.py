@@ -5,16 +5,19 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError, atomic_write_text, describe_os_error
+from .errors import InputError, atomic_write_text, read_input_bytes
+
+MAX_OUTLINE_BYTES = 50_000_000
 
 
 def read_outline_csv(path) -> np.ndarray:
     """(K, 2) float pixel points. Blank lines and one leading non-numeric header are skipped."""
     path = Path(path)
+    raw = read_input_bytes(path, "outline file", MAX_OUTLINE_BYTES)
+    if b"\x00" in raw[:65536]:
+        raise InputError(path, "outline is not a text file")
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except OSError as exc:
-        raise InputError(path, f"cannot read outline: {describe_os_error(exc)}") from None
+        text = raw.decode("utf-8-sig")
     except UnicodeDecodeError:
         raise InputError(path, "outline is not a text file") from None
     rows = []
@@ -35,6 +38,8 @@ def read_outline_csv(path) -> np.ndarray:
     points = np.array(rows, dtype=float).reshape(-1, 2)
     if not np.all(np.isfinite(points)):
         raise InputError(path, "outline contains NaN or infinite values")
+    if points.size and np.abs(points).max() > 1e6:
+        raise InputError(path, "outline has points more than 10^6 pixels away")
     return points
 
 

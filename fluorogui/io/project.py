@@ -1,15 +1,15 @@
 """Project files (``.fluoro``): one JSON document holding a ``fluorogui.core.session.Project``.
 
-Layout (schema 3, the current one)::
+Layout (schema 4, the current one)::
 
-    {"format": "fluorogui-project", "schema_version": 3, "app_version": "...",
+    {"format": "fluorogui-project", "schema_version": 4, "app_version": "...",
      "views": [View.to_dict(), ...],
      "sequences": [{"paths": ["cam1/0001.tif", ...]}, ...],      # one per view
      "frames": [0, 20, ...],
      "models": [{"component": "femur", "mesh_path": "...", "point_density": 15000,
                  "local_frame": 4x4}],
-     "records": [{"frame": 0, "view": 0, "component": "femur", "points": Kx2,
-                  "spline": {"knots": [...], "coefficients": 2xn, "degree": 3,
+     "records": [{"frame": 0, "view": 0, "component": "femur", "points": <Kx2>,
+                  "spline": {"knots": <n+4>, "coefficients": <2xn>, "degree": 3,
                              "t_range": [t0, t1]} or null, "reviewed": true}],
      "poses": [{"frame": 0, "component": "femur", "pose": [x, y, z, a, b, g],
                 "match": {"objective_mm": ..., ..., "quality": {...}, "history": [...]} or null,
@@ -17,25 +17,28 @@ Layout (schema 3, the current one)::
                 "reviewed": false, "status": "matched", "reason": ""}],
      "settings": {...}}
 
-Arrays are nested lists of numbers; file paths are stored relative to the project file's
-folder (with "/" separators) and made absolute on load; the files they name need not exist.
-Older schemas are upgraded step by step through ``MIGRATIONS``; newer ones are refused.
-Saving is atomic and keeps the previous file as ``<name>.fluoro.bak``.
+``<...>`` arrays are written packed (``{"dtype": "<f8", "shape": [...], "base64": ...}``,
+exact float64) and read packed or as nested lists (schemas 1-3); small arrays are lists.
+A file is checked once against ``schema.ProjectDocument`` (types, ranges, counts, the
+frames / views / components referred to); any problem is one InputError naming the file
+and the field. File paths are stored relative to the project file's folder (with "/"
+separators) and made absolute on load; the files they name need not exist. Older schemas
+are upgraded step by step through ``MIGRATIONS``; newer ones are refused. Saving is atomic
+(``errors.atomic_write_text``) and keeps the previous file as ``<name>.fluoro.bak``.
 """
 from __future__ import annotations
 
-import copy
 import json
 import math
 import os
 from pathlib import Path, PurePosixPath
 
 import numpy as np
+from pydantic import ValidationError
 
 from fluorogui import __version__
 from fluorogui.core.geometry import GeometryError, View
 from fluorogui.core.session import (
-    POSE_STATUSES,
     ImageSequence,
     MatchRecord,
     ModelEntry,
@@ -44,11 +47,22 @@ from fluorogui.core.session import (
     Project,
     SplineRecord,
 )
-from fluorogui.io.errors import InputError, atomic_write_text, describe_os_error
+from fluorogui.io.errors import InputError, atomic_write_text, clean_stale_temps, read_input_bytes
+from fluorogui.io.schema import (
+    DocumentError,
+    ProjectDocument,
+    check_settings,
+    check_typed_settings,
+    describe,
+    pack_array,
+    parse_json,
+)
+from fluorogui.logs import log_exception
 
 PROJECT_FORMAT = "fluorogui-project"
 PROJECT_SUFFIX = ".fluoro"
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
+MAX_PROJECT_BYTES = 1 << 30  # 1 GiB
 
 
 class _Malformed(Exception):
@@ -95,13 +109,20 @@ def migrate_2_to_3(document: dict) -> dict:
     return upgraded
 
 
-MIGRATIONS = {1: migrate_1_to_2, 2: migrate_2_to_3}
+def migrate_3_to_4(document: dict) -> dict:
+    """Schema 4 may store outline points and spline arrays packed (``schema.pack_array``);
+    the nested lists of schema 3 are still read as they are, so nothing changes."""
+    return dict(document)
+
+
+MIGRATIONS = {1: migrate_1_to_2, 2: migrate_2_to_3, 3: migrate_3_to_4}
 
 
 def upgrade(document: dict) -> dict:
-    """Apply the migration chain to a document of any known older schema (a copy is changed)."""
+    """Apply the migration chain to a document of any known older schema; the input is left
+    as it is (each migration returns new containers for what it changes)."""
     version = document["schema_version"]
-    document = copy.deepcopy(document)
+    document = dict(document)  # migrations build new containers; they never change the input
     while version < SCHEMA_VERSION:
         if version not in MIGRATIONS:
             raise _Malformed(f"cannot upgrade schema {version}: no migration known")
@@ -116,22 +137,31 @@ def upgrade(document: dict) -> dict:
 
 # -- public API -----------------------------------------------------------------------------------
 def load_project(path) -> Project:
-    """Read a ``.fluoro`` project file; paths in it are resolved against its folder."""
+    """Read a ``.fluoro`` project file; paths in it are resolved against its folder.
+
+    Every problem, whatever the file holds, is one InputError naming the file and the field."""
     path = Path(path)
-    if not path.exists():
-        raise InputError(path, "file not found")
-    if path.is_dir():
-        raise InputError(path, "is a folder, not a project file")
+    raw = read_input_bytes(path, "project file", MAX_PROJECT_BYTES)
+    clean_stale_temps(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = raw.decode("utf-8")
     except UnicodeDecodeError:
         raise InputError(path, "not a fluorogui project (not a text file)") from None
-    except OSError as exc:
-        raise InputError(path, f"cannot read the file: {describe_os_error(exc)}") from None
     try:
-        document = json.loads(text)
-    except json.JSONDecodeError:
-        raise InputError(path, "file is truncated or not valid JSON") from None
+        return _project_from_text(text, path)
+    except InputError:
+        raise
+    except (RecursionError, ValueError, OverflowError, TypeError, KeyError, IndexError, AttributeError,
+            MemoryError) as exc:  # a check we lack: refuse the file, keep the traceback in the log
+        log_exception(f"unexpected problem in project {path}")
+        raise InputError(path, f"malformed project file ({type(exc).__name__})") from None
+
+
+def _project_from_text(text: str, path: Path) -> Project:
+    try:
+        document = parse_json(text)
+    except DocumentError as exc:
+        raise InputError(path, str(exc)) from None
     if not isinstance(document, dict) or document.get("format") != PROJECT_FORMAT:
         raise InputError(path, "not a fluorogui project")
     version = document.get("schema_version")
@@ -202,7 +232,7 @@ def project_to_document(project: Project, base: Path) -> dict:
                 "frame": int(frame),
                 "view": int(view),
                 "component": component,
-                "points": record.points.tolist(),
+                "points": pack_array(record.points),
                 "spline": None if record.spline is None else _spline_to_dict(record.spline),
                 "reviewed": bool(record.reviewed),
             }
@@ -230,8 +260,8 @@ def _sort_key(item):
 
 def _spline_to_dict(spline: SplineRecord) -> dict:
     return {
-        "knots": spline.knots.tolist(),
-        "coefficients": spline.coefficients.tolist(),
+        "knots": pack_array(spline.knots),
+        "coefficients": pack_array(spline.coefficients),
         "degree": spline.degree,
         "t_range": list(spline.t_range),
     }
@@ -263,108 +293,90 @@ def _relative(p: Path, base: Path) -> str:
 
 # -- document -> Project --------------------------------------------------------------------------
 def project_from_document(document: dict, base: Path) -> Project:
-    """A Project from a current-schema document; relative paths are joined to ``base``."""
+    """A Project from a current-schema document (checked against ``ProjectDocument`` and its
+    invariants); relative paths are joined to ``base``. Raises _Malformed naming the field."""
+    try:
+        doc = ProjectDocument.model_validate(document)
+    except ValidationError as exc:
+        raise _Malformed(describe(exc)) from None
+    for where, value in [("settings", doc.settings)] + [
+            (f"poses[{i}].match", p.match.settings | p.match.quality) for i, p in enumerate(doc.poses) if p.match]:
+        if not _all_finite(value):
+            raise _Malformed(f"'{where}' holds a number too large to be finite")
+    try:
+        check_settings(doc.settings)
+        for section, defaults in _engine_defaults().items():
+            stored = doc.settings.get("workflow", {}).get(section, {})
+            check_typed_settings(stored, defaults, f"settings.workflow.{section}")
+    except ValidationError as exc:
+        raise _Malformed(describe(exc, "settings")) from None
+    except ValueError as exc:
+        raise _Malformed(str(exc)) from None
     views = []
-    for i, raw in enumerate(_get(document, "views", "", list)):
-        if not isinstance(raw, dict):
-            raise _Malformed(f"'views[{i}]' must be an object")
+    for i, raw in enumerate(doc.views):
         try:
-            views.append(View.from_dict(raw))
+            views.append(View.from_dict(raw.model_dump()))
         except GeometryError as exc:
             raise _Malformed(f"'views[{i}]': {exc}") from None
-    sequences = []
-    for i, raw in enumerate(_get(document, "sequences", "", list)):
-        where = f"sequences[{i}]"
-        paths = _get(_object(raw, where), "paths", where, list)
-        sequences.append(ImageSequence([_absolute(_string(p, f"{where}.paths"), base) for p in paths]))
-    frames = [_integer(f, "frames") for f in _get(document, "frames", "", list)]
-    models = []
-    for i, raw in enumerate(_get(document, "models", "", list)):
-        where = f"models[{i}]"
-        raw = _object(raw, where)
-        models.append(
-            ModelEntry(
-                component=_get(raw, "component", where, str),
-                mesh_path=_absolute(_get(raw, "mesh_path", where, str), base),
-                point_density=_integer(_get(raw, "point_density", where), f"{where}.point_density"),
-                local_frame=_array(_get(raw, "local_frame", where), f"{where}.local_frame", (4, 4)),
-            )
-        )
     records = {}
-    for i, raw in enumerate(_get(document, "records", "", list)):
-        where = f"records[{i}]"
-        raw = _object(raw, where)
-        key = (
-            _integer(_get(raw, "frame", where), f"{where}.frame"),
-            _integer(_get(raw, "view", where), f"{where}.view"),
-            _get(raw, "component", where, str),
-        )
-        if views and not 0 <= key[1] < len(views):
-            raise _Malformed(f"'{where}.view' is {key[1]} but the project has {len(views)} views")
+    for i, raw in enumerate(doc.records):
+        key = (raw.frame, raw.view, raw.component)
         if key in records:
-            raise _Malformed(f"'{where}' repeats the outline of frame {key[0]}, view {key[1]}, {key[2]}")
-        spline = _get(raw, "spline", where)
+            raise _Malformed(f"'records[{i}]' repeats the outline of frame {key[0]}, view {key[1]}, {key[2]}")
+        spline = raw.spline
         records[key] = OutlineRecord(
-            points=_array(_get(raw, "points", where), f"{where}.points", (None, 2)),
-            spline=None if spline is None else _spline_from_dict(_object(spline, f"{where}.spline"), f"{where}.spline"),
-            reviewed=_get(raw, "reviewed", where, bool),
+            points=raw.points,
+            spline=None if spline is None else SplineRecord(spline.knots, spline.coefficients,
+                                                            spline.degree, tuple(spline.t_range)),
+            reviewed=raw.reviewed,
         )
     poses = {}
-    for i, raw in enumerate(_get(document, "poses", "", list)):
-        where = f"poses[{i}]"
-        raw = _object(raw, where)
-        key = (_integer(_get(raw, "frame", where), f"{where}.frame"), _get(raw, "component", where, str))
+    for i, raw in enumerate(doc.poses):
+        key = (raw.frame, raw.component)
         if key in poses:
-            raise _Malformed(f"'{where}' repeats the pose of frame {key[0]}, {key[1]}")
-        match = _get(raw, "match", where)
-        status = _get(raw, "status", where, str)
-        if status not in POSE_STATUSES:
-            raise _Malformed(f"'{where}.status' is {status!r}; it must be one of {', '.join(POSE_STATUSES)}")
+            raise _Malformed(f"'poses[{i}]' repeats the pose of frame {key[0]}, {key[1]}")
         poses[key] = PoseRecord(
-            pose=_array(_get(raw, "pose", where), f"{where}.pose", (6,)),
-            match=None if match is None else _match_from_dict(_object(match, f"{where}.match"), f"{where}.match"),
-            reviewed=_optional_bool(raw, "reviewed", where),
-            status=status,
-            reason=_get(raw, "reason", where, str),
+            pose=np.array(raw.pose, dtype=float),
+            match=None if raw.match is None else MatchRecord(**(raw.match.model_dump() | {
+                "history": [float(v) for v in raw.match.history]})),
+            reviewed=raw.reviewed,
+            status=raw.status,
+            reason=raw.reason,
         )
     return Project(
         views=views,
-        sequences=sequences,
-        frames=frames,
-        models=models,
+        sequences=[ImageSequence([_absolute(p, base) for p in seq.paths]) for seq in doc.sequences],
+        frames=list(doc.frames),
+        models=[ModelEntry(m.component, _absolute(m.mesh_path, base), m.point_density, np.array(m.local_frame))
+                for m in doc.models],
         records=records,
         poses=poses,
-        settings=_get(document, "settings", "", dict),
+        settings=document["settings"],
     )
 
 
-def _optional_bool(container: dict, key: str, where: str) -> bool:
-    """A flag added within schema 2 (older files lack it: False)."""
-    return bool(_get(container, key, where, bool)) if key in container else False
+def _all_finite(value) -> bool:
+    """No infinite float (1e999 in the file) anywhere in free-form JSON data."""
+    if isinstance(value, float):
+        return math.isfinite(value)
+    if isinstance(value, dict):
+        return all(_all_finite(v) for v in value.values())
+    if isinstance(value, list):
+        return all(_all_finite(v) for v in value)
+    return True
 
 
-def _spline_from_dict(raw: dict, where: str) -> SplineRecord:
-    t_range = _array(_get(raw, "t_range", where), f"{where}.t_range", (2,))
-    return SplineRecord(
-        knots=_array(_get(raw, "knots", where), f"{where}.knots", (None,)),
-        coefficients=_array(_get(raw, "coefficients", where), f"{where}.coefficients", (None, None)),
-        degree=_integer(_get(raw, "degree", where), f"{where}.degree"),
-        t_range=(float(t_range[0]), float(t_range[1])),
-    )
+def _engine_defaults() -> dict[str, dict]:
+    """The engine settings a project stores (``settings.workflow``) and their defaults, which
+    give each stored value the kind it must have."""
+    from dataclasses import fields
 
+    from fluorogui.core.matching import MatchSettings
+    from fluorogui.core.pipeline import LoopSettings
+    from fluorogui.core.quality import QualityThresholds
 
-def _match_from_dict(raw: dict, where: str) -> MatchRecord:
-    return MatchRecord(
-        objective_mm=_number(_get(raw, "objective_mm", where), f"{where}.objective_mm"),
-        per_view_mean_mm=[float(v) for v in _array(_get(raw, "per_view_mean_mm", where), f"{where}.per_view_mean_mm", (None,))],
-        calls=_integer(_get(raw, "calls", where), f"{where}.calls"),
-        seconds=_number(_get(raw, "seconds", where), f"{where}.seconds"),
-        converged=_get(raw, "converged", where, bool),
-        method=_get(raw, "method", where, str),
-        settings=_get(raw, "settings", where, dict),
-        quality=_get(raw, "quality", where, dict) if "quality" in raw else {},
-        history=[float(v) for v in _array(raw["history"], f"{where}.history", (None,))] if "history" in raw else [],
-    )
+    return {name: {f.name: getattr(cls(), f.name) for f in fields(cls)}
+            for name, cls in (("match", MatchSettings), ("loop", LoopSettings), ("quality", QualityThresholds))}
 
 
 def _absolute(text: str, base: Path) -> Path:
@@ -381,7 +393,7 @@ def _get(container: dict, key: str, where: str, kind=None):
     name = f"{where}.{key}" if where else key
     value = container.get(key, _MISSING)
     if value is _MISSING:
-        raise _Malformed(f"missing field '{name}'")
+        raise _Malformed(f"missing the field '{name}'")
     if kind is not None and not isinstance(value, kind):
         raise _Malformed(f"field '{name}' must be {_TYPE_NAMES.get(kind, kind.__name__)}")
     return value
@@ -391,36 +403,3 @@ def _object(value, where: str) -> dict:
     if not isinstance(value, dict):
         raise _Malformed(f"'{where}' must be an object")
     return value
-
-
-def _string(value, where: str) -> str:
-    if not isinstance(value, str):
-        raise _Malformed(f"'{where}' must hold texts")
-    return value
-
-
-def _integer(value, where: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise _Malformed(f"'{where}' must be a whole number")
-    return value
-
-
-def _number(value, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise _Malformed(f"'{where}' must be a finite number")
-    return float(value)
-
-
-def _array(value, where: str, shape: tuple) -> np.ndarray:
-    try:
-        array = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise _Malformed(f"'{where}' must be a regular array of numbers") from None
-    if array.size == 0 and len(shape) == 2 and shape[1] is not None:
-        array = array.reshape(0, shape[1])  # an empty point list
-    if array.ndim != len(shape) or any(s is not None and s != n for s, n in zip(shape, array.shape)):
-        wanted = "x".join("N" if s is None else str(s) for s in shape)
-        raise _Malformed(f"'{where}' must be a {wanted} array, got shape {array.shape}")
-    if not np.all(np.isfinite(array)):
-        raise _Malformed(f"'{where}' contains NaN or infinite numbers")
-    return array

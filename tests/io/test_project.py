@@ -197,23 +197,23 @@ def edited(tmp_path, change) -> Path:
 
 
 def test_missing_and_malformed_fields(tmp_path):
-    assert load_error(edited(tmp_path, lambda d: d.pop("views"))).endswith("missing field 'views'")
+    assert load_error(edited(tmp_path, lambda d: d.pop("views"))).endswith("missing the field 'views'")
     assert load_error(edited(tmp_path, lambda d: d["records"][1].pop("points"))).endswith(
-        "missing field 'records[1].points'"
+        "missing the field 'records[1].points'"
     )
-    assert "'poses[0].pose' must be a 6 array" in load_error(
+    assert "field 'poses[0].pose' has 3 values, fewer than the 6 it needs" in load_error(
         edited(tmp_path, lambda d: d["poses"][0].update(pose=[1, 2, 3]))
     )
     assert "'views[1]': normal is not a unit vector" in load_error(
         edited(tmp_path, lambda d: d["views"][1].update(normal=[2.0, 0.0, 0.0]))
     )
-    assert "'records[0].points' contains NaN" in load_error(
+    assert "NaN is not a number JSON allows" in load_error(
         edited(tmp_path, lambda d: d["records"][0]["points"][0].__setitem__(0, float("nan")))
     )
-    assert "'records[1].view' is 5 but the project has 2 views" in load_error(
+    assert "records[1] is for view 5 but the project has 2 views" in load_error(
         edited(tmp_path, lambda d: d["records"][1].update(view=5))
     )
-    assert "field 'settings' must be an object" in load_error(edited(tmp_path, lambda d: d.update(settings=[])))
+    assert "field 'settings' must be an object, not a list of 0" in load_error(edited(tmp_path, lambda d: d.update(settings=[])))
 
 
 def test_v1_with_bad_key(tmp_path):

@@ -1,0 +1,156 @@
+"""Command lines to throw at ``fluorogui``: bad option values and broken input files.
+
+Each case is ``(argv, expect, names)``: ``expect`` "bad" means the run must be refused (exit
+2) with one line containing one of ``names`` (the option or the file); "any" (a mutated file
+that may still be valid) means any clean outcome (exit 0, 2 or 3, one line on refusal)."""
+from __future__ import annotations
+
+import os
+import random
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+from loader_worker import mutate
+
+CORPUS = Path(__file__).resolve().parent / "corpus"
+BAD_INTS = ["-5", "-1", "99999999999999999999", "abc", "1.5", "", "nan", "1e3"]  # bad for every option
+BAD_FLOATS = ["nan", "inf", "-inf", "1e999", "abc", "", "1e8"]
+
+
+def make_scene(folder: Path) -> dict:
+    """Two calibrations, two 64x48 images, a sphere mesh, two outlines, pairs and poses."""
+    import pyvista as pv
+
+    from fluorogui.core.geometry import View
+    from fluorogui.io.calibration import save_view_json
+    from fluorogui.io.images import write_image
+    from fluorogui.io.outlines import write_outline_csv
+
+    folder.mkdir(parents=True, exist_ok=True)
+    views = [View.looking_at((0, -1000, 0), (0, 0, 0), (0, 0, 1), 1200, (64, 48), 0.4, name="a"),
+             View.looking_at((1000, 0, 0), (0, 0, 0), (0, 0, 1), 1200, (64, 48), 0.4, name="b")]
+    scene = {}
+    t = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    for k, view in enumerate(views):
+        save_view_json(view, folder / f"cam{k}.json")
+        write_image(folder / f"img{k}.png", np.linspace(0, 1, 64 * 48).reshape(48, 64), bits=8)
+        write_outline_csv(folder / f"outline{k}.csv", np.column_stack([32 + 15 * np.cos(t), 24 + 15 * np.sin(t)]))
+        scene[f"cam{k}"], scene[f"img{k}"], scene[f"outline{k}"] = (folder / f"cam{k}.json", folder / f"img{k}.png",
+                                                                      folder / f"outline{k}.csv")
+    pv.Sphere(radius=20.0, theta_resolution=12, phi_resolution=12).save(folder / "ball.stl")
+    scene["mesh"] = folder / "ball.stl"
+    write_image(folder / "small.png", np.zeros((32, 32)), bits=8)
+    (folder / "pairs.csv").write_text("frame,cam1,cam2\n0,img0.png,img1.png\n")
+    (folder / "ref.csv").write_text("frame,component,x,y,z,alpha,beta,gamma\n0,femoral,0,0,0,0,0,0\n")
+    scene["pairs"], scene["reference"] = folder / "pairs.csv", folder / "ref.csv"
+    scene["folder"] = folder
+    return scene
+
+
+def match_argv(scene: dict, **replace) -> list[str]:
+    s = {**scene, **replace}
+    return ["match", "--camera", str(s["cam0"]), "--camera", str(s["cam1"]), "--image", str(s["img0"]),
+            "--image", str(s["img1"]), "--model", str(s["mesh"]), "--outline", str(s["outline0"]),
+            "--outline", str(s["outline1"]), "--start", "0", "0", "0", "0", "0", "0", "--starts", "1"]
+
+
+def repeat_argv(scene: dict, **replace) -> list[str]:
+    s = {**scene, **replace}
+    return ["validate", "repeatability", "--camera", str(s["cam0"]), "--camera", str(s["cam1"]),
+            "--model", str(s["mesh"]), "--reference", str(s["reference"]), "--pairs", str(s["pairs"]),
+            "--component", "femoral", "--starts", "1"]
+
+
+OPTION_CASES = [  # (argv builder, option, kind)
+    (match_argv, "--starts", "1-1000"), (match_argv, "--outline-points", "from-1"), (match_argv, "--points", "from-10"),
+    (repeat_argv, "--starts", "1-1000"), (repeat_argv, "--seed", "from-0"), (repeat_argv, "--frames", "from-0"),
+    (lambda s: ["track", "x.fluoro"], "--workers", "1-256"), (lambda s: ["batch", "x.fluoro"], "--workers", "from-1"),
+    (lambda s: ["bench"], "--starts", "1-1000"), (lambda s: ["demo", str(s["folder"] / "d.fluoro")], "--frames", "1-1000"),
+]
+SLOTS = [("cam0", match_argv), ("img1", match_argv), ("mesh", match_argv), ("outline0", match_argv),
+         ("pairs", repeat_argv), ("reference", repeat_argv), ("cam1", repeat_argv)]
+
+
+def _bad_file(kind: str, slot: str, scene: dict, folder: Path, n: int, rng: random.Random) -> tuple[Path, str]:
+    source = Path(scene[slot])
+    target = folder / f"case{n}_{kind}{source.suffix}"
+    if kind == "missing":
+        return target, "bad"
+    if kind == "folder":
+        target.mkdir()
+        return target, "bad"
+    if kind == "fifo" and hasattr(os, "mkfifo"):
+        os.mkfifo(target)
+        return target, "bad"
+    if kind == "empty":
+        target.write_bytes(b"")
+        return target, "bad"
+    if kind == "junk":
+        target.write_bytes(bytes([0]) + bytes(rng.randrange(256) for _ in range(2000)))
+        return target, "bad"
+    if kind == "billions" and slot == "mesh":
+        shutil.copy(CORPUS / "billions.ply", target.with_suffix(".ply"))
+        return target.with_suffix(".ply"), "bad"
+    if kind == "wrong_size" and slot.startswith("img"):
+        shutil.copy(scene["folder"] / "small.png", target)
+        return target, "bad"
+    target.write_bytes(mutate(source.read_bytes(), rng))
+    return target, "any"
+
+
+def generate(scene: dict, folder: Path, count: int, seed: int = 0) -> list[tuple[list[str], str, list[str]]]:
+    rng = random.Random(seed)
+    folder.mkdir(parents=True, exist_ok=True)
+    cases = []
+    for n in range(count):
+        if n % 2 == 0:
+            build, option, kind = OPTION_CASES[(n // 2) % len(OPTION_CASES)]
+            values = BAD_INTS + {"1-1000": ["0", "1001"], "1-256": ["0", "257"], "from-1": ["0"],
+                                 "from-10": ["0", "9"], "from-0": []}[kind]
+            value = rng.choice(values)
+            argv = build(scene)
+            if option in argv:
+                argv[argv.index(option) + 1] = value
+            else:
+                argv += [option, value]
+            if build is match_argv and rng.random() < 0.3:  # a bad start value instead
+                at = argv.index("--start") + 1 + rng.randrange(6)
+                argv[at] = value = rng.choice(BAD_FLOATS)
+                option = "--start"
+            cases.append((argv, "bad", [option]))
+        else:
+            slot, build = SLOTS[(n // 2) % len(SLOTS)]
+            kind = rng.choice(["missing", "folder", "fifo", "empty", "junk", "billions", "wrong_size",
+                               "mutated", "mutated", "mutated"])
+            path, expect = _bad_file(kind, slot, scene, folder, n, rng)
+            cases.append((build(scene, **{slot: path}), expect, [str(path), path.name]))
+    return cases
+
+
+def judge(case: tuple[list[str], str, list[str]], result: dict) -> str:
+    """One of: ok, crash, hang, internal_error, escaped, bad_accepted, unnamed, many_lines."""
+    argv, expect, names = case
+    code, stderr = result["code"], result["stderr"]
+    if isinstance(code, str):
+        return "crash" if code.startswith("crash") else "hang" if code == "hang" else "escaped"
+    if "Traceback" in stderr:
+        return "escaped"
+    if code == 1:
+        return "internal_error"
+    lines = stderr.strip().splitlines()
+    if code == 2:
+        if len(lines) != 1:
+            return "many_lines"
+        if any(name in lines[0] for name in names):
+            return "ok"
+        # a mutated file may still be valid: then a refusal of the combination that names
+        # another input (say, no outline found in an image) is a clean, named message
+        inputs = [a for a in argv if "/" in a]
+        return "ok" if expect == "any" and any(lines[0].startswith(f"fluorogui: error: {a}: ") for a in inputs) \
+            else "unnamed"
+    if expect == "bad":
+        return "bad_accepted"
+    return "ok" if code in (0, 3) else "internal_error"
+

@@ -1,0 +1,167 @@
+"""The command line's one error path: every bad option or input file is one line on stderr
+naming it, exit 2, before any work; internal errors are one line naming the log file
+(traceback inside); library chatter goes to the log unless --verbose."""
+from __future__ import annotations
+
+import os
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fluorogui import cli
+from fluorogui.core.geometry import View
+from fluorogui.io.calibration import save_view_json
+from fluorogui.io.images import write_image
+
+CORPUS = Path(__file__).resolve().parent / "corpus"
+
+
+@pytest.fixture(autouse=True)
+def log_folder(tmp_path, monkeypatch):
+    monkeypatch.setenv("FLUOROGUI_DATA_DIR", str(tmp_path / "data"))
+    return tmp_path / "data" / "logs" / "fluorogui.log"
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("cli")
+    views = [View.looking_at((0, -1000, 0), (0, 0, 0), (0, 0, 1), 1200, (64, 48), 0.4, name="a"),
+             View.looking_at((1000, 0, 0), (0, 0, 0), (0, 0, 1), 1200, (64, 48), 0.4, name="b")]
+    out = {"dir": d}
+    for k, view in enumerate(views):
+        save_view_json(view, d / f"cam{k}.json")
+        write_image(d / f"img{k}.png", np.full((48, 64), 0.5), bits=8)
+    import pyvista as pv
+
+    pv.Sphere(radius=20.0).save(d / "ball.stl")
+    (d / "pairs.csv").write_text("frame,cam1,cam2\n0,img0.png,img1.png\n")
+    (d / "ref.csv").write_text("frame,component,x,y,z,alpha,beta,gamma\n0,femoral,1,2,3,4,5,6\n")
+    return out
+
+
+def match_args(files, *extra, model=None):
+    d = files["dir"]
+    return ["match", "--camera", str(d / "cam0.json"), "--camera", str(d / "cam1.json"),
+            "--image", str(d / "img0.png"), "--image", str(d / "img1.png"),
+            "--model", str(model or d / "ball.stl"), "--start", "0", "0", "0", "0", "0", "0", *extra]
+
+
+def repeat_args(files, *extra, pairs=None, reference=None):
+    d = files["dir"]
+    return ["validate", "repeatability", "--camera", str(d / "cam0.json"), "--camera", str(d / "cam1.json"),
+            "--model", str(d / "ball.stl"), "--reference", str(reference or d / "ref.csv"),
+            "--pairs", str(pairs or d / "pairs.csv"), "--component", "femoral", "--starts", "1", *extra]
+
+
+def one_line(capsys, argv, code=2) -> str:
+    assert cli.main(argv) == code
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1, captured.err
+    assert "Traceback" not in captured.err
+    return lines[0]
+
+
+@pytest.mark.parametrize("option, value, words", [
+    ("--starts", "0", "argument --starts: 0 is out of range; give 1 to 1000"),
+    ("--starts", "1001", "argument --starts: 1001 is out of range; give 1 to 1000"),
+    ("--starts", "ten", "argument --starts: 'ten' is not a whole number"),
+    ("--outline-points", "-5", "argument --outline-points: -5 is out of range; give 1 to 100000"),
+    ("--points", "0", "argument --points: 0 is out of range; give 10 to 5000000"),
+])
+def test_option_ranges(files, capsys, option, value, words):
+    assert one_line(capsys, match_args(files, option, value)) == f"fluorogui match: {words}"
+
+
+def test_workers_and_start_values(files, capsys):
+    assert one_line(capsys, ["track", "x.fluoro", "--workers", "0"]) == \
+        "fluorogui track: argument --workers: 0 is out of range; give 1 to 256"
+    argv = match_args(files)
+    argv[argv.index("--start") + 1] = "inf"
+    assert one_line(capsys, argv) == "fluorogui match: argument --start: 'inf' is NaN or infinite; give a finite number"
+
+
+def test_mesh_claiming_billions_is_refused(files, capsys):
+    line = one_line(capsys, match_args(files, model=CORPUS / "billions.ply"))
+    assert line.startswith(f"fluorogui: error: {CORPUS / 'billions.ply'}: unreadable mesh file: the header claims")
+
+
+def test_unwritable_out_is_found_before_the_work(files, capsys, tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    line = one_line(capsys, repeat_args(files, "--out", str(blocker / "results")))
+    assert line == f"fluorogui: error: {blocker / 'results'}: cannot write results here: a part of the path is not a folder"
+
+
+def test_ragged_and_binary_pairs(files, capsys, tmp_path):
+    ragged = tmp_path / "pairs.csv"
+    ragged.write_text("frame,cam1,cam2\n0,a.png\n")
+    assert one_line(capsys, repeat_args(files, pairs=ragged)) == (
+        f"fluorogui: error: {ragged}: line 2 has 2 columns, expected 3 (frame, one image per view)")
+    binary = tmp_path / "binary.csv"
+    binary.write_bytes(b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR")
+    assert one_line(capsys, repeat_args(files, pairs=binary)) == \
+        f"fluorogui: error: {binary}: binary file, not a text CSV file"
+
+
+def test_reference_csv_problems(files, capsys, tmp_path):
+    ref = tmp_path / "ref.csv"
+    ref.write_text("frame,component,x,y,z,alpha,beta\n0,femoral,1,2,3,4,5\n")
+    assert one_line(capsys, repeat_args(files, reference=ref)) == (
+        f"fluorogui: error: {ref}: line 1: the header lacks the column gamma "
+        "(expected frame,component,x,y,z,alpha,beta,gamma)")
+    ref.write_text("frame,component,x,y,z,alpha,beta,gamma\n0,femoral,1,2,3,4,5\n")
+    assert one_line(capsys, repeat_args(files, reference=ref)) == \
+        f"fluorogui: error: {ref}: line 2 has 7 values; the header has 8"
+    ref.write_text("frame,component,x,y,z,alpha,beta,gamma\n0,femoral,1,2,3,4,5,nan\n")
+    assert one_line(capsys, repeat_args(files, reference=ref)) == \
+        f"fluorogui: error: {ref}: line 2: column 'gamma' is not a finite number: 'nan'"
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="POSIX FIFOs")
+def test_fifo_calibration_does_not_block(files, capsys, tmp_path):
+    fifo = tmp_path / "cam.txt"
+    os.mkfifo(fifo)
+    argv = match_args(files)
+    argv[argv.index("--camera") + 1] = str(fifo)
+    codes = []
+    worker = threading.Thread(target=lambda: codes.append(cli.main(argv)), daemon=True)
+    worker.start()
+    worker.join(10)
+    assert codes == [2]
+    assert capsys.readouterr().err.strip() == \
+        f"fluorogui: error: {fifo}: is not a regular file (a pipe, socket or device); give a calibration file"
+
+
+def test_internal_error_names_the_log_and_keeps_the_traceback(files, capsys, monkeypatch, log_folder):
+    def broken(args):
+        raise RuntimeError("a bug\nover two lines")
+
+    monkeypatch.setattr(cli, "cmd_match", broken)
+    line = one_line(capsys, match_args(files), code=1)
+    assert line == f"fluorogui: internal error: RuntimeError: a bug over two lines; details in {log_folder}"
+    log = log_folder.read_text()
+    assert "Traceback" in log and "raise RuntimeError" in log
+
+
+@pytest.mark.skipif(os.name != "posix", reason="file descriptors")
+def test_native_chatter_goes_to_the_log_unless_verbose(files, capfd, monkeypatch, log_folder):
+    def noisy(args):
+        os.write(2, b"libpng warning: iCCP: known incorrect sRGB profile\n")
+        return 0
+
+    monkeypatch.setattr(cli, "cmd_match", noisy)
+    assert cli.main(match_args(files)) == 0
+    assert "libpng" not in capfd.readouterr().err
+    assert "libpng warning" in log_folder.read_text()
+    assert cli.main(["--verbose", *match_args(files)]) == 0
+    assert "libpng warning" in capfd.readouterr().err
+
+
+def test_an_os_error_on_a_named_path_is_a_refusal_naming_it(files, capsys, tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    line = one_line(capsys, ["demo", str(blocker / "sub" / "d.fluoro")])
+    assert line == f"fluorogui: error: {blocker / 'sub'}: a part of the path is not a folder"
