@@ -9,7 +9,6 @@ import json
 import math
 import os
 import sys
-import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -53,31 +52,7 @@ finite_float.__name__ = "number"
 
 
 # -- output paths -------------------------------------------------------------------------------
-def check_output_folder(folder) -> None:
-    """Make ``folder`` (when given) and prove it writable before any work starts."""
-    from fluorogui.io.errors import InputError, describe_os_error
-
-    if not folder:
-        return
-    folder = Path(folder)
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=folder):
-            pass
-    except OSError as exc:
-        raise InputError(folder, f"cannot write results here: {describe_os_error(exc)}") from None
-
-
-def check_output_file(path) -> None:
-    """Prove the folder of the file ``path`` writable (and ``path`` not a folder) before work."""
-    from fluorogui.io.errors import InputError
-
-    path = Path(path)
-    if path.is_dir():
-        raise InputError(path, "is a folder; give a file name to write")
-    if not path.parent.is_dir():
-        raise InputError(path, "cannot write here: the folder does not exist")
-    check_output_folder(path.parent)
+from fluorogui.io.errors import check_output_file, check_output_folder  # noqa: E402,F401 (re-exported)
 
 
 # -- terminal -----------------------------------------------------------------------------------

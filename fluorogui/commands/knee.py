@@ -37,7 +37,7 @@ def add_parsers(sub) -> None:
 
 
 def run_export(args) -> int:
-    from fluorogui.io.pose_files import check_writable, check_writable_folder
+    from fluorogui.io.errors import check_output_file, check_output_folder
     from fluorogui.workflow import exports
 
     wanted = [args.poses, args.kinematics, args.tra, args.jts, args.plot]
@@ -49,9 +49,9 @@ def run_export(args) -> int:
         raise UsageError(f"fluorogui: export: --plot {args.plot}: the figure must be .png, .svg or .pdf")
     for path in (args.poses, args.kinematics, args.tra, args.plot):  # before any work
         if path:
-            check_writable(path)
+            check_output_file(path)
     if args.jts:
-        check_writable_folder(args.jts)
+        check_output_folder(args.jts)
     from fluorogui.workflow.session import Session
     from fluorogui.io.errors import InputError
 
@@ -119,11 +119,12 @@ def run_kinematics(args) -> int:
     from fluorogui.core.kinematics import KINEMATICS_COLUMNS, SIGN_CONVENTIONS, KinematicsError
     from fluorogui.io.errors import InputError
     from fluorogui.io.meshes import load_mesh
-    from fluorogui.io.pose_files import check_writable, read_long_poses, write_csv
+    from fluorogui.io.errors import check_output_file
+    from fluorogui.io.pose_files import read_long_poses, write_csv
     from fluorogui.workflow.exports import kinematics_of_poses
     from fluorogui import __version__
 
-    out = check_writable(args.out)
+    out = check_output_file(args.out)
     frames = {}
     for component, frame_path, mesh_path in (("femoral", args.femoral_frame, args.femoral_mesh),
                                              ("tibial", args.tibial_frame, args.tibial_mesh)):

@@ -248,3 +248,28 @@ def _fsync_folder(folder: Path) -> None:
         pass
     finally:
         os.close(fd)
+
+
+def check_output_folder(folder) -> Path | None:
+    """Make ``folder`` (when given) and prove it writable, before any work starts."""
+    if not folder:
+        return None
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        raise InputError(folder, f"cannot write results here: {describe_os_error(exc)}") from None
+    return folder
+
+
+def check_output_file(path) -> Path:
+    """Prove the folder of the file ``path`` writable (and ``path`` not a folder), before work."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(path, "is a folder; give a file name to write")
+    if not path.parent.is_dir():
+        raise InputError(path, "cannot write here: the folder does not exist")
+    check_output_folder(path.parent)
+    return path

@@ -20,7 +20,6 @@ from __future__ import annotations
 import csv
 import io
 import math
-import os
 from pathlib import Path
 
 import numpy as np
@@ -35,33 +34,6 @@ JTS_TITLE = "JT_EULER_312"
 JTS_HEADER = "          x_tran,          y_tran,          z_tran,                   z_rot,           x_rot,           y_rot"
 NOT_OPTIMIZED = "NOT_OPTIMIZED"
 MAX_ROWS = 1_000_000
-
-
-def check_writable(path) -> Path:
-    """Refuse an output path that cannot be written, before any work is done."""
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if path.is_dir():
-        raise InputError(path, "is a folder, not a file")
-    if not folder.is_dir():
-        raise InputError(path, "cannot be written: its folder does not exist")
-    if not os.access(folder, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
-        raise InputError(path, "cannot be written: permission denied")
-    return path
-
-
-def check_writable_folder(folder) -> Path:
-    """Refuse an output folder that cannot be created or written, before any work is done."""
-    folder = Path(folder)
-    if folder.exists() and not folder.is_dir():
-        raise InputError(folder, "is a file, not a folder")
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InputError(folder, f"cannot be created: {describe_os_error(exc)}") from None
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise InputError(folder, "cannot be written: permission denied")
-    return folder
 
 
 def _number_text(value) -> str:

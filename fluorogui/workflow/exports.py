@@ -22,11 +22,9 @@ from fluorogui.core.kinematics import (
 )
 from fluorogui.core.pose import matrix_to_pose, pose_to_matrix
 from fluorogui.core.session import PLACED, PoseRecord
-from fluorogui.io.errors import InputError
+from fluorogui.io.errors import InputError, check_output_file, check_output_folder
 from fluorogui.io.pose_files import (
     POSE_KEYS,
-    check_writable,
-    check_writable_folder,
     jointtrack_to_world_pose,
     pose_to_jointtrack,
     read_jts,
@@ -98,7 +96,7 @@ def pose_rows(session, rows: list[KneeRow]) -> list[list]:
 
 
 def export_poses_csv(session, path) -> Path:
-    path = check_writable(path)
+    path = check_output_file(path)
     rows = session.knee_rows()
     write_csv(path, header_lines(session, "poses and kinematics, one row per frame"),
               pose_columns(session.n_views), pose_rows(session, rows))
@@ -106,7 +104,7 @@ def export_poses_csv(session, path) -> Path:
 
 
 def export_kinematics_csv(session, path) -> Path:
-    path = check_writable(path)
+    path = check_output_file(path)
     rows = session.knee_rows()
     write_csv(path, header_lines(session, "knee kinematics, one row per frame"),
               ["frame", *KINEMATICS_COLUMNS, "status", "reason"],
@@ -116,7 +114,7 @@ def export_kinematics_csv(session, path) -> Path:
 
 def export_tra(session, path) -> Path:
     """Autoscoper: one row per frame, femoral then tibial, 16 numbers each (row by row)."""
-    path = check_writable(path)
+    path = check_output_file(path)
     matrices = []
     for frame in session.frames:
         row = []
@@ -132,7 +130,7 @@ def export_jts(session, folder, view: int) -> list[Path]:
     """JointTrack: ``femoral.jts`` and ``tibial.jts`` in ``view``'s (0-based) camera frame."""
     if not 0 <= view < session.n_views:
         raise InputError(folder, f"view {view + 1} does not exist (the session has {session.n_views})")
-    folder = check_writable_folder(folder)
+    folder = check_output_folder(folder)
     camera = session.views[view]
     written = []
     for c in KNEE_COMPONENTS:
@@ -150,7 +148,7 @@ def export_jts(session, folder, view: int) -> list[Path]:
 def export_plot(session, path, against: str = "frame") -> Path:
     from fluorogui.workflow.knee_plot import save_kinematics_figure
 
-    path = check_writable(path)
+    path = check_output_file(path)
     if path.suffix.lower() not in (".png", ".svg", ".pdf"):
         raise InputError(path, "the figure must be .png, .svg or .pdf")
     save_kinematics_figure(session.knee_rows(), path, side=session.side or "right", against=against,

@@ -7,9 +7,8 @@ import pytest
 
 from fluorogui.core.pose import pose_to_matrix
 from fluorogui.io.calibration import load_view
-from fluorogui.io.errors import InputError
+from fluorogui.io.errors import InputError, check_output_file
 from fluorogui.io.pose_files import (
-    check_writable,
     jointtrack_to_world_pose,
     pose_to_jointtrack,
     read_jts,
@@ -115,6 +114,6 @@ def test_bad_long_pose_csvs_are_refused_by_row(tmp_path, text, words):
 
 def test_unwritable_outputs_are_refused_before_work(tmp_path):
     with pytest.raises(InputError, match="folder does not exist"):
-        check_writable(tmp_path / "nowhere" / "out.csv")
+        check_output_file(tmp_path / "nowhere" / "out.csv")
     with pytest.raises(InputError, match="is a folder"):
-        check_writable(tmp_path)
+        check_output_file(tmp_path)
