@@ -1,14 +1,13 @@
 """Look and feel: the Fusion style with a light or dark palette (following the system by
-default), a small style sheet, and icons from ``resources/icons``."""
+default), a small style sheet, and icons from ``fluorogui/resources/icons`` (package data)."""
 from __future__ import annotations
-
-from pathlib import Path
 
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QColor, QGuiApplication, QIcon, QPalette
 from PySide6.QtWidgets import QApplication
 
-ICON_DIR = Path(__file__).resolve().parents[2] / "resources" / "icons"
+from fluorogui.resources import ICON_DIR
+
 THEMES = ("system", "light", "dark")
 
 STYLE = """
