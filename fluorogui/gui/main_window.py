@@ -28,9 +28,11 @@ from PySide6.QtWidgets import (
 from fluorogui import __version__
 from fluorogui.gui import theme
 from fluorogui.gui.controller import SessionController
+from fluorogui.gui.help_menu import HelpActions
 from fluorogui.gui.image_panel import ImagePanel, Tool
 from fluorogui.gui.match_control import MatchControl
 from fluorogui.gui.matcher_panel import MatcherPanel
+from fluorogui.gui.pixel_value import RawPixels, format_value
 from fluorogui.gui.pose_editor import PoseEditor
 from fluorogui.gui.session_files import SessionFiles
 from fluorogui.gui.session_view import COMPONENT_COLOURS, SessionView
@@ -53,7 +55,7 @@ TOOLS = (
 )
 
 
-class MainWindow(SessionFiles, SessionView, MatchControl, QMainWindow):
+class MainWindow(SessionFiles, SessionView, MatchControl, HelpActions, QMainWindow):
     """The fluorogui main window."""
 
     frame_shown = Signal(int)  # frame number, emitted after its images and overlays are on screen
@@ -71,6 +73,7 @@ class MainWindow(SessionFiles, SessionView, MatchControl, QMainWindow):
         self._last_live_3d = 0.0
         self._deferred_overlay = False
         self.last_place_miss: float | None = None
+        self.raw_pixels = RawPixels()
         self.setWindowIcon(theme.icon("app"))
         self.setAcceptDrops(True)
         self.setDockNestingEnabled(True)
@@ -80,7 +83,7 @@ class MainWindow(SessionFiles, SessionView, MatchControl, QMainWindow):
         for panel in self.panels:
             panel.edit_sink = self.controller.apply_edit
             panel.point_clicked.connect(self._place_click)
-            panel.cursor_moved.connect(self._show_cursor)
+            panel.cursor_moved.connect(lambda u, v, value, view=panel.view_index: self._show_cursor(u, v, value, view))
             for name, colour in COMPONENT_COLOURS.items():
                 panel.set_component_colour(name, colour)
             splitter.addWidget(panel)
@@ -181,6 +184,8 @@ class MainWindow(SessionFiles, SessionView, MatchControl, QMainWindow):
         self.undo_action.setShortcut(QKeySequence.StandardKey.Undo)
         self.redo_action = c.undo_stack.createRedoAction(self, "&Redo")
         self.redo_action.setShortcuts([QKeySequence("Ctrl+Shift+Z"), QKeySequence.StandardKey.Redo])
+        self.addAction(self.undo_action)  # listed with the window's shortcuts (F1)
+        self.addAction(self.redo_action)
         edit_menu.addAction(self.undo_action)
         edit_menu.addAction(self.redo_action)
         edit_menu.addSeparator()
@@ -254,16 +259,25 @@ class MainWindow(SessionFiles, SessionView, MatchControl, QMainWindow):
                                               "Ctrl+Shift+F5", "track_both",
                                               "Track every component through the following frames (Ctrl+Shift+F5)")
         self.accept_action = self._action("&Accept pose", self.accept_pose, "Ctrl+Return", "accept",
-                                          "Accept the active component's pose, or reopen it (Ctrl+Return)")
+                                          "Accept the active component's pose in this frame (Ctrl+Return)")
+        self.unaccept_action = self._action("&Un-accept pose", self.unaccept_pose, "Ctrl+Shift+Return",
+                                            tip="Take back the acceptance of the active component's pose "
+                                                "(Ctrl+Shift+Return)")
         self.next_action = self._action("&Next frame", lambda: self.step_frame(1), "PgDown")
         self.prev_action = self._action("&Previous frame", lambda: self.step_frame(-1), "PgUp")
+        self.first_action = self._action("&First frame", lambda: self.go_to_end(first=True), "Home")
+        self.last_action = self._action("&Last frame", lambda: self.go_to_end(first=False), "End")
+        self.next_component_action = self._action("Next &component", self.cycle_component, "K",
+                                                  tip="Make the next component the active one (K)")
         for a in (self.run_action, self.run_both_action, self.cancel_action, self.track_action,
-                  self.track_both_action, self.accept_action, self.next_action, self.prev_action):
+                  self.track_both_action, self.accept_action, self.unaccept_action):
             match_menu.addAction(a)
+        match_menu.addSeparator()
+        for a in (self.next_action, self.prev_action, self.first_action, self.last_action):
+            match_menu.addAction(a)
+        model_menu.insertAction(self.orient_menu.menuAction(), self.next_component_action)
 
-        help_menu = menu.addMenu("&Help")
-        help_menu.addAction(self._action("&Keyboard shortcuts", self.show_shortcuts, "F1"))
-        help_menu.addAction(self._action("&About fluorogui", self.show_about))
+        self._build_help_menu(menu)
 
         bar = self.addToolBar("Main")
         bar.setObjectName("mainToolbar")
@@ -322,6 +336,7 @@ class MainWindow(SessionFiles, SessionView, MatchControl, QMainWindow):
         m.track_requested.connect(lambda: self.track_frames())
         m.track_both_requested.connect(lambda: self.track_both())
         m.accept_requested.connect(self.accept_pose)
+        m.unaccept_requested.connect(self.unaccept_pose)
         m.place_requested.connect(lambda: self.find_implants())
         m.settings_edited.connect(self._settings_edited)
         r = self.runner
@@ -386,8 +401,23 @@ class MainWindow(SessionFiles, SessionView, MatchControl, QMainWindow):
             self.scene_widget.close()
         event.accept()
 
-    def _show_cursor(self, u: float, v: float, value: float) -> None:
-        self.cursor_label.setText(f"u {u:.1f}  v {v:.1f}  value {value:.0f}")
+    def _show_cursor(self, u: float, v: float, value: float, view: int | None = None) -> None:
+        """Cursor position and the value stored in the image file at that pixel (the
+        panels hold images scaled to [0, 1]; the file's own number is what users know)."""
+        raw = None
+        c = self.controller
+        if view is not None and c.frame is not None and view < self.session.n_views:
+            path = self.session.image_path(c.frame, view)
+            image = self.panels[view].image()
+            if path is not None and image is not None:
+                raw = self.raw_pixels.value_at(path, u, v, image.shape)
+        if raw is not None:
+            text = format_value(raw)
+        elif value == value:  # not NaN: no file value, show the scaled one
+            text = f"{value:.4g}"
+        else:
+            text = "–"
+        self.cursor_label.setText(f"u {u:.1f}  v {v:.1f}  value {text}")
 
     # -- editing ---------------------------------------------------------------------------
     def set_tool(self, tool: Tool) -> None:
@@ -461,33 +491,59 @@ class MainWindow(SessionFiles, SessionView, MatchControl, QMainWindow):
     def step_frame(self, step: int) -> None:
         self.controller.step_frame(step)
 
-    def accept_pose(self) -> None:
+    def go_to_end(self, first: bool) -> None:
+        """Show the first (Home) or the last (End) frame."""
+        frames = self.controller.frames
+        if frames:
+            self.controller.set_frame(frames[0] if first else frames[-1])
+
+    def cycle_component(self) -> None:
+        """Make the next component active (K), wrapping round."""
+        names = self.controller.components()
+        if names:
+            c = self.controller
+            i = names.index(c.component) if c.component in names else -1
+            c.set_component(names[(i + 1) % len(names)])
+            self.statusBar().showMessage(f"Active component: {c.component}", 4000)
+
+    def accept_pose(self) -> bool:
         """Accept the active component's pose in this frame (flagged or not: the user has
-        looked at it), or reopen an accepted one."""
+        looked at it). Pressing it again changes nothing: Un-accept is its own action."""
         c, s = self.controller, self.controller.session
         if c.frame is None or self.runner.is_running():
-            return
+            return False
         record = s.pose_record(c.component, c.frame)
         if record is None or (record.match is None and record.status == "placed"):
             self.statusBar().showMessage(f"Match the {c.component} component first (F5); then accept it", 8000)
-            return
-        s.set_reviewed(c.component, c.frame, not record.reviewed)
+            return False
         if record.reviewed:
-            text = f"Reopened the {c.component} pose in frame {c.frame}"
-        else:
-            text = f"Accepted the {c.component} pose in frame {c.frame}" + (
-                " although it was flagged" if record.needs_review else "")
-        self.statusBar().showMessage(text, 8000)
+            self.statusBar().showMessage(f"The {c.component} pose in frame {c.frame} is already accepted "
+                                         "(Un-accept: Ctrl+Shift+Return)", 8000)
+            return False
+        s.set_reviewed(c.component, c.frame, True)
+        self.statusBar().showMessage(f"Accepted the {c.component} pose in frame {c.frame}" + (
+            " although it was flagged" if record.needs_review else ""), 8000)
+        return True
 
-    # -- help ------------------------------------------------------------------------------
-    def show_shortcuts(self) -> None:
-        rows = [(a.text().replace("&", ""), a.shortcut().toString()) for a in self.actions()
-                if not a.shortcut().isEmpty() and not a.text().startswith(("Move ", "Turn "))]
-        rows.append(("Nudge the model", "Ctrl+arrows, Ctrl+PgUp/PgDn (add Shift to turn)"))
-        text = "\n".join(f"{k:<12} {name}" for name, k in rows)
-        QMessageBox.information(self, "Keyboard shortcuts", text)
+    def unaccept_pose(self) -> bool:
+        """Take back the acceptance of the active component's pose in this frame."""
+        c, s = self.controller, self.controller.session
+        if c.frame is None or self.runner.is_running():
+            return False
+        record = s.pose_record(c.component, c.frame)
+        if record is None or not record.reviewed:
+            self.statusBar().showMessage(f"The {c.component} pose in frame {c.frame} is not accepted", 8000)
+            return False
+        s.set_reviewed(c.component, c.frame, False)
+        self.statusBar().showMessage(f"Un-accepted the {c.component} pose in frame {c.frame}", 8000)
+        return True
 
-    def show_about(self) -> None:
-        QMessageBox.about(self, "About fluorogui",
-                          f"fluorogui {__version__}\n\nPose of total-knee-replacement implants from two "
-                          "fluoroscopic views (after Tsai et al., J Biomech Eng 2006).")
+    def _refresh_accept_state(self) -> None:
+        """Accept and Un-accept enabled for the state the active pose is in."""
+        c, s = self.controller, self.controller.session
+        record = s.pose_record(c.component, c.frame) if c.frame is not None else None
+        can = record is not None and not (record.match is None and record.status == "placed")
+        accepted = bool(record is not None and record.reviewed)
+        self.accept_action.setEnabled(can and not accepted)
+        self.unaccept_action.setEnabled(accepted)
+        self.matcher.set_accepted(accepted if can or accepted else None)

@@ -111,8 +111,8 @@ class MatchControl:
         todo = [n for n in names if not ((r := s.pose_record(n, c.frame)) is not None and r.reviewed)]
         if not todo:
             what = "poses are" if len(names) > 1 else f"{names[0]} pose is"
-            self.statusBar().showMessage(f"The {what} accepted in frame {c.frame}; Ctrl+Return reopens the active "
-                                         "component's pose to match it again", 10000)
+            self.statusBar().showMessage(f"The {what} accepted in frame {c.frame}; Un-accept it (Ctrl+Shift+Return) "
+                                         "to match it again", 10000)
             return False
         try:
             job = s.match_job(c.frame, todo)
@@ -179,8 +179,11 @@ class MatchControl:
         self.matcher.set_running(running)
         self.cancel_action.setEnabled(running)
         for a in (self.run_action, self.run_both_action, self.track_action, self.track_both_action,
-                  self.find_action, self.accept_action, self.open_action, self.import_action, self.demo_action):
+                  self.find_action, self.accept_action, self.unaccept_action, self.open_action,
+                  self.import_action, self.demo_action):
             a.setEnabled(not running)
+        if not running:
+            self._refresh_accept_state()
         if running:
             self.matcher.show_summary("")
             self.statusBar().showMessage(self.runner.label + "…")

@@ -185,6 +185,7 @@ class SessionView:
             text, level = describe_pose(name, s.pose_record(name, c.frame))
             lines.append((text, level, name == c.component))
         self.matcher.show_poses(lines)
+        self._refresh_accept_state()
         record = s.pose_record(c.component, c.frame)
         if not self.runner.is_running():  # a running task draws its own plot
             self.matcher.plot.set_values(record.match.history if record is not None and record.match else [])
