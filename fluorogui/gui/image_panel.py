@@ -68,6 +68,28 @@ from fluorogui.gui.panel_items import (
 from fluorogui.gui.panel_tools import PanelInteraction
 
 
+def _add_spline_runs(solid: QPainterPath, gaps: QPainterPath, spline: OutlineSpline) -> int:
+    """Draw a closed outline spline into ``solid``, except across its gaps (erased or
+    missing stretches, ``spline.gaps``), which go into ``gaps`` to be drawn dashed: an
+    erased stretch shows as a gap, not as a bridged line. Returns the number of gaps."""
+    start, end = spline.t_range
+    n = int(np.clip(spline.length_px, 64, 8000))
+    t = start + (end - start) * np.arange(n + 1) / n
+    curve = spline.evaluate(t)
+    in_gap = spline.in_gap(t)
+    if not in_gap.any():
+        solid.addPolygon(polygon(curve[:-1]))
+        solid.closeSubpath()
+        return 0
+    # runs of samples start where in_gap changes; the closing sample equals the first
+    change = np.flatnonzero(np.diff(in_gap.astype(np.int8))) + 1
+    bounds = np.concatenate([[0], change, [len(t)]])
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        lo, hi = max(a - 1, 0), min(b + 1, len(t))  # overlap one sample so runs meet
+        (gaps if in_gap[a] else solid).addPolygon(polygon(curve[lo:hi]))
+    return len(spline.gaps)
+
+
 # -- the panel ------------------------------------------------------------------------------------------
 class ImagePanel(PanelInteraction, QGraphicsView):
     """Zoomable image view of one fluoroscope with edges, outlines and outline tools."""
@@ -442,6 +464,9 @@ class ImagePanel(PanelInteraction, QGraphicsView):
         if not active:
             line.setAlpha(170)
         comp.spline.setPen(cosmetic_pen(line, 2.2 if active else 1.5))
+        gap = QColor(comp.colour)
+        gap.setAlpha(150)
+        comp.gap_line.setPen(cosmetic_pen(gap, 1.0, Qt.PenStyle.DashLine))
         comp.dots.set_style(size_px=5.0 if active else 3.0, colour=comp.colour, halo=active)
         if comp.flagged:  # a pose that needs review: a red dashed outline on top, never the matched look
             comp.model_line.setPen(cosmetic_pen(FLAGGED_COLOUR, 2.2, Qt.PenStyle.DashLine))
@@ -457,6 +482,8 @@ class ImagePanel(PanelInteraction, QGraphicsView):
         """Show a component's outline (closed, (K, 2) of (u, v); None or empty clears it)
         with its spline; ``key`` names the outline (it is handed back to ``edit_sink``)."""
         comp = self._component(component)
+        if key != comp.key and component == self._active:  # another frame's outline: no stale marker
+            self._selected = self._gap_first = None
         comp.key = key
         if self._active is None:
             self._active = component
@@ -494,20 +521,24 @@ class ImagePanel(PanelInteraction, QGraphicsView):
             pts = None
         comp.points = pts
         comp.dots.set_points(pts)
-        path = QPainterPath()
+        path, gap_path = QPainterPath(), QPainterPath()
         comp.spline_ok = False
+        comp.gap_count = 0
         if pts is not None and len(pts) >= 2:
-            curve = pts
+            spline = None
             if len(pts) >= 4:
                 try:
                     spline = OutlineSpline.fit(pts)
-                    curve = spline.sample(int(np.clip(spline.length_px, 64, 8000)))
                     comp.spline_ok = True
                 except Exception:  # an unusable outline is shown as its polyline
-                    curve = pts
-            path.addPolygon(polygon(curve))
-            path.closeSubpath()
+                    spline = None
+            if spline is None:
+                path.addPolygon(polygon(pts))
+                path.closeSubpath()
+            else:
+                comp.gap_count = _add_spline_runs(path, gap_path, spline)
         comp.spline.setPath(path)
+        comp.gap_line.setPath(gap_path)
         self._style_component(component)
         self.viewport().update()
 

@@ -14,6 +14,7 @@ import time
 from PySide6.QtCore import QTimer
 
 from fluorogui.gui import jobs
+from fluorogui.gui.eta import Eta, describe
 from fluorogui.io.errors import InputError
 from fluorogui.workflow.results import FAILED, NEEDS_REVIEW
 
@@ -153,6 +154,7 @@ class MatchControl:
         self._track = TrackSummary(todo, names)
         self._live_components = []
         self._task_kind = "track"
+        self._eta = Eta(len(todo))
         self.matcher.show_batch(0, len(todo), 0.0)
         return self.runner.start(jobs.track_task(job), f"Tracking {' and '.join(names)} from frame {todo[0]}")
 
@@ -171,6 +173,7 @@ class MatchControl:
             return False
         self._live_components = []
         self._task_kind = "find"
+        self._eta = Eta(1.0)
         self.matcher.show_progress(0.0, "Looking for the implants")
         return self.runner.start(jobs.find_task(job), f"Finding the implants in frame {c.frame}")
 
@@ -203,8 +206,10 @@ class MatchControl:
                 self.scene_widget.scene.set_pose(payload.component, payload.pose)
                 self.scene_widget.scene.render()
         elif isinstance(payload, jobs.FindProgress):
-            self.matcher.show_progress(payload.fraction, payload.text)
-            self.statusBar().showMessage(f"{self.runner.label}: {payload.text}")
+            left = describe(self._eta.update(payload.fraction)) if getattr(self, "_eta", None) else ""
+            text = f"{payload.text}, {left}" if left else payload.text
+            self.matcher.show_progress(payload.fraction, text)
+            self.statusBar().showMessage(f"{self.runner.label}: {text} (Esc cancels)")
 
     def _store(self, results, text: str | None = None) -> None:
         """Results into the session (one undoable step), with one overlay refresh."""
@@ -220,7 +225,8 @@ class MatchControl:
         self._store(payload.results, f"Track frame {payload.frame}")
         self._track.add(payload.frame, payload.results)
         self._track.elapsed_s = payload.elapsed_s
-        self.matcher.show_batch(payload.done, payload.total, payload.elapsed_s)
+        left = self._eta.update(payload.done) if getattr(self, "_eta", None) else None
+        self.matcher.show_batch(payload.done, payload.total, payload.elapsed_s, left)
         self._follow_frame = payload.frame  # the view follows, at most once per event-loop pass
         self._follow_timer.start()
         shown = next((r for r in payload.results if r.component == self.controller.component), payload.results[0])

@@ -334,13 +334,14 @@ class MatcherPanel(QWidget):
         self.progress.setValue(int(round(1000 * min(max(fraction, 0.0), 1.0))))
         self.progress.setFormat(f"{text} (%p %)" if text else "%p %")
 
-    def show_batch(self, done: int, total: int, seconds: float) -> None:
-        """Frames done of ``total`` and the time left at the average time per frame so far."""
+    def show_batch(self, done: int, total: int, seconds: float, left_s: float | None = None) -> None:
+        """Frames done of ``total`` and the time left: ``left_s`` (a moving average of the
+        recent frames, ``fluorogui.gui.eta``) or else the average time per frame so far."""
         self.progress.setVisible(True)
         self.progress.setRange(0, max(total, 1))
         self.progress.setValue(done)
         if done:
-            eta = seconds / done * (total - done)
+            eta = seconds / done * (total - done) if left_s is None else left_s
             left = f"about {eta:.0f} s left" if eta >= 1 or done == total else "under a second left"
             self.progress.setFormat(f"%v / %m frames, {left}")
         else:

@@ -221,13 +221,16 @@ class ComponentItems:
         self.flagged = False  # the model's pose needs review
         self.spline = QGraphicsPathItem()
         self.spline.setZValue(4)
+        self.gap_line = QGraphicsPathItem()  # chords across erased or missing stretches: dashed
+        self.gap_line.setZValue(4)
+        self.gap_count = 0
         self.dots = DotsItem(5.0, colour, min_gap_px=6.0)
         self.dots.setZValue(5)
         self.model_line = QGraphicsPathItem()
         self.model_line.setZValue(2)
         self.model_dots = DotsItem(3.0, MODEL_COLOUR, halo=False)
         self.model_dots.setZValue(6)
-        for item in (self.spline, self.dots, self.model_line, self.model_dots):
+        for item in (self.spline, self.gap_line, self.dots, self.model_line, self.model_dots):
             item.setAcceptedMouseButtons(Qt.MouseButton.NoButton)
             scene.addItem(item)
 

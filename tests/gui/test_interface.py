@@ -145,3 +145,57 @@ def test_quick_start_page_is_shipped_with_the_shortcuts(window):
     assert "Quick start" in text or "quick start" in text
     assert "Un-accept" in text and "Ctrl+Shift+Z" in text  # the live shortcut table is filled in
     dialog.close()
+
+
+def _path_points(path):
+    return np.array([(path.elementAt(i).x, path.elementAt(i).y) for i in range(path.elementCount())])
+
+
+def test_an_erased_stretch_is_drawn_as_a_gap(qtbot):
+    from fluorogui.gui.image_panel import ImagePanel
+
+    panel = ImagePanel(0)
+    qtbot.addWidget(panel)
+    panel.set_image(np.zeros((200, 200), dtype=np.uint8))
+    angles = np.linspace(0, 2 * np.pi, 80, endpoint=False)
+    circle = np.column_stack([100 + 60 * np.cos(angles), 100 + 60 * np.sin(angles)])
+    panel.set_outline("femoral", circle, key=(0, 0, "femoral"))
+    items = panel._components["femoral"]
+    assert items.gap_count == 0 and items.gap_line.path().isEmpty()
+    kept = np.r_[0:30, 50:80]  # points 30..49 erased: a quarter of the circle
+    panel.set_outline("femoral", circle[kept], key=(0, 0, "femoral"))
+    assert items.gap_count == 1
+    middle = np.array([100 + 60 * np.cos(angles[40]), 100 + 60 * np.sin(angles[40])])  # where points were erased
+    solid, dashed = _path_points(items.spline.path()), _path_points(items.gap_line.path())
+    assert np.linalg.norm(solid - middle, axis=1).min() > 20  # no solid line across the gap
+    assert np.linalg.norm(dashed - middle, axis=1).min() < 10  # the dashed chord is there instead
+    assert np.linalg.norm(solid - circle[10], axis=1).min() < 1  # the kept stretch is drawn solid
+
+
+def test_selected_point_marker_is_cleared_on_another_frame(window, demo):
+    window.open_project(demo)
+    panel = window.panels[0]
+    if panel.outline(window.controller.component) is None:
+        angles = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+        panel.set_outline(window.controller.component, np.column_stack([200 + 50 * np.cos(angles),
+                                                                         200 + 50 * np.sin(angles)]), (0, 0, "x"))
+    panel._selected = 3
+    panel._update_highlight()
+    assert panel.selected_point() == 3
+    window.step_frame(1)
+    assert panel.selected_point() is None
+
+
+def test_eta_follows_the_recent_frames_not_the_first():
+    from fluorogui.gui.eta import Eta, describe
+
+    eta = Eta(total=4)
+    eta._last = (0.0, 0.0)
+    # the complaint: a 2 s first frame, then 20 s frames; the plain average said 2 s left at 1/4
+    assert eta.update(1, now=2.0) == pytest.approx(6.0)
+    left = eta.update(2, now=22.0)  # moving average 0.4*20 + 0.6*2 = 9.2 s per frame
+    assert left == pytest.approx(2 * 9.2)
+    left = eta.update(3, now=42.0)  # 0.4*20 + 0.6*9.2 = 13.52
+    assert left == pytest.approx(13.52)
+    assert describe(None) == "" and describe(0.2) == "under a second left"
+    assert describe(40) == "about 40 s left" and describe(180) == "about 3 min left"
