@@ -124,6 +124,8 @@ class ImagePanel(PanelInteraction, QGraphicsView):
         self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
         self.setMinimumSize(200, 200)
         self.setAccessibleName(self.title)
+        #: drawn in the middle while there is no image (what to do next)
+        self.placeholder = ""
 
         # image and window / level
         self._image: np.ndarray | None = None
@@ -611,6 +613,12 @@ class ImagePanel(PanelInteraction, QGraphicsView):
         font.setBold(True)
         draw_label(painter, font, QPointF(8, 8), [(None, self.title)])
         font.setBold(False)
+        if self._image is None and self.placeholder:
+            fm = QFontMetrics(font)
+            lines = self.placeholder.splitlines()
+            width = max(fm.horizontalAdvance(line) for line in lines) + 30
+            corner = QPointF(max(8.0, (self.viewport().width() - width) / 2), self.viewport().height() / 2 - 30)
+            draw_label(painter, font, corner, [(None, line) for line in lines])
         legend = [(self._components[n].colour, n + ("  ✎" if n == self._active else "")
                    + ("  (no spline)" if self._components[n].points is not None and not self._components[n].spline_ok
                       else "") + ("  — needs review" if self._components[n].flagged else ""))

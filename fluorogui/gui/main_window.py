@@ -42,6 +42,8 @@ from fluorogui.io.errors import InputError
 from fluorogui.workflow.session import ORIENTATION_PRESETS
 
 AUTOSAVE_MS = 3 * 60 * 1000
+NO_SESSION_HINT = ("No session open.\nFile → Open… (Ctrl+O) opens a project,\nFile → New session (Ctrl+N) "
+                   "imports images,\nFile → Open the demo session to try it out.")
 TOOLS = (
     (Tool.NAVIGATE, "navigate", "Navigate", "N", "Pan and zoom (wheel zooms at the cursor, right-drag sets window/level)"),
     (Tool.PICK_CONTOUR, "pick", "Pick contour", "P", "Click an edge contour to take it as the outline (Shift adds one)"),
@@ -86,6 +88,7 @@ class MainWindow(SessionFiles, SessionView, MatchControl, HelpActions, QMainWind
             panel.cursor_moved.connect(lambda u, v, value, view=panel.view_index: self._show_cursor(u, v, value, view))
             for name, colour in COMPONENT_COLOURS.items():
                 panel.set_component_colour(name, colour)
+            panel.placeholder = NO_SESSION_HINT
             splitter.addWidget(panel)
         self.setCentralWidget(splitter)
 
@@ -161,12 +164,14 @@ class MainWindow(SessionFiles, SessionView, MatchControl, HelpActions, QMainWind
         c = self.controller
         menu = self.menuBar()
         file_menu = menu.addMenu("&File")
-        self.open_action = self._action("&Open…", lambda: self.open_project(), QKeySequence.StandardKey.Open, "open")
+        self.open_action = self._action("&Open…", lambda: self.open_project(), QKeySequence.StandardKey.Open, "open",
+                                        "Open a fluorogui project (Ctrl+O)")
         self.new_action = self._action("&New session from images and calibration…", lambda: self.import_session(),
                                        QKeySequence.StandardKey.New)
         self.import_action = self.new_action
         self.demo_action = self._action("Open the &demo session", self.open_demo)
-        self.save_action = self._action("&Save", self.save, QKeySequence.StandardKey.Save, "save")
+        self.save_action = self._action("&Save", self.save, QKeySequence.StandardKey.Save, "save",
+                                        "Save the session (Ctrl+S)")
         self.save_as_action = self._action("Save &as…", self.save_as, QKeySequence.StandardKey.SaveAs)
         self.quit_action = self._action("&Quit", self.close, QKeySequence.StandardKey.Quit)
         self.recent_menu = file_menu.addMenu("Open &recent")
@@ -277,6 +282,10 @@ class MainWindow(SessionFiles, SessionView, MatchControl, HelpActions, QMainWind
             match_menu.addAction(a)
         model_menu.insertAction(self.orient_menu.menuAction(), self.next_component_action)
 
+        from fluorogui.gui.tour import start_tour
+
+        self.tour_action = self._action("Guided &tour", lambda: start_tour(self, force=True),
+                                        tip="A one-minute tour of the window")
         self._build_help_menu(menu)
 
         bar = self.addToolBar("Main")
@@ -312,6 +321,10 @@ class MainWindow(SessionFiles, SessionView, MatchControl, HelpActions, QMainWind
             bar.addAction(a)
 
     def _build_status_bar(self) -> None:
+        self.tool_label = QLabel("")  # what the current tool does, always in view
+        self.tool_label.setObjectName("toolHint")
+        self.statusBar().addWidget(self.tool_label, 1)
+        self._show_tool_hint(Tool.NAVIGATE)
         self.cursor_label = QLabel("")
         self.frame_label = QLabel("")
         self.statusBar().addPermanentWidget(self.cursor_label)
@@ -420,10 +433,15 @@ class MainWindow(SessionFiles, SessionView, MatchControl, HelpActions, QMainWind
         self.cursor_label.setText(f"u {u:.1f}  v {v:.1f}  value {text}")
 
     # -- editing ---------------------------------------------------------------------------
+    def _show_tool_hint(self, tool: Tool) -> None:
+        text, key, tip = next((t, k, h) for tl, _i, t, k, h in TOOLS if tl == tool)
+        self.tool_label.setText(f"{text} ({key}): {tip}")
+
     def set_tool(self, tool: Tool) -> None:
         for panel in self.panels:
             panel.set_tool(tool)
         self.tool_actions[tool].setChecked(True)
+        self._show_tool_hint(tool)
         if tool == Tool.PLACE:
             self.place_clicks.clear()
             self.statusBar().showMessage(

@@ -109,10 +109,13 @@ class SessionView:
         for view in range(s.n_views):
             try:
                 images.append(s.image(frame, view))
+                self.panels[view].placeholder = ""
             except InputError as exc:
                 self.statusBar().showMessage(str(exc), 10000)
                 self.last_error = str(exc)
                 images.append(None)
+                if view < len(self.panels):
+                    self.panels[view].placeholder = f"No image for frame {frame}:\n{exc}"
         for view, panel in enumerate(self.panels):
             panel.set_image(images[view] if view < len(images) else None, key=(frame, view))
             for name in s.components():

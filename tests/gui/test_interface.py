@@ -1,5 +1,7 @@
 """Interface fixes of issue 12: the raw pixel value under the cursor, Accept and Un-accept
 as separate actions, Home/End and the component key, the complete shortcut list, About."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -199,3 +201,51 @@ def test_eta_follows_the_recent_frames_not_the_first():
     assert left == pytest.approx(13.52)
     assert describe(None) == "" and describe(0.2) == "under a second left"
     assert describe(40) == "about 40 s left" and describe(180) == "about 3 min left"
+
+
+def test_save_dialog_starts_beside_the_images_never_in_the_data_folder(window, tmp_path, monkeypatch):
+    from PySide6.QtWidgets import QFileDialog
+
+    from fluorogui.gui.session_files import app_data_dir
+
+    assert window.open_demo(ask=False)  # the demo lives in the app's data folder
+    data = app_data_dir().resolve()
+    assert data in window.controller.path.resolve().parents
+    monkeypatch.setenv("HOME", str(tmp_path))
+    start = window.default_save_dir().resolve()
+    assert start != data and data not in start.parents
+    asked = []
+    monkeypatch.setattr(QFileDialog, "getSaveFileName", lambda *a, **k: (asked.append(a[2]), ("", ""))[1])
+    assert not window.save_as()
+    assert data not in Path(asked[0]).resolve().parents
+
+
+def test_save_dialog_starts_in_the_images_folder(window, demo):
+    window.open_project(demo)
+    window.controller.session.path = None  # an imported session: no file yet
+    assert window.default_save_dir().resolve() == demo.parent.resolve()
+
+
+def test_no_session_and_a_missing_image_leave_a_hint(window, demo):
+    assert "File → Open" in window.panels[0].placeholder
+    window.open_project(demo)
+    assert window.panels[0].placeholder == ""
+    path = window.session.image_path(1, 0)
+    path.unlink()
+    window.step_frame(1)
+    assert window.panels[0].image() is None and path.name in window.panels[0].placeholder
+
+
+def test_tool_hint_in_the_status_bar_and_tooltips_on_every_tool_button(window):
+    from PySide6.QtWidgets import QToolBar, QToolButton
+
+    from fluorogui.gui.image_panel import Tool
+
+    window.set_tool(Tool.ERASE)
+    assert window.tool_label.text().startswith("Erase (E): Brush away")
+    bar = window.findChild(QToolBar, "mainToolbar")
+    buttons = [b for b in bar.findChildren(QToolButton) if b.defaultAction() is not None]
+    assert len(buttons) > 10
+    for button in buttons:
+        action = button.defaultAction()
+        assert action.toolTip() and action.toolTip() != action.text().replace("&", ""), action.text()
