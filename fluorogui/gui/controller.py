@@ -48,6 +48,7 @@ class SessionController(QObject):
     outline_changed = Signal(object, str)  # (frame, view, component) key, component
     dirty_changed = Signal(bool)
     path_changed = Signal(object)
+    model_changed = Signal(str)  # a component's mesh file was relinked
 
     def __init__(self, parent: QObject | None = None, session: Session | None = None) -> None:
         super().__init__(parent)
@@ -67,6 +68,8 @@ class SessionController(QObject):
             self.pose_changed.emit(int(what[0]), str(what[1]))
         elif event == "outline":
             self.outline_changed.emit(tuple(what), str(what[2]))
+        elif event == "model":
+            self.model_changed.emit(str(what))
         elif event == "saved":
             self.path_changed.emit(self.session.path)
 

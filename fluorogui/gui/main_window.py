@@ -32,6 +32,7 @@ from fluorogui.gui.help_menu import HelpActions
 from fluorogui.gui.image_panel import ImagePanel, Tool
 from fluorogui.gui.match_control import MatchControl
 from fluorogui.gui.matcher_panel import MatcherPanel
+from fluorogui.gui.missing_files import MissingFiles
 from fluorogui.gui.pixel_value import RawPixels, format_value
 from fluorogui.gui.pose_editor import PoseEditor
 from fluorogui.gui.session_files import SessionFiles
@@ -57,7 +58,7 @@ TOOLS = (
 )
 
 
-class MainWindow(SessionFiles, SessionView, MatchControl, HelpActions, QMainWindow):
+class MainWindow(SessionFiles, SessionView, MatchControl, HelpActions, MissingFiles, QMainWindow):
     """The fluorogui main window."""
 
     frame_shown = Signal(int)  # frame number, emitted after its images and overlays are on screen
@@ -339,6 +340,7 @@ class MainWindow(SessionFiles, SessionView, MatchControl, HelpActions, QMainWind
         c.outline_changed.connect(self._outline_changed)
         c.dirty_changed.connect(lambda dirty: self.setWindowModified(dirty))
         c.path_changed.connect(lambda _p: self._refresh_title())
+        c.model_changed.connect(self._model_changed)
         self.pose_editor.pose_edited.connect(
             lambda pose: c.session.set_pose(c.component, c.frame, pose, text="Edit pose", mergeable=True))
         self.timeline.frame_selected.connect(c.set_frame)

@@ -118,7 +118,7 @@ class MatchControl:
         try:
             job = s.match_job(c.frame, todo)
         except (InputError, KeyError, ValueError) as exc:
-            self._warn("Cannot match", str(exc).strip("'\""))
+            self._job_error("Cannot match", exc)
             return False
         self._live_components = todo
         self._task_kind = "match"
@@ -149,7 +149,7 @@ class MatchControl:
         try:
             job = s.track_job(frames=todo, components=names, redo=True)
         except (InputError, KeyError, ValueError) as exc:
-            self._warn("Cannot track", str(exc).strip("'\""))
+            self._job_error("Cannot track", exc)
             return False
         self._track = TrackSummary(todo, names)
         self._live_components = []
@@ -169,7 +169,7 @@ class MatchControl:
         try:
             job = s.find_job(c.frame, "both")
         except (InputError, KeyError, ValueError) as exc:
-            self._warn("Cannot search", str(exc).strip("'\""))
+            self._job_error("Cannot search", exc)
             return False
         self._live_components = []
         self._task_kind = "find"

@@ -94,3 +94,44 @@ def test_a_folder_argument_starts_the_app_not_a_sub_command(tmp_path):
     assert _is_project_file_argument([str(tmp_path)])
     assert not _is_project_file_argument(["match"])
     assert not _is_project_file_argument(["--version"])
+
+
+def test_a_missing_model_clears_its_overlay_and_offers_locate(window, demo, monkeypatch, qtbot):
+    from PySide6.QtWidgets import QFileDialog
+
+    window.open_project(demo)  # a first project: its femoral overlay is on screen
+    assert window.panels[0].model_outline("femoral") is not None
+    mesh = demo.parent / "models" / "femoral_component.stl"
+    moved = demo.parent / "moved_femoral.stl"
+    mesh.rename(moved)
+    asked = []
+
+    def ask(box):
+        asked.append(box.text())
+        return next(b for b in box.buttons() if b.text() == "Locate…")
+
+    monkeypatch.setattr(window, "_ask", ask)
+    monkeypatch.setattr(QFileDialog, "getOpenFileName", lambda *a, **k: (str(moved), ""))
+    window.controller.session.history.set_clean()
+    window.open_project(demo, ask=False)  # the same project again, now with its femoral mesh missing
+    assert all(panel.model_outline("femoral") is None for panel in window.panels)  # no stale overlay
+    qtbot.waitUntil(lambda: bool(asked))
+    assert "femoral_component.stl" in asked[0] and "Locate" in asked[0]
+    # Locate… relinked it: the model and its overlay are back, as one undoable step
+    assert window.session.project.model("femoral").mesh_path == moved
+    assert window.panels[0].model_outline("femoral") is not None
+    window.undo_action.trigger()
+    assert window.session.project.model("femoral").mesh_path.name == "femoral_component.stl"
+    assert window.panels[0].model_outline("femoral") is None
+
+
+def test_match_with_a_missing_model_offers_locate_not_a_repeat(window, demo, monkeypatch):
+    window.open_project(demo)
+    offered = []
+    monkeypatch.setattr(window, "offer_locate", lambda name, error: offered.append((name, str(error))))
+    (demo.parent / "models" / "tibial_component.stl").unlink()
+    window.controller.session._raw_meshes.clear()
+    window.controller.session._meshes.clear()
+    window.controller.set_component("tibial")
+    assert not window.run_match()
+    assert offered and offered[0][0] == "tibial" and "tibial_component.stl" in offered[0][1]
