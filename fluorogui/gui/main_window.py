@@ -15,10 +15,12 @@ from PySide6.QtWidgets import (
     QApplication,
     QComboBox,
     QDockWidget,
+    QFrame,
     QHBoxLayout,
     QLabel,
     QMainWindow,
     QMessageBox,
+    QScrollArea,
     QSlider,
     QSplitter,
     QTreeWidget,
@@ -118,13 +120,25 @@ class MainWindow(SessionFiles, SessionView, MatchControl, HelpActions, MissingFi
         self.autosave_timer.timeout.connect(self.autosave)
         self.autosave_timer.start()
         self._restore_layout()
+        self.focus_frame = theme.install_focus_frame(self)
         self._refresh_title()
         self.pose_editor.set_component(None)
 
     # -- construction ----------------------------------------------------------------------
-    def _dock(self, title: str, widget: QWidget, area, name: str) -> QDockWidget:
+    def _dock(self, title: str, widget: QWidget, area, name: str, scroll: bool = False) -> QDockWidget:
+        """A dock; with ``scroll`` its content scrolls when the window is too small for it
+        (a laptop screen) instead of squeezing or overlapping."""
         dock = QDockWidget(title, self)
         dock.setObjectName(name)
+        if scroll:
+            area_widget = QScrollArea()
+            area_widget.setObjectName(f"{name}Scroll")
+            area_widget.setWidgetResizable(True)
+            area_widget.setFrameShape(QFrame.Shape.NoFrame)
+            area_widget.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAsNeeded)
+            area_widget.setWidget(widget)
+            area_widget.setMinimumSize(160, 90)
+            widget = area_widget
         dock.setWidget(widget)
         self.addDockWidget(area, dock)
         return dock
@@ -133,8 +147,8 @@ class MainWindow(SessionFiles, SessionView, MatchControl, HelpActions, MissingFi
         right = Qt.DockWidgetArea.RightDockWidgetArea
         if self.scene_widget is not None:
             self.scene_dock = self._dock("3D scene", self.scene_widget, right, "sceneDock")
-        self.matcher_dock = self._dock("Matcher", self.matcher, right, "matcherDock")
-        self.pose_dock = self._dock("Pose", self.pose_editor, right, "poseDock")
+        self.matcher_dock = self._dock("Matcher", self.matcher, right, "matcherDock", scroll=True)
+        self.pose_dock = self._dock("Pose", self.pose_editor, right, "poseDock", scroll=True)
         self.session_dock = self._dock("Session", self.tree, right, "sessionDock")
         self.tabifyDockWidget(self.matcher_dock, self.pose_dock)
         self.tabifyDockWidget(self.pose_dock, self.session_dock)
@@ -372,7 +386,15 @@ class MainWindow(SessionFiles, SessionView, MatchControl, HelpActions, MissingFi
             self.resize(1280, 800)
         if state is not None:
             self.restoreState(state)
+        elif self.scene_widget is not None:
+            QTimer.singleShot(0, self._share_right_column)
         self._refresh_recent()
+
+    def _share_right_column(self) -> None:
+        """First start: the 3D scene takes 40 % of the right column, the tabs the rest."""
+        height = max(self.height() - 160, 300)
+        self.resizeDocks([self.scene_dock, self.matcher_dock], [int(height * 0.4), int(height * 0.6)],
+                         Qt.Orientation.Vertical)
 
     def _save_layout(self) -> None:
         self.settings.setValue("window/geometry", self.saveGeometry())

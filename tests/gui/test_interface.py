@@ -249,3 +249,22 @@ def test_tool_hint_in_the_status_bar_and_tooltips_on_every_tool_button(window):
     for button in buttons:
         action = button.defaultAction()
         assert action.toolTip() and action.toolTip() != action.text().replace("&", ""), action.text()
+
+
+def test_keyboard_focus_is_ringed(window, qtbot):
+    window.show()
+    window.activateWindow()
+    qtbot.waitActive(window)
+    button = window.matcher.run_button
+    button.setFocus()
+    qtbot.waitUntil(lambda: window.focus_frame.widget() is button)
+    assert window.focus_frame.isVisible()
+    window.panels[1].setFocus()
+    qtbot.waitUntil(lambda: window.focus_frame.widget() is window.panels[1])
+
+
+def test_the_window_fits_a_small_laptop_screen(window):
+    hint = window.minimumSizeHint()
+    assert hint.width() <= 1024 and hint.height() <= 700  # docks scroll instead of forcing the size
+    window.resize(1024, 700)
+    assert window.size().height() <= 700
