@@ -166,6 +166,35 @@ def _run_json(command: list[str]) -> tuple[dict, float]:
     return json.loads(proc.stdout), seconds
 
 
+def _start_gui(exe: Path) -> dict | None:
+    """Start the built app on the demo (a fresh data folder, so the demo is generated) and
+    let it quit once the window shows it (``FLUOROGUI_SMOKE_TEST``); under Xvfb when
+    there is no display."""
+    import os
+
+    with tempfile.TemporaryDirectory(prefix="fluorogui-gui-check-") as tmp:
+        env = dict(os.environ, FLUOROGUI_SMOKE_TEST="1", FLUOROGUI_DATA_DIR=tmp, XDG_CONFIG_HOME=tmp)
+        command = [str(exe)]
+        if not env.get("DISPLAY") and not env.get("WAYLAND_DISPLAY"):
+            if shutil.which("xvfb-run") is None:
+                say("no display and no xvfb-run: GUI start not checked")
+                return {"title": "not checked", "frames": 0, "started_s": float("nan"), "wall_s": float("nan")}
+            command = ["xvfb-run", "-a", "-s", "-screen 0 1920x1080x24", *command]
+        t0 = time.perf_counter()
+        proc = subprocess.run(command, capture_output=True, text=True, timeout=600, env=env)
+        wall = time.perf_counter() - t0
+    lines = [line for line in proc.stdout.splitlines() if line.startswith("{")]
+    if proc.returncode != 0 or not lines:
+        say(f"FAILED: the built app did not start (exit {proc.returncode}): {proc.stderr.strip()[-800:]}")
+        return None
+    started = json.loads(lines[-1])
+    if "demo" not in started.get("title", "") or not started.get("frames"):
+        say(f"FAILED: the built app did not open the demo: {started}")
+        return None
+    started["wall_s"] = wall
+    return started
+
+
 def check() -> int:
     """Run the built program's --version and a headless match on a generated scene, and
     compare the pose with the pip-installed program's; returns the exit code."""
@@ -182,6 +211,11 @@ def check() -> int:
         say(f"--version gave {proc.stdout.strip()!r} (exit {proc.returncode}), expected 'fluorogui {__version__}'")
         return 1
     say(f"built --version: {proc.stdout.strip()} ({cold:.2f} s, first start)")
+    started = _start_gui(exe)
+    if started is None:
+        return 1
+    say(f"built app: window with the demo ({started['title']}, {started['frames']} frames) in "
+        f"{started['started_s']:.1f} s (first start, demo generated: {started['wall_s']:.1f} s wall)")
     with tempfile.TemporaryDirectory(prefix="fluorogui-check-") as tmp:
         args, truth = _write_scene(Path(tmp))
         built, built_s = _run_json([str(exe), *args])
