@@ -54,7 +54,8 @@ class HelpActions:
         """(what, keys) for every action with a shortcut, then the mouse and panel keys."""
         rows, seen = [], set()
         for action in self.actions():
-            keys = [k.toString(QKeySequence.SequenceFormat.NativeText) for k in action.shortcuts() if not k.isEmpty()]
+            keys = list(dict.fromkeys(k.toString(QKeySequence.SequenceFormat.NativeText)
+                                      for k in action.shortcuts() if not k.isEmpty()))  # once each
             name = action.text().replace("&", "").rstrip("…").strip()
             if not keys or name.startswith(("Move x", "Move y", "Move z", "Turn alpha", "Turn beta", "Turn gamma")):
                 continue

@@ -54,6 +54,8 @@ class Tour(QDialog):
         layout.addWidget(self.title)
         layout.addWidget(self.text, 1)
         layout.addLayout(buttons)
+        self.next_button.setDefault(True)
+        self.next_button.setFocus()
         self.show_step(0)
 
     def _next(self) -> None:

@@ -122,6 +122,7 @@ def test_shortcut_list_is_complete(window):
                        ("Un-accept pose", "Ctrl+Shift+Return"), ("First frame", "Home"), ("Last frame", "End"),
                        ("Next component", "K"), ("Keyboard shortcuts", "F1"), ("Fit images", "F")):
         assert name in rows and rows[name].startswith(keys), (name, rows.get(name))
+    assert all(len(keys.split(" or ")) == len(set(keys.split(" or "))) for keys in rows.values())  # no repeats
     dialog = window.show_shortcuts()
     text = dialog.browser.toPlainText()
     assert "Ctrl+Shift+Z" in text and "Move point" in text and "<table" in window.shortcuts_html()
