@@ -27,7 +27,6 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from fluorogui import __version__
 from fluorogui.gui import theme
 from fluorogui.gui.controller import SessionController
 from fluorogui.gui.help_menu import HelpActions
@@ -37,6 +36,7 @@ from fluorogui.gui.matcher_panel import MatcherPanel
 from fluorogui.gui.missing_files import MissingFiles
 from fluorogui.gui.pixel_value import RawPixels, format_value
 from fluorogui.gui.pose_editor import PoseEditor
+from fluorogui.gui.review_actions import ReviewActions
 from fluorogui.gui.session_files import SessionFiles
 from fluorogui.gui.session_view import COMPONENT_COLOURS, SessionView
 from fluorogui.gui.timeline import Timeline, TimelineLegend
@@ -60,7 +60,7 @@ TOOLS = (
 )
 
 
-class MainWindow(SessionFiles, SessionView, MatchControl, HelpActions, MissingFiles, QMainWindow):
+class MainWindow(SessionFiles, SessionView, MatchControl, ReviewActions, HelpActions, MissingFiles, QMainWindow):
     """The fluorogui main window."""
 
     frame_shown = Signal(int)  # frame number, emitted after its images and overlays are on screen
@@ -529,63 +529,3 @@ class MainWindow(SessionFiles, SessionView, MatchControl, HelpActions, MissingFi
             c.session.orient(c.component, c.frame, angles)
         except (InputError, KeyError) as exc:
             self._warn("Cannot orient the model", str(exc))
-
-    def step_frame(self, step: int) -> None:
-        self.controller.step_frame(step)
-
-    def go_to_end(self, first: bool) -> None:
-        """Show the first (Home) or the last (End) frame."""
-        frames = self.controller.frames
-        if frames:
-            self.controller.set_frame(frames[0] if first else frames[-1])
-
-    def cycle_component(self) -> None:
-        """Make the next component active (K), wrapping round."""
-        names = self.controller.components()
-        if names:
-            c = self.controller
-            i = names.index(c.component) if c.component in names else -1
-            c.set_component(names[(i + 1) % len(names)])
-            self.statusBar().showMessage(f"Active component: {c.component}", 4000)
-
-    def accept_pose(self) -> bool:
-        """Accept the active component's pose in this frame (flagged or not: the user has
-        looked at it). Pressing it again changes nothing: Un-accept is its own action."""
-        c, s = self.controller, self.controller.session
-        if c.frame is None or self.runner.is_running():
-            return False
-        record = s.pose_record(c.component, c.frame)
-        if record is None or (record.match is None and record.status == "placed"):
-            self.statusBar().showMessage(f"Match the {c.component} component first (F5); then accept it", 8000)
-            return False
-        if record.reviewed:
-            self.statusBar().showMessage(f"The {c.component} pose in frame {c.frame} is already accepted "
-                                         "(Un-accept: Ctrl+Shift+Return)", 8000)
-            return False
-        s.set_reviewed(c.component, c.frame, True)
-        self.statusBar().showMessage(f"Accepted the {c.component} pose in frame {c.frame}" + (
-            " although it was flagged" if record.needs_review else ""), 8000)
-        return True
-
-    def unaccept_pose(self) -> bool:
-        """Take back the acceptance of the active component's pose in this frame."""
-        c, s = self.controller, self.controller.session
-        if c.frame is None or self.runner.is_running():
-            return False
-        record = s.pose_record(c.component, c.frame)
-        if record is None or not record.reviewed:
-            self.statusBar().showMessage(f"The {c.component} pose in frame {c.frame} is not accepted", 8000)
-            return False
-        s.set_reviewed(c.component, c.frame, False)
-        self.statusBar().showMessage(f"Un-accepted the {c.component} pose in frame {c.frame}", 8000)
-        return True
-
-    def _refresh_accept_state(self) -> None:
-        """Accept and Un-accept enabled for the state the active pose is in."""
-        c, s = self.controller, self.controller.session
-        record = s.pose_record(c.component, c.frame) if c.frame is not None else None
-        can = record is not None and not (record.match is None and record.status == "placed")
-        accepted = bool(record is not None and record.reviewed)
-        self.accept_action.setEnabled(can and not accepted)
-        self.unaccept_action.setEnabled(accepted)
-        self.matcher.set_accepted(accepted if can or accepted else None)
