@@ -42,6 +42,8 @@ TRIM_GLOBS = (
     "_internal/PySide6/Qt/plugins/designer",
     "_internal/PySide6/Qt/qml",
     "_internal/**/tests",
+    "_internal/cv2/data",  # OpenCV's face-detector cascades
+    "_internal/matplotlib/mpl-data/sample_data",
 )
 
 
@@ -105,6 +107,19 @@ def trim(app_dir: Path) -> int:
     return before - folder_size(app_dir)
 
 
+def strip_vtk(app_dir: Path) -> int:
+    """Strip the symbol tables off VTK's shared libraries (Linux; its core library drops
+    from 98 to 62 MB). Only VTK's: stripping everything (PyInstaller's strip=True) breaks
+    numpy's OpenBLAS. Returns the bytes saved."""
+    strip = shutil.which("strip")
+    if not sys.platform.startswith("linux") or strip is None:
+        return 0
+    libraries = sorted((app_dir / "_internal" / "vtkmodules").glob("*.so"))
+    before = sum(p.stat().st_size for p in libraries)
+    subprocess.run([strip, "--strip-unneeded", *map(str, libraries)], check=True)
+    return before - sum(p.stat().st_size for p in libraries)
+
+
 def build() -> None:
     ensure_pyinstaller()
     make_icons()
@@ -113,7 +128,7 @@ def build() -> None:
                     "--distpath", str(DIST), "--workpath", str(WORK), str(HERE / "fluorogui.spec")],
                    check=True, cwd=REPO)
     seconds = time.perf_counter() - t0
-    saved = trim(APP_DIR)
+    saved = trim(APP_DIR) + strip_vtk(APP_DIR)
     for name in ("fluorogui.desktop", "io.github.fluorogui.metainfo.xml"):
         shutil.copy2(HERE / name, APP_DIR / name)
     shutil.copy2(ICON_DIR / "fluorogui-256.png", APP_DIR / "fluorogui.png")
