@@ -115,7 +115,13 @@ class SessionFiles:
         return True
 
     def _last_dir(self) -> Path:
-        return Path(self.settings.value("last_dir", str(Path.home())))
+        """The folder of the last project opened, unless that is the app's data folder
+        (the demo's): file dialogs never start there."""
+        last = Path(self.settings.value("last_dir", str(Path.home())))
+        data = app_data_dir().resolve()
+        if last.resolve() == data or data in last.resolve().parents:
+            return Path.home()
+        return last
 
     def open_demo(self, ask: bool = True) -> bool:
         """Open the built-in demo session (generated on first use)."""

@@ -219,6 +219,9 @@ def test_save_dialog_starts_beside_the_images_never_in_the_data_folder(window, t
     monkeypatch.setattr(QFileDialog, "getSaveFileName", lambda *a, **k: (asked.append(a[2]), ("", ""))[1])
     assert not window.save_as()
     assert data not in Path(asked[0]).resolve().parents
+    monkeypatch.setattr(QFileDialog, "getOpenFileName", lambda *a, **k: (asked.append(a[2]), ("", ""))[1])
+    assert not window.open_project()  # File → Open after the demo: not in the demo's folder either
+    assert Path(asked[1]).resolve() != data and data not in Path(asked[1]).resolve().parents
 
 
 def test_save_dialog_starts_in_the_images_folder(window, demo):
