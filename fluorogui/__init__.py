@@ -11,7 +11,19 @@ The public Python API (the same workflow the desktop app and the command line us
 imported on first use, so ``import fluorogui`` stays cheap.
 """
 
-__version__ = "0.1.0"
+
+def _package_version() -> str:
+    """The installed distribution's version (pyproject.toml is the one source); the
+    fallback covers a source tree that was never installed."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("fluorogui")
+    except PackageNotFoundError:
+        return "0.0.0+unknown"
+
+
+__version__ = _package_version()
 
 _PUBLIC = {
     "Session": "fluorogui.workflow.session",

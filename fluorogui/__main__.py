@@ -1,6 +1,6 @@
 """Entry point: `fluorogui` / `python -m fluorogui`.
 
-With no arguments, or a single project file, start the desktop app; otherwise hand the
+With no arguments, or a single project file or folder, start the desktop app; otherwise hand the
 arguments to the headless command line. Qt is imported only for the desktop app.
 """
 from __future__ import annotations
@@ -13,10 +13,21 @@ PROJECT_SUFFIX = ".fluoro"
 
 
 def _is_project_file_argument(argv: Sequence[str]) -> bool:
+    """One argument that is a project file, another file, or a folder (to import) opens
+    the window; a folder named like a sub-command stays a sub-command."""
     if len(argv) != 1 or argv[0].startswith("-"):
         return False
     arg = argv[0]
-    return arg.lower().endswith(PROJECT_SUFFIX) or os.path.isfile(arg)
+    if arg.lower().endswith(PROJECT_SUFFIX) or os.path.isfile(arg):
+        return True
+    return os.path.isdir(arg) and arg not in _command_names()
+
+
+def _command_names() -> set[str]:
+    from fluorogui import cli
+
+    parser = cli.build_parser()
+    return {name for action in parser._subparsers._group_actions for name in action.choices}
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -5,11 +5,12 @@ REPO_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$REPO_ROOT/packaging/setup.sh"
 APP="$REPO_ROOT/.venv/bin/fluorogui"
 
-# Same rule as fluorogui/__main__.py: no arguments or one project file opens the window.
+# Same rule as fluorogui/__main__.py: no arguments, one project file or one folder (to
+# import) opens the window; anything else is a command-line sub-command.
 opens_window=false
 if [ $# -eq 0 ]; then
   opens_window=true
-elif [ $# -eq 1 ] && [[ "$1" != -* ]] && { [[ "${1,,}" == *.fluoro ]] || [ -f "$1" ]; }; then
+elif [ $# -eq 1 ] && [[ "$1" != -* ]] && { [[ "${1,,}" == *.fluoro ]] || [ -f "$1" ] || [ -d "$1" ]; }; then
   opens_window=true
 fi
 

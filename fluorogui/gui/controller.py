@@ -49,6 +49,7 @@ class SessionController(QObject):
     knee_changed = Signal(str)  # "side" or the component whose anatomical frame changed
     dirty_changed = Signal(bool)
     path_changed = Signal(object)
+    model_changed = Signal(str)  # a component's mesh file was relinked
 
     def __init__(self, parent: QObject | None = None, session: Session | None = None) -> None:
         super().__init__(parent)
@@ -70,6 +71,8 @@ class SessionController(QObject):
             self.outline_changed.emit(tuple(what), str(what[2]))
         elif event == "knee":
             self.knee_changed.emit(str(what))
+        elif event == "model":
+            self.model_changed.emit(str(what))
         elif event == "saved":
             self.path_changed.emit(self.session.path)
 

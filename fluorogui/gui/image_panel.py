@@ -55,6 +55,7 @@ from fluorogui.gui.panel_items import (
     MIN_SCALE,
     PICK_TOLERANCE_PX,
     AnonymousImage,
+    add_spline_runs,
     ComponentItems,
     CrossItem,
     DotsItem,
@@ -102,6 +103,8 @@ class ImagePanel(PanelInteraction, QGraphicsView):
         self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
         self.setMinimumSize(200, 200)
         self.setAccessibleName(self.title)
+        #: drawn in the middle while there is no image (what to do next)
+        self.placeholder = ""
 
         # image and window / level
         self._image: np.ndarray | None = None
@@ -442,6 +445,9 @@ class ImagePanel(PanelInteraction, QGraphicsView):
         if not active:
             line.setAlpha(170)
         comp.spline.setPen(cosmetic_pen(line, 2.2 if active else 1.5))
+        gap = QColor(comp.colour)
+        gap.setAlpha(150)
+        comp.gap_line.setPen(cosmetic_pen(gap, 1.0, Qt.PenStyle.DashLine))
         comp.dots.set_style(size_px=5.0 if active else 3.0, colour=comp.colour, halo=active)
         if comp.flagged:  # a pose that needs review: a red dashed outline on top, never the matched look
             comp.model_line.setPen(cosmetic_pen(FLAGGED_COLOUR, 2.2, Qt.PenStyle.DashLine))
@@ -457,6 +463,8 @@ class ImagePanel(PanelInteraction, QGraphicsView):
         """Show a component's outline (closed, (K, 2) of (u, v); None or empty clears it)
         with its spline; ``key`` names the outline (it is handed back to ``edit_sink``)."""
         comp = self._component(component)
+        if key != comp.key and component == self._active:  # another frame's outline: no stale marker
+            self._selected = self._gap_first = None
         comp.key = key
         if self._active is None:
             self._active = component
@@ -494,20 +502,24 @@ class ImagePanel(PanelInteraction, QGraphicsView):
             pts = None
         comp.points = pts
         comp.dots.set_points(pts)
-        path = QPainterPath()
+        path, gap_path = QPainterPath(), QPainterPath()
         comp.spline_ok = False
+        comp.gap_count = 0
         if pts is not None and len(pts) >= 2:
-            curve = pts
+            spline = None
             if len(pts) >= 4:
                 try:
                     spline = OutlineSpline.fit(pts)
-                    curve = spline.sample(int(np.clip(spline.length_px, 64, 8000)))
                     comp.spline_ok = True
                 except Exception:  # an unusable outline is shown as its polyline
-                    curve = pts
-            path.addPolygon(polygon(curve))
-            path.closeSubpath()
+                    spline = None
+            if spline is None:
+                path.addPolygon(polygon(pts))
+                path.closeSubpath()
+            else:
+                comp.gap_count = add_spline_runs(path, gap_path, spline)
         comp.spline.setPath(path)
+        comp.gap_line.setPath(gap_path)
         self._style_component(component)
         self.viewport().update()
 
@@ -580,6 +592,12 @@ class ImagePanel(PanelInteraction, QGraphicsView):
         font.setBold(True)
         draw_label(painter, font, QPointF(8, 8), [(None, self.title)])
         font.setBold(False)
+        if self._image is None and self.placeholder:
+            fm = QFontMetrics(font)
+            lines = self.placeholder.splitlines()
+            width = max(fm.horizontalAdvance(line) for line in lines) + 30
+            corner = QPointF(max(8.0, (self.viewport().width() - width) / 2), self.viewport().height() / 2 - 30)
+            draw_label(painter, font, corner, [(None, line) for line in lines])
         legend = [(self._components[n].colour, n + ("  ✎" if n == self._active else "")
                    + ("  (no spline)" if self._components[n].points is not None and not self._components[n].spline_ok
                       else "") + ("  — needs review" if self._components[n].flagged else ""))

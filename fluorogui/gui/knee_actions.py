@@ -99,7 +99,7 @@ class KneeActions:
         c.frame_changed.connect(lambda frame: self.knee_panel.set_current(frame))
 
     def _knee_menu_actions(self, file_menu, before) -> None:
-        self.export_action = self._action("&Export results…", self.export_results, "Ctrl+E",
+        self.export_action = self._action("&Export results…", self.export_results, "Ctrl+Shift+E",
                                           tip="Write poses, kinematics, Autoscoper .tra, JointTrack .jts or the figure")
         self.import_poses_action = self._action("&Import poses…", self.import_poses_file,
                                                 tip="Read poses from our CSV, Autoscoper .tra or JointTrack .jts")

@@ -15,24 +15,29 @@ from PySide6.QtWidgets import (
     QApplication,
     QComboBox,
     QDockWidget,
+    QFrame,
     QHBoxLayout,
     QLabel,
     QMainWindow,
     QMessageBox,
+    QScrollArea,
     QSlider,
     QSplitter,
     QTreeWidget,
     QWidget,
 )
 
-from fluorogui import __version__
 from fluorogui.gui import theme
 from fluorogui.gui.controller import SessionController
+from fluorogui.gui.help_menu import HelpActions
 from fluorogui.gui.image_panel import ImagePanel, Tool
 from fluorogui.gui.knee_actions import KneeActions
 from fluorogui.gui.match_control import MatchControl
 from fluorogui.gui.matcher_panel import MatcherPanel
+from fluorogui.gui.missing_files import MissingFiles
+from fluorogui.gui.pixel_value import RawPixels, format_value
 from fluorogui.gui.pose_editor import PoseEditor
+from fluorogui.gui.review_actions import ReviewActions
 from fluorogui.gui.session_files import SessionFiles
 from fluorogui.gui.session_view import COMPONENT_COLOURS, SessionView
 from fluorogui.gui.timeline import Timeline, TimelineLegend
@@ -41,6 +46,8 @@ from fluorogui.io.errors import InputError
 from fluorogui.workflow.session import ORIENTATION_PRESETS
 
 AUTOSAVE_MS = 3 * 60 * 1000
+NO_SESSION_HINT = ("No session open.\nFile → Open… (Ctrl+O) opens a project,\nFile → New session (Ctrl+N) "
+                   "imports images,\nFile → Open the demo session to try it out.")
 TOOLS = (
     (Tool.NAVIGATE, "navigate", "Navigate", "N", "Pan and zoom (wheel zooms at the cursor, right-drag sets window/level)"),
     (Tool.PICK_CONTOUR, "pick", "Pick contour", "P", "Click an edge contour to take it as the outline (Shift adds one)"),
@@ -54,7 +61,8 @@ TOOLS = (
 )
 
 
-class MainWindow(SessionFiles, SessionView, MatchControl, KneeActions, QMainWindow):
+class MainWindow(SessionFiles, SessionView, MatchControl, ReviewActions, HelpActions, MissingFiles, KneeActions,
+                 QMainWindow):
     """The fluorogui main window."""
 
     frame_shown = Signal(int)  # frame number, emitted after its images and overlays are on screen
@@ -72,6 +80,7 @@ class MainWindow(SessionFiles, SessionView, MatchControl, KneeActions, QMainWind
         self._last_live_3d = 0.0
         self._deferred_overlay = False
         self.last_place_miss: float | None = None
+        self.raw_pixels = RawPixels()
         self.setWindowIcon(theme.icon("app"))
         self.setAcceptDrops(True)
         self.setDockNestingEnabled(True)
@@ -81,9 +90,10 @@ class MainWindow(SessionFiles, SessionView, MatchControl, KneeActions, QMainWind
         for panel in self.panels:
             panel.edit_sink = self.controller.apply_edit
             panel.point_clicked.connect(self._place_click)
-            panel.cursor_moved.connect(self._show_cursor)
+            panel.cursor_moved.connect(lambda u, v, value, view=panel.view_index: self._show_cursor(u, v, value, view))
             for name, colour in COMPONENT_COLOURS.items():
                 panel.set_component_colour(name, colour)
+            panel.placeholder = NO_SESSION_HINT
             splitter.addWidget(panel)
         self.setCentralWidget(splitter)
 
@@ -112,13 +122,25 @@ class MainWindow(SessionFiles, SessionView, MatchControl, KneeActions, QMainWind
         self.autosave_timer.timeout.connect(self.autosave)
         self.autosave_timer.start()
         self._restore_layout()
+        self.focus_frame = theme.install_focus_frame(self)
         self._refresh_title()
         self.pose_editor.set_component(None)
 
     # -- construction ----------------------------------------------------------------------
-    def _dock(self, title: str, widget: QWidget, area, name: str) -> QDockWidget:
+    def _dock(self, title: str, widget: QWidget, area, name: str, scroll: bool = False) -> QDockWidget:
+        """A dock; with ``scroll`` its content scrolls when the window is too small for it
+        (a laptop screen) instead of squeezing or overlapping."""
         dock = QDockWidget(title, self)
         dock.setObjectName(name)
+        if scroll:
+            area_widget = QScrollArea()
+            area_widget.setObjectName(f"{name}Scroll")
+            area_widget.setWidgetResizable(True)
+            area_widget.setFrameShape(QFrame.Shape.NoFrame)
+            area_widget.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAsNeeded)
+            area_widget.setWidget(widget)
+            area_widget.setMinimumSize(160, 90)
+            widget = area_widget
         dock.setWidget(widget)
         self.addDockWidget(area, dock)
         return dock
@@ -127,8 +149,8 @@ class MainWindow(SessionFiles, SessionView, MatchControl, KneeActions, QMainWind
         right = Qt.DockWidgetArea.RightDockWidgetArea
         if self.scene_widget is not None:
             self.scene_dock = self._dock("3D scene", self.scene_widget, right, "sceneDock")
-        self.matcher_dock = self._dock("Matcher", self.matcher, right, "matcherDock")
-        self.pose_dock = self._dock("Pose", self.pose_editor, right, "poseDock")
+        self.matcher_dock = self._dock("Matcher", self.matcher, right, "matcherDock", scroll=True)
+        self.pose_dock = self._dock("Pose", self.pose_editor, right, "poseDock", scroll=True)
         self.session_dock = self._dock("Session", self.tree, right, "sessionDock")
         self.tabifyDockWidget(self.matcher_dock, self.pose_dock)
         self.tabifyDockWidget(self.pose_dock, self.session_dock)
@@ -161,12 +183,14 @@ class MainWindow(SessionFiles, SessionView, MatchControl, KneeActions, QMainWind
         c = self.controller
         menu = self.menuBar()
         file_menu = menu.addMenu("&File")
-        self.open_action = self._action("&Open…", lambda: self.open_project(), QKeySequence.StandardKey.Open, "open")
+        self.open_action = self._action("&Open…", lambda: self.open_project(), QKeySequence.StandardKey.Open, "open",
+                                        "Open a fluorogui project (Ctrl+O)")
         self.new_action = self._action("&New session from images and calibration…", lambda: self.import_session(),
                                        QKeySequence.StandardKey.New)
         self.import_action = self.new_action
         self.demo_action = self._action("Open the &demo session", self.open_demo)
-        self.save_action = self._action("&Save", self.save, QKeySequence.StandardKey.Save, "save")
+        self.save_action = self._action("&Save", self.save, QKeySequence.StandardKey.Save, "save",
+                                        "Save the session (Ctrl+S)")
         self.save_as_action = self._action("Save &as…", self.save_as, QKeySequence.StandardKey.SaveAs)
         self.quit_action = self._action("&Quit", self.close, QKeySequence.StandardKey.Quit)
         self.recent_menu = file_menu.addMenu("Open &recent")
@@ -185,6 +209,8 @@ class MainWindow(SessionFiles, SessionView, MatchControl, KneeActions, QMainWind
         self.undo_action.setShortcut(QKeySequence.StandardKey.Undo)
         self.redo_action = c.undo_stack.createRedoAction(self, "&Redo")
         self.redo_action.setShortcuts([QKeySequence("Ctrl+Shift+Z"), QKeySequence.StandardKey.Redo])
+        self.addAction(self.undo_action)  # listed with the window's shortcuts (F1)
+        self.addAction(self.redo_action)
         edit_menu.addAction(self.undo_action)
         edit_menu.addAction(self.redo_action)
         edit_menu.addSeparator()
@@ -258,16 +284,29 @@ class MainWindow(SessionFiles, SessionView, MatchControl, KneeActions, QMainWind
                                               "Ctrl+Shift+F5", "track_both",
                                               "Track every component through the following frames (Ctrl+Shift+F5)")
         self.accept_action = self._action("&Accept pose", self.accept_pose, "Ctrl+Return", "accept",
-                                          "Accept the active component's pose, or reopen it (Ctrl+Return)")
+                                          "Accept the active component's pose in this frame (Ctrl+Return)")
+        self.unaccept_action = self._action("&Un-accept pose", self.unaccept_pose, "Ctrl+Shift+Return",
+                                            tip="Take back the acceptance of the active component's pose "
+                                                "(Ctrl+Shift+Return)")
         self.next_action = self._action("&Next frame", lambda: self.step_frame(1), "PgDown")
         self.prev_action = self._action("&Previous frame", lambda: self.step_frame(-1), "PgUp")
+        self.first_action = self._action("&First frame", lambda: self.go_to_end(first=True), "Home")
+        self.last_action = self._action("&Last frame", lambda: self.go_to_end(first=False), "End")
+        self.next_component_action = self._action("Next &component", self.cycle_component, "K",
+                                                  tip="Make the next component the active one (K)")
         for a in (self.run_action, self.run_both_action, self.cancel_action, self.track_action,
-                  self.track_both_action, self.accept_action, self.next_action, self.prev_action):
+                  self.track_both_action, self.accept_action, self.unaccept_action):
             match_menu.addAction(a)
+        match_menu.addSeparator()
+        for a in (self.next_action, self.prev_action, self.first_action, self.last_action):
+            match_menu.addAction(a)
+        model_menu.insertAction(self.orient_menu.menuAction(), self.next_component_action)
 
-        help_menu = menu.addMenu("&Help")
-        help_menu.addAction(self._action("&Keyboard shortcuts", self.show_shortcuts, "F1"))
-        help_menu.addAction(self._action("&About fluorogui", self.show_about))
+        from fluorogui.gui.tour import start_tour
+
+        self.tour_action = self._action("Guided &tour", lambda: start_tour(self, force=True),
+                                        tip="A one-minute tour of the window")
+        self._build_help_menu(menu)
 
         bar = self.addToolBar("Main")
         bar.setObjectName("mainToolbar")
@@ -302,6 +341,10 @@ class MainWindow(SessionFiles, SessionView, MatchControl, KneeActions, QMainWind
             bar.addAction(a)
 
     def _build_status_bar(self) -> None:
+        self.tool_label = QLabel("")  # what the current tool does, always in view
+        self.tool_label.setObjectName("toolHint")
+        self.statusBar().addWidget(self.tool_label, 1)
+        self._show_tool_hint(Tool.NAVIGATE)
         self.cursor_label = QLabel("")
         self.frame_label = QLabel("")
         self.statusBar().addPermanentWidget(self.cursor_label)
@@ -316,6 +359,7 @@ class MainWindow(SessionFiles, SessionView, MatchControl, KneeActions, QMainWind
         c.outline_changed.connect(self._outline_changed)
         c.dirty_changed.connect(lambda dirty: self.setWindowModified(dirty))
         c.path_changed.connect(lambda _p: self._refresh_title())
+        c.model_changed.connect(self._model_changed)
         self.pose_editor.pose_edited.connect(
             lambda pose: c.session.set_pose(c.component, c.frame, pose, text="Edit pose", mergeable=True))
         self.timeline.frame_selected.connect(c.set_frame)
@@ -326,6 +370,7 @@ class MainWindow(SessionFiles, SessionView, MatchControl, KneeActions, QMainWind
         m.track_requested.connect(lambda: self.track_frames())
         m.track_both_requested.connect(lambda: self.track_both())
         m.accept_requested.connect(self.accept_pose)
+        m.unaccept_requested.connect(self.unaccept_pose)
         m.place_requested.connect(lambda: self.find_implants())
         m.settings_edited.connect(self._settings_edited)
         r = self.runner
@@ -346,7 +391,15 @@ class MainWindow(SessionFiles, SessionView, MatchControl, KneeActions, QMainWind
             self.resize(1280, 800)
         if state is not None:
             self.restoreState(state)
+        elif self.scene_widget is not None:
+            QTimer.singleShot(0, self._share_right_column)
         self._refresh_recent()
+
+    def _share_right_column(self) -> None:
+        """First start: the 3D scene takes 40 % of the right column, the tabs the rest."""
+        height = max(self.height() - 160, 300)
+        self.resizeDocks([self.scene_dock, self.matcher_dock], [int(height * 0.4), int(height * 0.6)],
+                         Qt.Orientation.Vertical)
 
     def _save_layout(self) -> None:
         self.settings.setValue("window/geometry", self.saveGeometry())
@@ -390,14 +443,34 @@ class MainWindow(SessionFiles, SessionView, MatchControl, KneeActions, QMainWind
             self.scene_widget.close()
         event.accept()
 
-    def _show_cursor(self, u: float, v: float, value: float) -> None:
-        self.cursor_label.setText(f"u {u:.1f}  v {v:.1f}  value {value:.0f}")
+    def _show_cursor(self, u: float, v: float, value: float, view: int | None = None) -> None:
+        """Cursor position and the value stored in the image file at that pixel (the
+        panels hold images scaled to [0, 1]; the file's own number is what users know)."""
+        raw = None
+        c = self.controller
+        if view is not None and c.frame is not None and view < self.session.n_views:
+            path = self.session.image_path(c.frame, view)
+            image = self.panels[view].image()
+            if path is not None and image is not None:
+                raw = self.raw_pixels.value_at(path, u, v, image.shape)
+        if raw is not None:
+            text = format_value(raw)
+        elif value == value:  # not NaN: no file value, show the scaled one
+            text = f"{value:.4g}"
+        else:
+            text = "–"
+        self.cursor_label.setText(f"u {u:.1f}  v {v:.1f}  value {text}")
 
     # -- editing ---------------------------------------------------------------------------
+    def _show_tool_hint(self, tool: Tool) -> None:
+        text, key, tip = next((t, k, h) for tl, _i, t, k, h in TOOLS if tl == tool)
+        self.tool_label.setText(f"{text} ({key}): {tip}")
+
     def set_tool(self, tool: Tool) -> None:
         for panel in self.panels:
             panel.set_tool(tool)
         self.tool_actions[tool].setChecked(True)
+        self._show_tool_hint(tool)
         if tool == Tool.PLACE:
             self.place_clicks.clear()
             self.statusBar().showMessage(
@@ -461,37 +534,3 @@ class MainWindow(SessionFiles, SessionView, MatchControl, KneeActions, QMainWind
             c.session.orient(c.component, c.frame, angles)
         except (InputError, KeyError) as exc:
             self._warn("Cannot orient the model", str(exc))
-
-    def step_frame(self, step: int) -> None:
-        self.controller.step_frame(step)
-
-    def accept_pose(self) -> None:
-        """Accept the active component's pose in this frame (flagged or not: the user has
-        looked at it), or reopen an accepted one."""
-        c, s = self.controller, self.controller.session
-        if c.frame is None or self.runner.is_running():
-            return
-        record = s.pose_record(c.component, c.frame)
-        if record is None or (record.match is None and record.status == "placed"):
-            self.statusBar().showMessage(f"Match the {c.component} component first (F5); then accept it", 8000)
-            return
-        s.set_reviewed(c.component, c.frame, not record.reviewed)
-        if record.reviewed:
-            text = f"Reopened the {c.component} pose in frame {c.frame}"
-        else:
-            text = f"Accepted the {c.component} pose in frame {c.frame}" + (
-                " although it was flagged" if record.needs_review else "")
-        self.statusBar().showMessage(text, 8000)
-
-    # -- help ------------------------------------------------------------------------------
-    def show_shortcuts(self) -> None:
-        rows = [(a.text().replace("&", ""), a.shortcut().toString()) for a in self.actions()
-                if not a.shortcut().isEmpty() and not a.text().startswith(("Move ", "Turn "))]
-        rows.append(("Nudge the model", "Ctrl+arrows, Ctrl+PgUp/PgDn (add Shift to turn)"))
-        text = "\n".join(f"{k:<12} {name}" for name, k in rows)
-        QMessageBox.information(self, "Keyboard shortcuts", text)
-
-    def show_about(self) -> None:
-        QMessageBox.about(self, "About fluorogui",
-                          f"fluorogui {__version__}\n\nPose of total-knee-replacement implants from two "
-                          "fluoroscopic views (after Tsai et al., J Biomech Eng 2006).")

@@ -14,6 +14,7 @@ import time
 from PySide6.QtCore import QTimer
 
 from fluorogui.gui import jobs
+from fluorogui.gui.eta import Eta, describe
 from fluorogui.io.errors import InputError
 from fluorogui.workflow.results import FAILED, NEEDS_REVIEW
 
@@ -111,13 +112,13 @@ class MatchControl:
         todo = [n for n in names if not ((r := s.pose_record(n, c.frame)) is not None and r.reviewed)]
         if not todo:
             what = "poses are" if len(names) > 1 else f"{names[0]} pose is"
-            self.statusBar().showMessage(f"The {what} accepted in frame {c.frame}; Ctrl+Return reopens the active "
-                                         "component's pose to match it again", 10000)
+            self.statusBar().showMessage(f"The {what} accepted in frame {c.frame}; Un-accept it (Ctrl+Shift+Return) "
+                                         "to match it again", 10000)
             return False
         try:
             job = s.match_job(c.frame, todo)
         except (InputError, KeyError, ValueError) as exc:
-            self._warn("Cannot match", str(exc).strip("'\""))
+            self._job_error("Cannot match", exc)
             return False
         self._live_components = todo
         self._task_kind = "match"
@@ -148,11 +149,12 @@ class MatchControl:
         try:
             job = s.track_job(frames=todo, components=names, redo=True)
         except (InputError, KeyError, ValueError) as exc:
-            self._warn("Cannot track", str(exc).strip("'\""))
+            self._job_error("Cannot track", exc)
             return False
         self._track = TrackSummary(todo, names)
         self._live_components = []
         self._task_kind = "track"
+        self._eta = Eta(len(todo))
         self.matcher.show_batch(0, len(todo), 0.0)
         return self.runner.start(jobs.track_task(job), f"Tracking {' and '.join(names)} from frame {todo[0]}")
 
@@ -167,10 +169,11 @@ class MatchControl:
         try:
             job = s.find_job(c.frame, "both")
         except (InputError, KeyError, ValueError) as exc:
-            self._warn("Cannot search", str(exc).strip("'\""))
+            self._job_error("Cannot search", exc)
             return False
         self._live_components = []
         self._task_kind = "find"
+        self._eta = Eta(1.0)
         self.matcher.show_progress(0.0, "Looking for the implants")
         return self.runner.start(jobs.find_task(job), f"Finding the implants in frame {c.frame}")
 
@@ -179,8 +182,11 @@ class MatchControl:
         self.matcher.set_running(running)
         self.cancel_action.setEnabled(running)
         for a in (self.run_action, self.run_both_action, self.track_action, self.track_both_action,
-                  self.find_action, self.accept_action, self.open_action, self.import_action, self.demo_action):
+                  self.find_action, self.accept_action, self.unaccept_action, self.open_action,
+                  self.import_action, self.demo_action):
             a.setEnabled(not running)
+        if not running:
+            self._refresh_accept_state()
         if running:
             self.matcher.show_summary("")
             self.statusBar().showMessage(self.runner.label + "…")
@@ -200,8 +206,10 @@ class MatchControl:
                 self.scene_widget.scene.set_pose(payload.component, payload.pose)
                 self.scene_widget.scene.render()
         elif isinstance(payload, jobs.FindProgress):
-            self.matcher.show_progress(payload.fraction, payload.text)
-            self.statusBar().showMessage(f"{self.runner.label}: {payload.text}")
+            left = describe(self._eta.update(payload.fraction)) if getattr(self, "_eta", None) else ""
+            text = f"{payload.text}, {left}" if left else payload.text
+            self.matcher.show_progress(payload.fraction, text)
+            self.statusBar().showMessage(f"{self.runner.label}: {text} (Esc cancels)")
 
     def _store(self, results, text: str | None = None) -> None:
         """Results into the session (one undoable step), with one overlay refresh."""
@@ -217,7 +225,8 @@ class MatchControl:
         self._store(payload.results, f"Track frame {payload.frame}")
         self._track.add(payload.frame, payload.results)
         self._track.elapsed_s = payload.elapsed_s
-        self.matcher.show_batch(payload.done, payload.total, payload.elapsed_s)
+        left = self._eta.update(payload.done) if getattr(self, "_eta", None) else None
+        self.matcher.show_batch(payload.done, payload.total, payload.elapsed_s, left)
         self._follow_frame = payload.frame  # the view follows, at most once per event-loop pass
         self._follow_timer.start()
         shown = next((r for r in payload.results if r.component == self.controller.component), payload.results[0])

@@ -134,6 +134,7 @@ class MatcherPanel(QWidget):
     track_requested = Signal()
     track_both_requested = Signal()
     accept_requested = Signal()
+    unaccept_requested = Signal()
     place_requested = Signal()
     settings_edited = Signal()  # the user changed method, density or outline points
 
@@ -181,14 +182,15 @@ class MatcherPanel(QWidget):
         self.track_both_button.setToolTip("Track every component through the frames after this one "
                                           "(Ctrl+Shift+F5)")
         self.accept_button = QPushButton("Accept")
-        self.accept_button.setToolTip("Accept the active component's pose in this frame (even a flagged one: "
-                                      "you have checked it), or reopen it (Ctrl+Return)")
+        self._accepted: bool | None = None  # None: nothing to accept yet
         for button, signal in ((self.place_button, self.place_requested), (self.run_button, self.run_requested),
                                (self.run_both_button, self.run_both_requested),
                                (self.cancel_button, self.cancel_requested), (self.track_button, self.track_requested),
-                               (self.track_both_button, self.track_both_requested),
-                               (self.accept_button, self.accept_requested)):
+                               (self.track_both_button, self.track_both_requested)):
             button.clicked.connect(signal)
+        self.accept_button.clicked.connect(
+            lambda: (self.unaccept_requested if self._accepted else self.accept_requested).emit())
+        self.set_accepted(None)
         buttons = QGridLayout()
         buttons.addWidget(self.run_button, 0, 0)
         buttons.addWidget(self.run_both_button, 0, 1)
@@ -264,11 +266,26 @@ class MatcherPanel(QWidget):
             for w in widgets:
                 w.blockSignals(False)
 
+    def set_accepted(self, accepted: bool | None) -> None:
+        """The acceptance of the active pose: False shows *Accept*, True *Un-accept*
+        (labelled, never a silent toggle), None (nothing matched yet) a disabled *Accept*."""
+        self._accepted = accepted
+        if accepted:
+            self.accept_button.setText("Un-accept")
+            self.accept_button.setToolTip("This pose is accepted; click to take the acceptance back "
+                                          "(Ctrl+Shift+Return)")
+        else:
+            self.accept_button.setText("Accept")
+            self.accept_button.setToolTip("Accept the active component's pose in this frame (even a flagged "
+                                          "one: you have checked it) (Ctrl+Return)")
+        self.accept_button.setEnabled(accepted is not None and self.run_button.isEnabled())
+
     # -- running ---------------------------------------------------------------------------------
     def set_running(self, running: bool) -> None:
         for w in (self.run_button, self.run_both_button, self.track_button, self.track_both_button,
-                  self.place_button, self.accept_button, self.method, self.density, self.outline_points):
+                  self.place_button, self.method, self.density, self.outline_points):
             w.setEnabled(not running)
+        self.accept_button.setEnabled(not running and self._accepted is not None)
         self.cancel_button.setEnabled(running)
         if running:
             self.plot.clear()
@@ -317,13 +334,14 @@ class MatcherPanel(QWidget):
         self.progress.setValue(int(round(1000 * min(max(fraction, 0.0), 1.0))))
         self.progress.setFormat(f"{text} (%p %)" if text else "%p %")
 
-    def show_batch(self, done: int, total: int, seconds: float) -> None:
-        """Frames done of ``total`` and the time left at the average time per frame so far."""
+    def show_batch(self, done: int, total: int, seconds: float, left_s: float | None = None) -> None:
+        """Frames done of ``total`` and the time left: ``left_s`` (a moving average of the
+        recent frames, ``fluorogui.gui.eta``) or else the average time per frame so far."""
         self.progress.setVisible(True)
         self.progress.setRange(0, max(total, 1))
         self.progress.setValue(done)
         if done:
-            eta = seconds / done * (total - done)
+            eta = seconds / done * (total - done) if left_s is None else left_s
             left = f"about {eta:.0f} s left" if eta >= 1 or done == total else "under a second left"
             self.progress.setFormat(f"%v / %m frames, {left}")
         else:

@@ -16,6 +16,7 @@ from PySide6.QtGui import (
     QFont,
     QFontMetrics,
     QPainter,
+    QPainterPath,
     QPen,
     QPolygonF,
     QUndoCommand,
@@ -85,6 +86,28 @@ def guarded(handler):
 
 def polygon(points: np.ndarray) -> QPolygonF:
     return QPolygonF([QPointF(u, v) for u, v in np.asarray(points, dtype=float).tolist()])
+
+
+def add_spline_runs(solid: QPainterPath, gaps: QPainterPath, spline) -> int:
+    """Draw a closed outline spline into ``solid``, except across its gaps (erased or
+    missing stretches, ``spline.gaps``), which go into ``gaps`` to be drawn dashed: an
+    erased stretch shows as a gap, not as a bridged line. Returns the number of gaps."""
+    start, end = spline.t_range
+    n = int(np.clip(spline.length_px, 64, 8000))
+    t = start + (end - start) * np.arange(n + 1) / n
+    curve = spline.evaluate(t)
+    in_gap = spline.in_gap(t)
+    if not in_gap.any():
+        solid.addPolygon(polygon(curve[:-1]))
+        solid.closeSubpath()
+        return 0
+    # runs of samples start where in_gap changes; the closing sample equals the first
+    change = np.flatnonzero(np.diff(in_gap.astype(np.int8))) + 1
+    bounds = np.concatenate([[0], change, [len(t)]])
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        lo, hi = max(a - 1, 0), min(b + 1, len(t))  # overlap one sample so runs meet
+        (gaps if in_gap[a] else solid).addPolygon(polygon(curve[lo:hi]))
+    return len(spline.gaps)
 
 
 def cosmetic_pen(colour: QColor, width: float, style=Qt.PenStyle.SolidLine) -> QPen:
@@ -221,13 +244,16 @@ class ComponentItems:
         self.flagged = False  # the model's pose needs review
         self.spline = QGraphicsPathItem()
         self.spline.setZValue(4)
+        self.gap_line = QGraphicsPathItem()  # chords across erased or missing stretches: dashed
+        self.gap_line.setZValue(4)
+        self.gap_count = 0
         self.dots = DotsItem(5.0, colour, min_gap_px=6.0)
         self.dots.setZValue(5)
         self.model_line = QGraphicsPathItem()
         self.model_line.setZValue(2)
         self.model_dots = DotsItem(3.0, MODEL_COLOUR, halo=False)
         self.model_dots.setZValue(6)
-        for item in (self.spline, self.dots, self.model_line, self.model_dots):
+        for item in (self.spline, self.gap_line, self.dots, self.model_line, self.model_dots):
             item.setAcceptedMouseButtons(Qt.MouseButton.NoButton)
             scene.addItem(item)
 

@@ -251,6 +251,16 @@ class FluoroScene:
             self.enable_gizmo(component, self._gizmo_callback)
         self.render()
 
+    def remove_model(self, component: str) -> None:
+        """Take a component's model out of the scene (its file is gone, or another
+        project is shown)."""
+        actor = self._models.pop(component, None)
+        if actor is not None:
+            if self._gizmo_component == component:
+                self.disable_gizmo()
+            self.plotter.remove_actor(actor, render=False)
+            self.render()
+
     def model_actor(self, component: str):
         return self._models[component]
 

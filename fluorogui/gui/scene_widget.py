@@ -69,7 +69,7 @@ class _ImageView(QLabel):
         self._last = None
         self.setAlignment(Qt.AlignmentFlag.AlignCenter)
         self.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Ignored)
-        self.setMinimumSize(200, 200)
+        self.setMinimumSize(160, 120)  # the dock may be small on a laptop screen
         self.setStyleSheet("background: #0d0d12;")
 
     def mousePressEvent(self, event):  # noqa: N802

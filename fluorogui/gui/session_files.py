@@ -121,7 +121,13 @@ class SessionFiles:
         return True
 
     def _last_dir(self) -> Path:
-        return Path(self.settings.value("last_dir", str(Path.home())))
+        """The folder of the last project opened, unless that is the app's data folder
+        (the demo's): file dialogs never start there."""
+        last = Path(self.settings.value("last_dir", str(Path.home())))
+        data = app_data_dir().resolve()
+        if last.resolve() == data or data in last.resolve().parents:
+            return Path.home()
+        return last
 
     def open_demo(self, ask: bool = True) -> bool:
         """Open the built-in demo session (generated on first use)."""
@@ -153,8 +159,34 @@ class SessionFiles:
             return self.save_as()
         return self._save_to(self.controller.path)
 
+    def default_save_dir(self) -> Path:
+        """Where save dialogs start: the session file's folder, else the folder holding the
+        session's images, else the last folder used, else Documents; never the app's data
+        folder (where the demo and the autosave live)."""
+        data = app_data_dir().resolve()
+
+        def usable(folder) -> bool:
+            folder = Path(folder).resolve()
+            return folder.is_dir() and folder != data and data not in folder.parents
+
+        c = self.controller
+        candidates = [c.path.parent] if c.path is not None else []
+        folders = []
+        for frame in c.frames[:1]:
+            folders = [p.parent for p in c.session.image_paths(frame) if p is not None]
+        if folders:
+            candidates.append(Path(os.path.commonpath([str(f.resolve()) for f in folders])))
+        candidates.append(self._last_dir())
+        for folder in candidates:
+            if usable(folder):
+                return Path(folder)
+        documents = QStandardPaths.writableLocation(QStandardPaths.StandardLocation.DocumentsLocation)
+        return Path(documents) if documents and Path(documents).is_dir() else Path.home()
+
     def save_as(self) -> bool:
-        start = str(self.controller.path or self._last_dir() / "session.fluoro")
+        c = self.controller
+        name = c.path.name if c.path is not None and not c.project.settings.get("demo") else "session.fluoro"
+        start = str(self.default_save_dir() / name)
         name, _ = QFileDialog.getSaveFileName(self, "Save project as", start, PROJECT_FILTER)
         if not name:
             return False

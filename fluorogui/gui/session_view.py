@@ -48,16 +48,17 @@ class SessionView:
             action.triggered.connect(lambda _=False, n=name: c.set_component(n))
             self.component_actions.addAction(action)
             self.component_menu.addAction(action)
+        missing = []
         if self.scene_widget is not None:
             scene = self.scene_widget.scene
             scene.set_views(s.views)
-            for name in names:
-                try:
-                    vertices, faces = s.raw_mesh(name)
-                except InputError as exc:
-                    self._warn("Cannot load a model", str(exc))
-                    continue
-                scene.set_model(name, vertices, faces, COMPONENT_COLOURS.get(name, QColor(200, 200, 200)).getRgbF()[:3])
+            for name in scene.components:
+                if name not in names:
+                    scene.remove_model(name)  # the previous project's component
+        for name in names:
+            error = self._load_scene_model(name)
+            if error is not None:
+                missing.append((name, error))
         self.matcher.set_settings(s.settings.match)
         self.matcher.show_summary("")
         self._camera_pending = True
@@ -67,6 +68,10 @@ class SessionView:
         for frame in s.frames:
             self.timeline.set_note(frame, self._frame_note(frame))
         self._component_changed(c.component)
+        if missing:  # after the window shows the project: offer to relink each missing model
+            from PySide6.QtCore import QTimer
+
+            QTimer.singleShot(0, lambda: [self.offer_locate(name, error) for name, error in missing])
 
     def _refresh_tree(self) -> None:
         s = self.controller.session
@@ -109,10 +114,13 @@ class SessionView:
         for view in range(s.n_views):
             try:
                 images.append(s.image(frame, view))
+                self.panels[view].placeholder = ""
             except InputError as exc:
                 self.statusBar().showMessage(str(exc), 10000)
                 self.last_error = str(exc)
                 images.append(None)
+                if view < len(self.panels):
+                    self.panels[view].placeholder = f"No image for frame {frame}:\n{exc}"
         for view, panel in enumerate(self.panels):
             panel.set_image(images[view] if view < len(images) else None, key=(frame, view))
             for name in s.components():
@@ -158,6 +166,8 @@ class SessionView:
         try:
             mesh = s.mesh(component)
         except (InputError, KeyError):
+            for panel in self.panels:  # no model: no overlay (never a stale one)
+                panel.set_model_outline(component, None)
             return
         for view, panel in enumerate(self.panels[:s.n_views]):
             try:
@@ -185,6 +195,7 @@ class SessionView:
             text, level = describe_pose(name, s.pose_record(name, c.frame))
             lines.append((text, level, name == c.component))
         self.matcher.show_poses(lines)
+        self._refresh_accept_state()
         record = s.pose_record(c.component, c.frame)
         if not self.runner.is_running():  # a running task draws its own plot
             self.matcher.plot.set_values(record.match.history if record is not None and record.match else [])

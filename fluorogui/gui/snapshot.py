@@ -4,7 +4,7 @@ Used for the README's pictures, the Xvfb pixel test and start-up timing::
 
     python -m fluorogui.gui.snapshot OUT.png [--project FILE | --import-folder DIR]
         [--size 1280x800] [--frame N] [--find] [--match | --match-both] [--track-both]
-        [--show-frame N] [--component NAME] [--theme light|dark]
+        [--show-frame N] [--component NAME] [--theme light|dark] [--dock matcher|pose|session]
 
 Frames are frame numbers. The steps run in this order: find, match, track (from
 ``--frame`` through the following frames), then ``--show-frame`` picks the frame on
@@ -37,6 +37,7 @@ def main(argv=None) -> int:
     parser.add_argument("--show-frame", type=int, help="frame number on screen for the picture")
     parser.add_argument("--component")
     parser.add_argument("--theme", default="system")
+    parser.add_argument("--dock", choices=["matcher", "pose", "session"], help="the tab raised on the right")
     parser.add_argument("--settings", type=Path, help="QSettings ini file (default: a temporary one)")
     args = parser.parse_args(argv)
 
@@ -112,6 +113,8 @@ def main(argv=None) -> int:
         timings["track_both_s"] = run(window.track_both)
     if args.show_frame is not None:
         window.controller.set_frame(args.show_frame)
+    if args.dock:
+        getattr(window, f"{args.dock}_dock").raise_()
     session = window.controller.session
     timings["frame_states"] = {str(f): s.name for f, s in zip(session.frames, session.frame_states())}
     timings["summary"] = window.matcher.summary.text()

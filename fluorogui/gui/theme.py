@@ -1,14 +1,13 @@
 """Look and feel: the Fusion style with a light or dark palette (following the system by
-default), a small style sheet, and icons from ``resources/icons``."""
+default), a small style sheet, and icons from ``fluorogui/resources/icons`` (package data)."""
 from __future__ import annotations
 
-from pathlib import Path
+from PySide6.QtCore import QRectF, Qt
+from PySide6.QtGui import QColor, QGuiApplication, QIcon, QPainter, QPalette, QPen
+from PySide6.QtWidgets import QApplication, QFocusFrame, QProxyStyle, QStyle, QWidget
 
-from PySide6.QtCore import Qt
-from PySide6.QtGui import QColor, QGuiApplication, QIcon, QPalette
-from PySide6.QtWidgets import QApplication
+from fluorogui.resources import ICON_DIR
 
-ICON_DIR = Path(__file__).resolve().parents[2] / "resources" / "icons"
 THEMES = ("system", "light", "dark")
 
 STYLE = """
@@ -66,9 +65,58 @@ def light_palette() -> QPalette:
     return p
 
 
+class FocusStyle(QProxyStyle):
+    """Fusion, with a focus frame that can be seen: a 2 px ring in the highlight colour
+    around the widget with keyboard focus (Fusion's own is a faint tint)."""
+
+    def drawControl(self, element, option, painter, widget=None):  # noqa: N802 (Qt override)
+        if element == QStyle.ControlElement.CE_FocusFrame:
+            painter.save()
+            painter.setRenderHint(QPainter.RenderHint.Antialiasing)
+            painter.setPen(QPen(option.palette.color(QPalette.ColorRole.Highlight), 2.0))
+            painter.setBrush(Qt.BrushStyle.NoBrush)
+            painter.drawRoundedRect(QRectF(option.rect).adjusted(1, 1, -1, -1), 3, 3)
+            painter.restore()
+            return
+        super().drawControl(element, option, painter, widget)
+
+    def pixelMetric(self, metric, option=None, widget=None):  # noqa: N802 (Qt override)
+        if metric in (QStyle.PixelMetric.PM_FocusFrameHMargin, QStyle.PixelMetric.PM_FocusFrameVMargin):
+            return 2
+        return super().pixelMetric(metric, option, widget)
+
+
+def install_focus_frame(window: QWidget) -> QFocusFrame:
+    """A focus ring that follows keyboard focus inside ``window`` (drawn by FocusStyle)."""
+    frame = QFocusFrame(window)
+    frame.setObjectName("focusFrame")
+    frame.setAttribute(Qt.WidgetAttribute.WA_TransparentForMouseEvents)
+
+    def follow(_old, new) -> None:
+        try:
+            inside = new is not None and new.window() is window and new.isVisible()
+            frame.setWidget(new if inside else None)
+        except RuntimeError:  # the window or the widget is being deleted
+            _disconnect(QApplication.instance(), follow)
+
+    app = QApplication.instance()
+    if app is not None:
+        app.focusChanged.connect(follow)
+        window.destroyed.connect(lambda *_: _disconnect(app, follow))
+    return frame
+
+
+def _disconnect(app, slot) -> None:
+    try:
+        app.focusChanged.disconnect(slot)
+    except (RuntimeError, TypeError):
+        pass
+
+
 def apply_theme(app: QApplication, theme: str = "system") -> str:
     """Apply a theme ("system", "light" or "dark"); returns the one in effect."""
-    app.setStyle("Fusion")
+    if not isinstance(app.style(), FocusStyle):
+        app.setStyle(FocusStyle("Fusion"))
     dark = system_prefers_dark() if theme == "system" else theme == "dark"
     app.setPalette(dark_palette() if dark else light_palette())
     app.setStyleSheet(STYLE)

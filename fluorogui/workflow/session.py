@@ -211,6 +211,23 @@ class Session(WorkMixin, KneeMixin):
             self._raw_meshes[component] = (vertices, faces)
         return self._raw_meshes[component]
 
+    def relink_mesh(self, component: str, path) -> None:
+        """Point a component at another mesh file (its file moved or is missing): the file
+        is loaded first (InputError if it cannot be), then the change is one undoable step."""
+        entry = self.project.model(component)
+        if entry is None:
+            raise KeyError(component)
+        path = Path(path)
+        load_mesh(path)
+        self.history.push(Command(f"Locate the {component} model", component, entry.mesh_path, path,
+                                  self._store_mesh_path))
+
+    def _store_mesh_path(self, component: str, path: Path) -> None:
+        self.project.model(component).mesh_path = Path(path)
+        self._raw_meshes.pop(component, None)
+        self._meshes.pop(component, None)
+        self._notify("model", component)
+
     def mesh(self, component: str) -> PreparedMesh:
         """The prepared mesh of a component (cached); raises InputError naming the file."""
         if component not in self._meshes:

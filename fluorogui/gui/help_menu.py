@@ -1,0 +1,115 @@
+"""The Help menu of the main window: the quick-start page (shipped in
+``fluorogui/resources/quickstart.html``), the complete keyboard and mouse shortcut list,
+and About (version and the log file's path).
+
+``HelpActions`` is a mixin of ``MainWindow``; the shortcut list is read from the window's
+own actions, so a new action with a shortcut is listed without editing this file.
+"""
+from __future__ import annotations
+
+import html
+
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QKeySequence
+from PySide6.QtWidgets import QDialog, QDialogButtonBox, QMessageBox, QTextBrowser, QVBoxLayout
+
+from fluorogui import __version__
+from fluorogui.logs import log_file_path
+from fluorogui.resources import resource_path
+
+#: gestures and keys that are not actions (the image panels and the 3D panel handle them)
+MOUSE_AND_PANEL_KEYS = (
+    ("Zoom at the cursor", "Mouse wheel"),
+    ("Pan an image", "Middle-drag (or drag with Navigate)"),
+    ("Window / level", "Right-drag"),
+    ("Add a contour to the outline", "Shift+click with Pick contour"),
+    ("Delete the selected (or nearest) outline point", "Delete or Backspace in an image"),
+    ("Drop the selection or gesture in an image", "Esc in an image"),
+    ("Frames in the timeline", "Left / Right, Home / End"),
+    ("Nudge the model", "Ctrl+arrows, Ctrl+PgUp / Ctrl+PgDown"),
+    ("Turn the model", "Ctrl+Shift+arrows, Ctrl+Shift+PgUp / PgDown"),
+)
+
+
+class HelpActions:
+    """Help menu of ``MainWindow`` (a mixin)."""
+
+    def _build_help_menu(self, menu_bar) -> None:
+        help_menu = menu_bar.addMenu("&Help")
+        self.quick_start_action = self._action("&Quick start", self.show_quick_start,
+                                               tip="How to outline, place, match, track and export")
+        self.shortcuts_action = self._action("&Keyboard shortcuts", self.show_shortcuts, "F1",
+                                             tip="Every keyboard shortcut and mouse gesture (F1)")
+        self.about_action = self._action("&About fluorogui", self.show_about,
+                                         tip="Version, log file and data folder")
+        for action in (self.quick_start_action, self.shortcuts_action):
+            help_menu.addAction(action)
+        tour = getattr(self, "tour_action", None)
+        if tour is not None:
+            help_menu.addAction(tour)
+        help_menu.addSeparator()
+        help_menu.addAction(self.about_action)
+
+    def shortcut_rows(self) -> list[tuple[str, str]]:
+        """(what, keys) for every action with a shortcut, then the mouse and panel keys."""
+        rows, seen = [], set()
+        for action in self.actions():
+            keys = list(dict.fromkeys(k.toString(QKeySequence.SequenceFormat.NativeText)
+                                      for k in action.shortcuts() if not k.isEmpty()))  # once each
+            name = action.text().replace("&", "").rstrip("…").strip()
+            if not keys or name.startswith(("Move x", "Move y", "Move z", "Turn alpha", "Turn beta", "Turn gamma")):
+                continue
+            if (name, keys[0]) in seen:
+                continue
+            seen.add((name, keys[0]))
+            rows.append((name, " or ".join(keys)))
+        return rows + list(MOUSE_AND_PANEL_KEYS)
+
+    def shortcuts_html(self) -> str:
+        cells = "".join(f"<tr><td style='padding:1px 14px 1px 0'><b>{html.escape(keys)}</b></td>"
+                        f"<td>{html.escape(name)}</td></tr>" for name, keys in self.shortcut_rows())
+        return f"<table cellspacing='0'>{cells}</table>"
+
+    def _html_dialog(self, title: str, body: str, name: str) -> QDialog:
+        dialog = QDialog(self)
+        dialog.setObjectName(name)
+        dialog.setWindowTitle(title)
+        browser = QTextBrowser(dialog)
+        browser.setOpenExternalLinks(True)
+        browser.setHtml(body)
+        buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Close, dialog)
+        buttons.rejected.connect(dialog.reject)
+        layout = QVBoxLayout(dialog)
+        layout.addWidget(browser)
+        layout.addWidget(buttons)
+        dialog.resize(560, 600)
+        dialog.browser = browser
+        return dialog
+
+    def show_shortcuts(self) -> QDialog:
+        dialog = self._html_dialog("Keyboard shortcuts", self.shortcuts_html(), "shortcutsDialog")
+        dialog.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
+        dialog.show()
+        return dialog
+
+    def quick_start_html(self) -> str:
+        page = resource_path("quickstart.html").read_text(encoding="utf-8")
+        return page.replace("<!--SHORTCUTS-->", self.shortcuts_html())
+
+    def show_quick_start(self) -> QDialog:
+        dialog = self._html_dialog("Quick start", self.quick_start_html(), "quickStartDialog")
+        dialog.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
+        dialog.show()
+        return dialog
+
+    def about_text(self) -> str:
+        from fluorogui.gui.session_files import app_data_dir
+
+        return (f"<h3>fluorogui {html.escape(__version__)}</h3>"
+                "<p>Pose of total-knee-replacement implants from two fluoroscopic views "
+                "(after Tsai et al., J Biomech Eng 2006).</p>"
+                f"<p>Log file: <code>{html.escape(str(log_file_path()))}</code><br>"
+                f"Data folder (demo, autosave): <code>{html.escape(str(app_data_dir()))}</code></p>")
+
+    def show_about(self) -> None:
+        QMessageBox.about(self, "About fluorogui", self.about_text())
