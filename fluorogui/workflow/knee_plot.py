@@ -35,7 +35,7 @@ def _flagged(ax, x, y, trusted) -> None:
     finite = trusted[np.isfinite(trusted)]
     if len(finite):
         lo, hi = float(finite.min()), float(finite.max())
-        pad = max(0.12 * (hi - lo), 0.05 * max(abs(lo), abs(hi)), 0.05)
+        pad = max(0.12 * (hi - lo), 0.05)
         lo, hi = lo - pad, hi + pad
         ax.set_ylim(lo, hi)
     else:
