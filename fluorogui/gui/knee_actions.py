@@ -124,11 +124,8 @@ class KneeActions:
         self.knee_panel.set_rows(rows, self.controller.frame)
 
     def _export_folder(self) -> Path:
-        session = self.session
-        if session.path is not None:
-            return session.path.parent
-        first = next((p for p in session.image_paths(session.frames[0]) if p), None) if session.frames else None
-        return Path(first).parent if first else Path.home()
+        """Beside the session file or its images, never in the app's data folder (the demo)."""
+        return self.default_save_dir()
 
     def export_results(self) -> None:
         session = self.session

@@ -17,6 +17,7 @@ def window(qtbot, tmp_path, monkeypatch):
     monkeypatch.setenv("FLUOROGUI_DATA_DIR", str(tmp_path / "appdata"))
     warnings = []
     monkeypatch.setattr(QMessageBox, "warning", lambda *a, **k: warnings.append(a) or QMessageBox.StandardButton.Ok)
+    monkeypatch.setattr(MainWindow, "_ask", lambda self, box: None)  # "Locate the model?": cancelled
     w = MainWindow(settings=QSettings(str(tmp_path / "s.ini"), QSettings.Format.IniFormat), with_3d=False)
     qtbot.addWidget(w)
     w.warnings = warnings

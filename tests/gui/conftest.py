@@ -58,6 +58,14 @@ def dialogs(monkeypatch):
     monkeypatch.setattr(QMessageBox, "warning", warning)
     monkeypatch.setattr(QMessageBox, "information", information)
     monkeypatch.setattr(QMessageBox, "question", question)
+
+    def ask(window, box):  # the main window's own modal boxes (Locate a missing model): cancelled
+        seen["question"].append((box.windowTitle(), box.text()))
+        return None
+
+    from fluorogui.gui.main_window import MainWindow
+
+    monkeypatch.setattr(MainWindow, "_ask", ask)
     return seen
 
 
