@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from PySide6.QtCore import Qt
+from PySide6.QtCore import Qt, QTimer
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -93,8 +93,14 @@ class KneeActions:
         self.knee_panel.export_figure_requested.connect(self.export_figure)
         self.knee_panel.edit_frames_requested.connect(self.edit_anatomical_frames)
         c = self.controller
+        # poses change in bursts (a tracked frame stores two; an import hundreds): recompute
+        # once the burst is over, off the path of the frame the user is looking at
+        self._knee_timer = QTimer(self)
+        self._knee_timer.setSingleShot(True)
+        self._knee_timer.setInterval(250)
+        self._knee_timer.timeout.connect(self.refresh_knee)
         c.project_replaced.connect(self.refresh_knee)
-        c.pose_changed.connect(lambda _f, _c: self.refresh_knee())
+        c.pose_changed.connect(lambda _f, _c: self._knee_timer.start())
         c.knee_changed.connect(lambda _what: self.refresh_knee())
         c.frame_changed.connect(lambda frame: self.knee_panel.set_current(frame))
 

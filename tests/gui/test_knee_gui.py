@@ -100,3 +100,15 @@ def test_import_poses_lands_as_placed_and_undoes_in_one_step(window, demo, tmp_p
     assert all(r.status == "placed" for r in session.project.poses.values())
     window.controller.undo_stack.undo()
     assert not session.project.poses
+
+
+def test_pose_changes_refresh_the_dock_once_the_burst_is_over(window, demo, qtbot):
+    window.open_project(demo)
+    session = window.session
+    for frame, by in session.project.settings["demo_truth"].items():
+        for c, pose in by.items():
+            session.set_pose(c, int(frame), np.asarray(pose, float))
+    assert window._knee_timer.isActive()  # one refresh pending, not one per pose
+    expected = f"{session.knee_at(window.controller.frame).values.flexion_deg:.2f}"
+    qtbot.waitUntil(lambda: window.knee_panel.value_labels[0].text() == expected, timeout=3000)
+    assert not window._knee_timer.isActive()
