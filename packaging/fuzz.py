@@ -1,7 +1,7 @@
 """The long fuzz run of issue 11: throw broken inputs at every loader, the command line and
 the project saves, and print the counts that must all be zero.
 
-    python packaging/fuzz.py --cli 1000 --projects 500 --loaders 40 --kills 100 --full-disk 4
+    python packaging/fuzz.py --cli 1000 --projects 500 --loaders 40 --kills 100 --full-disk 4 --large
 
 ``--cli``: command lines (bad option values, missing / folder / FIFO / empty / junk /
 truncated / mutated input files) run through ``fluorogui.cli.main`` in worker processes;
@@ -9,7 +9,8 @@ truncated / mutated input files) run through ``fluorogui.cli.main`` in worker pr
 accepted one must save and reopen unchanged); ``--loaders``: mutations per seed file of
 every other loader (calibrations of each format, images, meshes, outlines, pairs, poses);
 ``--kills``: a saving child killed at random moments; ``--full-disk``: saves under
-``RLIMIT_FSIZE`` limits. The quick versions of these run in ``tests/fuzz``. Exit status 1
+``RLIMIT_FSIZE`` limits; ``--large``: inputs near 100 MB, each in its own process, for
+the peak memory. The quick versions of these run in ``tests/fuzz``. Exit status 1
 when any count that must be zero is not.
 """
 from __future__ import annotations
@@ -106,6 +107,57 @@ def run_full_disk(trials: int, folder: Path) -> dict:
             "unnamed": counts["unclear_messages"], "bad_accepted": counts["accepted"]}
 
 
+def make_large(folder: Path) -> None:
+    """Write the inputs of ``run_large`` into ``folder``."""
+    import numpy as np
+
+    sys.path.insert(0, str(HERE))
+    from bench_project import session
+
+    from fluorogui.io.project import save_project
+
+    save_project(session(folder, 1400, 400), folder / "long.fluoro")
+    triangles = 1_800_000
+    rng = np.random.default_rng(0)
+    stl = np.zeros(triangles, dtype=[("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("attr", "<u2")])
+    stl["corners"] = rng.uniform(-40, 40, (triangles, 3, 3))
+    with open(folder / "large.stl", "wb") as handle:
+        handle.write(b"\0" * 80 + np.uint32(triangles).tobytes() + stl.tobytes())
+    with open(folder / "large.csv", "w") as handle:
+        handle.write("u,v\n" + "512.1234,300.5678\n" * 4_800_000)
+    (folder / "large.png").write_bytes(b"\x89PNG\r\n\x1a\n" + rng.bytes(90_000_000))
+
+
+def run_large(folder: Path) -> dict:
+    """Inputs near 100 MB (a long project, a large binary STL, a large outline CSV, a large
+    junk PNG, a 1-GB-claiming PLY): each loaded in its own child; peak memory per input."""
+    import os
+    import subprocess
+
+    # written by a child, so that this process stays small (a child's peak memory counts
+    # what it shares with its parent at the fork)
+    subprocess.run([sys.executable, __file__, "--make-large", str(folder)], check=True)
+    files = {"project": folder / "long.fluoro", "mesh": folder / "large.stl", "outline": folder / "large.csv",
+             "image": folder / "large.png"}
+    counts = {"cases": 0, "crashes": 0, "escaped": 0, "peak_mb": 0.0, "per_input": {}}
+    env = dict(os.environ, PYTHONPATH=str(HERE.parent))
+    for loader, path in files.items():
+        child = subprocess.Popen([sys.executable, str(HERE.parent / "tests" / "fuzz" / "loader_worker.py"), loader,
+                                  str(path)], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, env=env)
+        out = child.stdout.read()
+        _, status, usage = os.wait4(child.pid, 0)
+        child.returncode = status
+        peak = usage.ru_maxrss / 1024.0
+        rows = [json.loads(line) for line in out.splitlines() if line.startswith("{")]
+        counts["cases"] += 1
+        counts["crashes"] += not rows
+        counts["escaped"] += bool(rows) and rows[0]["outcome"] == "escaped"
+        counts["peak_mb"] = max(counts["peak_mb"], peak)
+        outcome = rows[0]["outcome"] if rows else "crash"
+        counts["per_input"][f"{path.name} ({path.stat().st_size / 1e6:.0f} MB)"] = f"{outcome}, {peak:.0f} MB"
+    return counts
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cli", type=int, default=1000)
@@ -113,6 +165,7 @@ def main(argv=None) -> int:
     parser.add_argument("--loaders", type=int, default=40, help="mutations per seed file")
     parser.add_argument("--kills", type=int, default=100)
     parser.add_argument("--full-disk", type=int, default=4)
+    parser.add_argument("--large", action="store_true", help="also load inputs near 100 MB (peak memory)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
@@ -123,7 +176,8 @@ def main(argv=None) -> int:
                  ("project files", args.projects, lambda d: run_projects(args.projects, d, args.seed)),
                  ("other loaders", args.loaders, lambda d: run_loaders(args.loaders, d, args.seed)),
                  ("kills during save", args.kills, lambda d: run_kills(args.kills, d, args.seed)),
-                 ("full-disk saves", args.full_disk, lambda d: run_full_disk(args.full_disk, d))]
+                 ("full-disk saves", args.full_disk, lambda d: run_full_disk(args.full_disk, d)),
+                 ("large inputs", int(args.large), run_large)]
         for name, wanted, step in steps:
             if wanted <= 0:
                 continue
@@ -146,5 +200,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    random.seed(0)
+    if sys.argv[1:2] == ["--make-large"]:
+        sys.exit(make_large(Path(sys.argv[2])))
     sys.exit(main())

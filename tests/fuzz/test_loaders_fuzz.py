@@ -19,8 +19,8 @@ from fluorogui.io.tables import read_reference_poses
 def test_mutated_files_of_every_loader(tmp_path):
     seeds = make_seeds(tmp_path / "seeds")
     (tmp_path / "cases").mkdir()
-    counts = fuzz_loaders(seeds, tmp_path / "cases", per_seed=6, seed=11)
-    assert counts["cases"] == 6 * sum(len(files) for files in seeds.values())
+    counts = fuzz_loaders(seeds, tmp_path / "cases", per_seed=4, seed=11)
+    assert counts["cases"] == 4 * sum(len(files) for files in seeds.values())
     problems = {k: counts[k] for k in ("escaped", "crashes", "hangs", "unnamed")}
     assert problems == {"escaped": 0, "crashes": 0, "hangs": 0, "unnamed": 0}, json.dumps(counts["examples"])
     assert counts["refused"] > counts["cases"] // 2  # the mutations are mostly fatal, and caught
