@@ -27,7 +27,8 @@ import numpy as np
 from fluorogui.core.geometry import View
 from fluorogui.core.pose import angles_from_matrix, pose_to_matrix
 from fluorogui.io.calibration import jointtrack_matrix
-from fluorogui.io.errors import InputError, atomic_write_text, describe_os_error
+from fluorogui.io.errors import InputError, atomic_write_text
+from fluorogui.io.tables import read_text_table
 
 POSE_KEYS = ("x", "y", "z", "alpha", "beta", "gamma")
 JTS_TITLE = "JT_EULER_312"
@@ -42,18 +43,8 @@ def _number_text(value) -> str:
 
 
 def read_text_lines(path: Path) -> list[str]:
-    try:
-        if not path.is_file():
-            raise InputError(path, "not found" if not path.exists() else "is not a regular file")
-        with open(path, "r", encoding="utf-8", newline="") as handle:
-            text = handle.read(64 * 1024 * 1024 + 1)
-    except UnicodeDecodeError:
-        raise InputError(path, "is not a text file") from None
-    except OSError as exc:
-        raise InputError(path, f"cannot be read: {describe_os_error(exc)}") from None
-    if len(text) > 64 * 1024 * 1024:
-        raise InputError(path, "is larger than 64 MB; not a pose file")
-    return text.splitlines()
+    """The lines of a text file, opened the one checked way (regular file, size, not binary)."""
+    return read_text_table(path, "pose file").splitlines()
 
 
 def _float(path: Path, text: str, where: str) -> float:
