@@ -237,26 +237,69 @@ def cmd_match(args) -> int:
     images = _load_images(args.image, views)
     mesh = _load_model(args.model)
     start = _start_pose(args.start)
+    settings = _settings(args)
+    try:
+        settings.validate()
+    except ValueError as exc:
+        raise _UsageError(f"fluorogui: {exc}") from None
+    _check_start_visible(views, mesh, start, args.image)
     if args.outline:
-        problem = MatchProblem(mesh, views, _splines(args.outline, images, args.image, views, mesh, start))
-        result = match(problem, start, _settings(args))
+        splines = _splines(args.outline, images, args.image, views, mesh, start)
+        result = match(MatchProblem(mesh, views, splines), start, settings)
     else:
         # the one segment -> match -> re-segment loop of the app and of tracking
         try:
-            result = segment_and_match(images, views, mesh, start, _settings(args)).result
+            outcome = segment_and_match(images, views, mesh, start, settings)
         except SegmentationError as exc:
             raise InputError(args.image[exc.view],
                              f"no outline of the component found near the start pose ({exc.reason})") from None
+        result, splines = outcome.result, outcome.splines
+    status, reason = _judge_on_images(images, views, mesh, result, splines)
+    if status != "matched" and result.converged:
+        result.converged, result.message = False, reason
+    sd = result.sd or [float("nan")] * 6
     if args.json:
         d = result.to_dict()
         print(json.dumps({k: d[k] for k in ("pose", "objective_mm", "per_view_mean_mm", "calls", "seconds",
-                                              "converged", "method")} | {"message": d["message"]}))
+                                              "converged", "method")}
+                         | {"sd": [v if np.isfinite(v) else None for v in sd], "status": status,
+                            "reason": result.message, "message": d["message"]}))
     else:
         labels = ("x", "y", "z", "alpha", "beta", "gamma")
         print("pose: " + "  ".join(f"{l}={v:.4f}" for l, v in zip(labels, result.pose)))
+        print("SD:   " + "  ".join(f"{l}={v:.4f}" for l, v in zip(labels, sd)))
         print(f"objective {result.objective_mm:.4f} mm (per view {', '.join(f'{v:.4f}' for v in result.per_view_mean_mm)}), "
               f"{result.calls} calls, {result.seconds:.3f} s, {'converged' if result.converged else 'NOT converged: ' + result.message}")
     return 0 if result.converged else 3
+
+
+def _check_start_visible(views, mesh, start, image_paths) -> None:
+    """Refuse a start pose that puts the component (its centroid) outside an image: the
+    outline there cannot be segmented or matched."""
+    from fluorogui.core.pose import transform_points
+    from fluorogui.io.errors import InputError
+
+    centre = transform_points(start, mesh.centroid[None, :])
+    for path, view in zip(image_paths, views):
+        depth = float((centre[0] - view.source) @ view.normal)
+        uv = view.project(centre)[0] if depth > 0 else np.array([np.nan, np.nan])
+        w, h = view.image_size
+        if not (depth > 0 and 0 <= uv[0] <= w - 1 and 0 <= uv[1] <= h - 1):
+            raise InputError(path, "the start pose puts the component outside this image "
+                                   f"(its centre projects to u={uv[0]:.0f}, v={uv[1]:.0f}; image {w}x{h})")
+
+
+def _judge_on_images(images, views, mesh, result, splines) -> tuple[str, str]:
+    """The tracking's quality checks (``core.quality``) on a single match: residual per
+    view, model outline on image edges, image outline on the model, field of view."""
+    from fluorogui.core.quality import assess, judge
+    from fluorogui.core.shape_search import image_field
+
+    outlines = [sp.sample(max(64, int(sp.length_px)), skip_gaps=True) for sp in splines]
+    fields = [image_field(image, margin_px=2) for image in images]
+    quality = assess(images, views, mesh, result.pose, result.converged, result.per_view_mean_mm, outlines,
+                     fields=fields, model_outlines=result.outlines_px)
+    return judge(quality, view_names=[f"view {k + 1}" for k in range(len(views))])
 
 
 def cmd_validate_idealized(args) -> int:
