@@ -472,7 +472,11 @@ def _match_fast(problem, start, settings, progress, cancel) -> MatchResult:
 # -- uncertainty ---------------------------------------------------------------------------------
 #: length (px along the image outline) of the stretches whose residuals are taken as one
 #: independent unit: neighbouring outline points share edge noise, blur and segmentation
-CLUSTER_PX = 24.0
+#: (measured on outlines with noise correlated over ~4 px: 24 px stretches still gave SDs
+#: 0.7x the observed spread, 48 px 0.73-1.34x; tests/core/test_matching_uncertainty.py)
+CLUSTER_PX = 48.0
+#: ... but at least this many stretches per view (small outlines)
+MIN_STRETCHES = 8
 
 
 def pose_covariance(problem: MatchProblem, pose, settings: MatchSettings | None = None,
@@ -501,7 +505,8 @@ def pose_covariance(problem: MatchProblem, pose, settings: MatchSettings | None 
         H += J.T @ (J * ww[:, None])
         scores = J * (ww * r)[:, None]
         spline = problem.splines[k]
-        stretch = np.floor((spline.wrap(where) - spline.t_range[0]) / cluster_px).astype(int)
+        length = min(cluster_px, spline.period / MIN_STRETCHES)
+        stretch = np.floor((spline.wrap(where) - spline.t_range[0]) / length).astype(int)
         for key in np.unique(stretch):
             groups[(k, key)] = groups.get((k, key), 0.0) + scores[stretch == key].sum(0)
     eig = np.linalg.eigvalsh(H)
