@@ -48,6 +48,19 @@ def build_parser() -> argparse.ArgumentParser:
     vi.add_argument("--model", action="append", required=True, metavar="MESH")
     vi.add_argument("--flexion", nargs="+", type=float, default=[30.0, 45.0, 60.0, 90.0])
     vi.add_argument("--density", nargs="+", type=int, default=[15000], help="point-model sizes (paper method)")
+    vi.add_argument("--renderer", choices=["xray", "silhouette"], default="xray",
+                    help="xray: the independent image model (default); silhouette: the old filled silhouette")
+    vi.add_argument("--variant", nargs="+", default=[""], metavar="V",
+                    help="mesh variants: none, mirrored, scaled+15, scaled-15")
+    vi.add_argument("--angle", type=float, default=90.0, help="degrees between the two views")
+    vi.add_argument("--tilt", type=float, default=0.0, help="degrees the views are tilted out of a common plane")
+    vi.add_argument("--offset", nargs=2, type=float, default=[0.0, 0.0], metavar=("DU", "DV"),
+                    help="principal point offset (px): the object off the image centre")
+    vi.add_argument("--source-distance", nargs=2, type=float, default=[1000.0, 1000.0], metavar=("D1", "D2"),
+                    help="source to object distance per view (mm)")
+    vi.add_argument("--bits", type=int, choices=[8, 16], default=16, help="xray: image bit depth")
+    vi.add_argument("--distortion", type=float, default=0.0, metavar="K1",
+                    help="xray: radial distortion applied to the images, then corrected before matching")
     _add_validation_options(vi)
     vi.set_defaults(func=cmd_validate_idealized)
     vp = vs.add_parser("spheres", help="Table 3: eight stacked 12.70 mm spheres")
@@ -302,30 +315,88 @@ def _judge_on_images(images, views, mesh, result, splines) -> tuple[str, str]:
     return judge(quality, view_names=[f"view {k + 1}" for k in range(len(views))])
 
 
-def cmd_validate_idealized(args) -> int:
-    from fluorogui.core.validation import idealized_case
+def _xray_renderer(args):
+    """The independent image model as ``idealized_case``'s renderer (None: the old one)."""
+    if args.renderer != "xray":
+        return None
+    from fluorogui.validation.xray import Body, XrayModel, undistort_image, xray_image
 
-    payload, rows = {"protocol": "idealized", "cases": []}, []
+    model = XrayModel(bits=args.bits, distortion_k1=args.distortion)
+
+    def render(view, meshes, rng):
+        image = xray_image(view, [Body(v, f) for v, f in meshes], model, rng)
+        return undistort_image(image, args.distortion) if args.distortion else image
+
+    return render
+
+
+#: a start ending farther than this from the truth (mm, deg) is in a wrong basin
+WRONG_MM, WRONG_DEG = 0.05, 0.05
+
+
+def cmd_validate_idealized(args) -> int:
+    from fluorogui.core.validation import idealized_case, mesh_variant, two_views
+
+    views = two_views(args.angle, args.tilt, tuple(args.offset), tuple(args.source_distance))
+    render = _xray_renderer(args)
+    print(f"idealized: {args.renderer} images, views {args.angle:g} deg apart, tilt {args.tilt:g} deg, "
+          f"offset {args.offset[0]:g}/{args.offset[1]:g} px, sources {args.source_distance[0]:g}/"
+          f"{args.source_distance[1]:g} mm" + (f", {args.bits}-bit, distortion k1 {args.distortion:g} (corrected)"
+                                                  if render else "") + f"; {args.starts} starts per case\n")
+    payload, rows = {"protocol": "idealized", "renderer": args.renderer, "cases": []}, []
     for model_path in args.model:
-        mesh = _load_model(model_path)
-        for method in args.method:
-            table = []
-            densities = args.density if method == "paper" else [None]
-            for density in densities:
-                for flexion in args.flexion:
-                    settings = _settings(args, method, multistart=False)
-                    if density:
-                        settings.model_points = density
-                    label = f"{flexion:g} deg" + (f", {density} pts" if density else "")
-                    case = idealized_case(mesh.vertices, mesh.faces, flexion, settings, args.starts, args.seed, label=label)
-                    table.append((label, case.summary))
-                    payload["cases"].append({"model": model_path, "method": method, **case.to_dict()})
-                    rows.append(_case_row(model_path, method, case))
-            _print_table(f"{Path(model_path).name} — method {method}: error mean±SD [RMSE]", table)
+        base = _load_model(model_path)
+        for variant in [v if v != "none" else "" for v in args.variant]:
+            try:
+                vertices, faces = mesh_variant(base.vertices, base.faces, variant)
+            except ValueError as exc:
+                raise _UsageError(f"fluorogui: --variant: {exc}") from None
+            name = Path(model_path).name + (f" ({variant})" if variant else "")
+            for method in args.method:
+                table = []
+                densities = args.density if method == "paper" else [None]
+                for density in densities:
+                    for flexion in args.flexion:
+                        settings = _settings(args, method, multistart=False)
+                        if density:
+                            settings.model_points = density
+                        label = f"{flexion:g} deg" + (f", {density} pts" if density else "")
+                        case = idealized_case(vertices, faces, flexion, settings, args.starts, args.seed,
+                                              views=views, label=label, render=render)
+                        table.append((label, case))
+                        payload["cases"].append({"model": model_path, "variant": variant, "method": method,
+                                                 **case.to_dict()})
+                        rows.append(_case_row(name, method, case) | _basin_counts(case))
+                _print_idealized_table(f"{name} — method {method}: error mean±SD [RMSE] of converged starts", table)
     _write_outputs(args.out, payload, rows)
     if args.json:
         print(json.dumps(payload))
     return 0
+
+
+def _basin_counts(case) -> dict:
+    """Starts in the right basin, converged ones, and converged ones in a wrong basin."""
+    err = np.abs(np.asarray(case.errors, dtype=float)).reshape(-1, 6)
+    right = (err[:, :3].max(1) <= WRONG_MM) & (err[:, 3:].max(1) <= WRONG_DEG)
+    conv = np.array([r.converged for r in case.results], dtype=bool)
+    return {"right_basin": int(right.sum()), "converged": int(conv.sum()), "false_converged": int((conv & ~right).sum()),
+            "worst_mm": round(float(err[:, :3].max()), 4), "worst_deg": round(float(err[:, 3:].max()), 4)}
+
+
+def _print_idealized_table(title, table):
+    """The paper's Table 1/2 layout plus, per case: converged starts, starts within
+    0.05 mm / 0.05 deg of the truth, converged starts outside it, and the worst start."""
+    from fluorogui.core.validation import DOF_LABELS
+
+    print(title)
+    head = f"{'case':<14}" + "".join(f"{d + (' (mm)' if k < 3 else ' (deg)'):>24}" for k, d in enumerate(DOF_LABELS))
+    print(head + f"{'conv':>7}{'right':>7}{'false':>7}{'worst mm/deg':>15}{'s/match':>9}")
+    for label, case in table:
+        s, b = case.summary, _basin_counts(case)
+        print(f"{label:<14}" + "".join(f"{_fmt_dof(s, k):>24}" for k in range(6))
+              + f"{b['converged']:>4}/{s.n_runs:<2}{b['right_basin']:>5}{b['false_converged']:>7}"
+              + f"{b['worst_mm']:>8.3f}/{b['worst_deg']:<6.3f}{s.median_seconds:>9.3f}")
+    print()
 
 
 def cmd_validate_spheres(args) -> int:
