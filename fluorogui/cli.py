@@ -59,6 +59,8 @@ def build_parser() -> argparse.ArgumentParser:
     vi.add_argument("--source-distance", nargs=2, type=float, default=[1000.0, 1000.0], metavar=("D1", "D2"),
                     help="source to object distance per view (mm)")
     vi.add_argument("--bits", type=int, choices=[8, 16], default=16, help="xray: image bit depth")
+    vi.add_argument("--mu", type=float, default=None, help="xray: the metal's attenuation (1/mm; default CoCr, 1.0)")
+    vi.add_argument("--image-size", type=int, default=1024, help="image width and height (px; same field of view)")
     vi.add_argument("--distortion", type=float, default=0.0, metavar="K1",
                     help="xray: radial distortion applied to the images, then corrected before matching")
     _add_validation_options(vi)
@@ -319,12 +321,13 @@ def _xray_renderer(args):
     """The independent image model as ``idealized_case``'s renderer (None: the old one)."""
     if args.renderer != "xray":
         return None
-    from fluorogui.validation.xray import Body, XrayModel, undistort_image, xray_image
+    from fluorogui.validation.xray import MU_METAL, Body, XrayModel, undistort_image, xray_image
 
     model = XrayModel(bits=args.bits, distortion_k1=args.distortion)
+    mu = args.mu or MU_METAL
 
     def render(view, meshes, rng):
-        image = xray_image(view, [Body(v, f) for v, f in meshes], model, rng)
+        image = xray_image(view, [Body(v, f, mu) for v, f in meshes], model, rng)
         return undistort_image(image, args.distortion) if args.distortion else image
 
     return render
@@ -337,11 +340,14 @@ WRONG_MM, WRONG_DEG = 0.05, 0.05
 def cmd_validate_idealized(args) -> int:
     from fluorogui.core.validation import idealized_case, mesh_variant, two_views
 
-    views = two_views(args.angle, args.tilt, tuple(args.offset), tuple(args.source_distance))
+    if not 64 <= args.image_size <= 4096:
+        raise _UsageError(f"fluorogui: --image-size {args.image_size}: give 64 to 4096 pixels")
+    views = two_views(args.angle, args.tilt, tuple(args.offset), tuple(args.source_distance),
+                      image_size=(args.image_size, args.image_size), pitch=315.0 / args.image_size)
     render = _xray_renderer(args)
     print(f"idealized: {args.renderer} images, views {args.angle:g} deg apart, tilt {args.tilt:g} deg, "
           f"offset {args.offset[0]:g}/{args.offset[1]:g} px, sources {args.source_distance[0]:g}/"
-          f"{args.source_distance[1]:g} mm" + (f", {args.bits}-bit, distortion k1 {args.distortion:g} (corrected)"
+          f"{args.source_distance[1]:g} mm" + (f", {args.bits}-bit, metal {args.mu or 1.0:g}/mm, distortion k1 {args.distortion:g} (corrected)"
                                                   if render else "") + f"; {args.starts} starts per case\n")
     payload, rows = {"protocol": "idealized", "renderer": args.renderer, "cases": []}, []
     for model_path in args.model:

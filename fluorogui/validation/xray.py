@@ -26,11 +26,13 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-#: attenuation coefficients (1/mm) at fluoroscopic energies, roughly: CoCr/Ti alloys,
-#: cortical-cancellous bone, soft tissue
-MU_METAL = 0.2
-MU_BONE = 0.05
-MU_TISSUE = 0.015
+#: linear attenuation coefficients (1/mm) at a fluoroscopic beam's effective energy of
+#: about 60 keV (mass attenuation times density; NIST XCOM values: iron 1.2 cm2/g, so
+#: CoCr at 8.3 g/cm3 ~1.0/mm, titanium alloy ~0.5/mm; cortical bone ~0.06/mm, water 0.02/mm)
+MU_METAL = 1.0
+MU_TITANIUM = 0.5
+MU_BONE = 0.06
+MU_TISSUE = 0.02
 
 
 @dataclass
