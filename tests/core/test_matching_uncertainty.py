@@ -1,16 +1,12 @@
 """The per-pose uncertainty (``MatchResult.sd``) against the spread over noise realisations.
 
-The outlines are made without the matcher's code: a convex, slightly bent tri-axial
-ellipsoid is projected with the pinhole formula written out here, its outline is the
-convex hull of the projected vertices (exactly the silhouette of a convex mesh), resampled
-every pixel, and displaced along its normal by noise correlated over a few pixels, as
-edge noise after blur is. Measured (25 realisations): biplane SD / observed spread
+The outlines are made without the matcher's code (``fluorogui.validation.outlines``: the
+convex hull of a bent ellipsoid's projected vertices, with noise correlated over a few
+pixels along it). Measured (25 realisations): biplane SD / observed spread
 0.85-1.34 for every DOF, single view 0.73-0.90; with every residual taken as independent
-the SD came out 0.3-0.4x the spread.
+the SD came out 0.3-0.4x the spread (``packaging/bench_uncertainty.py``).
 """
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
-from scipy.spatial import ConvexHull
 
 from fluorogui.core.geometry import View
 from fluorogui.core.matching import MatchProblem, MatchSettings, match
@@ -18,33 +14,17 @@ from fluorogui.core.mesh import prepare_mesh
 from fluorogui.core.pose import pose_difference, rotation_matrix
 from fluorogui.core.spline import OutlineSpline
 from fluorogui.core.validation import dual_orthogonal_views
+from fluorogui.validation.outlines import bent_ellipsoid, noisy_hull_outline
 
 TRUTH = np.array([3.0, -2.0, 5.0, 20.0, -15.0, 30.0])
 
 
 def _egg():
-    import pyvista as pv
-
-    s = pv.Sphere(radius=1.0, theta_resolution=96, phi_resolution=72)
-    p = np.asarray(s.points) * [30.0, 20.0, 12.0]
-    p[:, 0] += 0.15 * p[:, 1] ** 2 / 20.0  # bent a little: no mirror symmetry
-    return p, np.asarray(s.faces).reshape(-1, 4)[:, 1:]
+    return bent_ellipsoid()
 
 
-def _noisy_outline(view: View, world: np.ndarray, noise_px: float, corr_px: float, rng) -> np.ndarray:
-    d = world - view.source
-    w = d @ view.normal
-    uv = np.column_stack([view.principal_point[0] + view.focal_px[0] * (d @ view.e_u) / w,
-                          view.principal_point[1] + view.focal_px[1] * (d @ view.e_v) / w])
-    hull = uv[ConvexHull(uv).vertices]
-    closed = np.vstack([hull, hull[:1]])
-    arc = np.r_[0, np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))]
-    s = np.arange(0, arc[-1], 1.0)
-    pts = np.column_stack([np.interp(s, arc, closed[:, 0]), np.interp(s, arc, closed[:, 1])])
-    tangent = np.roll(pts, -1, 0) - np.roll(pts, 1, 0)
-    normal = np.column_stack([tangent[:, 1], -tangent[:, 0]]) / np.linalg.norm(tangent, axis=1)[:, None]
-    e = gaussian_filter1d(rng.normal(size=len(pts)), corr_px, mode="wrap")
-    return pts + (e * noise_px / e.std())[:, None] * normal
+def _noisy_outline(view, world, noise_px, corr_px, rng):
+    return noisy_hull_outline(view, world, noise_px, corr_px, rng)
 
 
 def _spread(views, start_sd: float, n: int = 20, seed: int = 1):
