@@ -108,6 +108,8 @@ class MatchResult:
     sd: list[float] | None = None
     #: did the optimiser itself stop by its criterion (``converged`` also needs the checks)
     optimiser_converged: bool = False
+    #: fast method: (pose, evaluation) at the result, reused by the covariance
+    _evaluation: tuple | None = field(default=None, repr=False, compare=False)
 
     def weakest_rotation_axis(self) -> np.ndarray | None:
         """Unit axis (world) of the turn the outlines constrain least, translation free to
@@ -414,11 +416,13 @@ def _match_fast(problem, start, settings, progress, cancel) -> MatchResult:
     if settings.centre_first:  # whole outlines: centroids of closed curves
         c = _initial_translation(problem, R, c, _image_samples(problem, settings, whole=True))
     image_samples = _image_samples(problem, settings)
+    # where each image sample sits along its outline (for the covariance's stretches)
+    image_params = [sp.closest(g)[3] if len(g) else np.zeros(0) for sp, g in zip(problem.splines, image_samples)]
     calls = 0
     history: list[float] = []
     lam = 1e-3
     huber = settings.huber_px
-    ev = _FastEvaluation(problem, R, c, settings, image_samples)
+    ev = _FastEvaluation(problem, R, c, settings, image_samples, image_params)
     calls += 1
     cost = ev.robust_cost(huber)
     history.append(ev.objective_mm)
@@ -434,7 +438,7 @@ def _match_fast(problem, start, settings, progress, cancel) -> MatchResult:
         R_new = rotvec_matrix(w) @ R
         c_new = c + dc
         try:
-            ev_new = _FastEvaluation(problem, R_new, c_new, settings, image_samples)
+            ev_new = _FastEvaluation(problem, R_new, c_new, settings, image_samples, image_params)
         except ValueError:
             ev_new = None
         calls += 1
@@ -466,7 +470,7 @@ def _match_fast(problem, start, settings, progress, cancel) -> MatchResult:
     return MatchResult(pose, ev.objective_mm, ev.per_view_mm, calls, 0.0, converged and not cancelled,
                        "fast", settings.to_dict(), cancelled,
                        "" if converged else ("cancelled" if cancelled else "did not converge"), history,
-                       ev.normal_equations(huber)[0], ev.outlines_px)
+                       ev.normal_equations(huber)[0], ev.outlines_px, _evaluation=(pose, ev))
 
 
 # -- uncertainty ---------------------------------------------------------------------------------
@@ -480,7 +484,7 @@ MIN_STRETCHES = 8
 
 
 def pose_covariance(problem: MatchProblem, pose, settings: MatchSettings | None = None,
-                    cluster_px: float = CLUSTER_PX) -> np.ndarray:
+                    cluster_px: float = CLUSTER_PX, evaluation: tuple | None = None) -> np.ndarray:
     """Covariance (6x6; mm and degrees) of the pose variables x, y, z, alpha, beta, gamma.
 
     Gauss-Newton (Laplace) at ``pose`` with the residuals' own variance, as a sandwich
@@ -494,26 +498,30 @@ def pose_covariance(problem: MatchProblem, pose, settings: MatchSettings | None 
     mesh = problem.mesh
     pose = as_pose(pose)
     R, c = _to_state(pose, mesh.centroid)
-    samples = _image_samples(problem, settings)
-    params = [sp.closest(g)[3] if len(g) else np.zeros(0) for sp, g in zip(problem.splines, samples)]
-    ev = _FastEvaluation(problem, R, c, settings, samples, params)
+    if evaluation is not None and np.allclose(evaluation[0], pose, rtol=0, atol=1e-12):
+        ev = evaluation[1]  # the matcher's own last evaluation at this pose
+    else:
+        samples = _image_samples(problem, settings)
+        params = [sp.closest(g)[3] if len(g) else np.zeros(0) for sp, g in zip(problem.splines, samples)]
+        ev = _FastEvaluation(problem, R, c, settings, samples, params)
     H = np.zeros((6, 6))
-    groups: dict[tuple[int, int], np.ndarray] = {}
+    all_scores, all_keys = [], []
     for r, J, w, k, where in zip(ev.r, ev.J, ev.w, ev.view_of, ev.where):
         a = np.abs(r)
         ww = w * np.where(a <= settings.huber_px, 1.0, settings.huber_px / np.maximum(a, 1e-12))
         H += J.T @ (J * ww[:, None])
-        scores = J * (ww * r)[:, None]
+        all_scores.append(J * (ww * r)[:, None])
         spline = problem.splines[k]
         length = min(cluster_px, spline.period / MIN_STRETCHES)
-        stretch = np.floor((spline.wrap(where) - spline.t_range[0]) / length).astype(int)
-        for key in np.unique(stretch):
-            groups[(k, key)] = groups.get((k, key), 0.0) + scores[stretch == key].sum(0)
+        stretch = np.floor((spline.wrap(where) - spline.t_range[0]) / length).astype(np.int64)
+        all_keys.append(k * 1_000_000 + stretch)
+    keys, group = np.unique(np.concatenate(all_keys), return_inverse=True)
+    n = len(keys)
     eig = np.linalg.eigvalsh(H)
-    n = len(groups)
     if n <= 6 or eig[0] <= 1e-12 * max(eig[-1], 1e-300):
         return np.full((6, 6), np.inf)
-    S = np.array(list(groups.values()))
+    S = np.zeros((n, 6))
+    np.add.at(S, group.ravel(), np.vstack(all_scores))
     B = S.T @ S * n / (n - 6)  # small-sample correction for the six fitted variables
     Hi = np.linalg.inv(H)
     cov = Hi @ B @ Hi
@@ -574,7 +582,7 @@ def _judge(problem: MatchProblem, result: MatchResult, settings: MatchSettings) 
     from .quality import check_match  # quality builds on this module
 
     try:
-        result.sd = pose_sd(pose_covariance(problem, result.pose, settings))
+        result.sd = pose_sd(pose_covariance(problem, result.pose, settings, evaluation=result._evaluation))
     except ValueError:  # the model behind a source at this pose
         result.sd = [float("inf")] * 6
     problems = check_match(problem, result)
