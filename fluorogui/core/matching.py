@@ -17,6 +17,10 @@ rotations scaled by the model radius, so rotation and translation steps are equa
 conditioned; Levenberg–Marquardt steps; an initial translation from the outline
 centroids in both views; optional restarts.
 
+Every result is then judged on its own evidence (``core.quality.check_match``) and gets
+its uncertainty (``pose_covariance``, six SDs in ``MatchResult.sd``): ``converged`` means
+the optimiser stopped and the checks passed; otherwise ``message`` says what failed.
+
 Poses in and out follow the DESIGN.md convention (mm, degrees). The objective is in mm
 on the intensifier plane (pixels times pixel pitch), as in the paper.
 """

@@ -15,7 +15,9 @@ The checks here look at the result from several sides:
   degrees), against what the motion so far makes plausible.
 
 ``judge`` turns these into a status, ``matched`` or ``needs_review``, and a reason in
-plain words. Pure numpy / OpenCV.
+plain words. ``check_match`` is the matcher's own verdict on a single result, from what
+the match itself holds (residual per view, outline coverage both ways, the pose's
+standard deviations), applied to every match. Pure numpy / OpenCV.
 """
 from __future__ import annotations
 
