@@ -64,6 +64,21 @@ def build_parser() -> argparse.ArgumentParser:
     vi.add_argument("--flexion", nargs="+", type=finite_float, default=[30.0, 45.0, 60.0, 90.0])
     vi.add_argument("--density", nargs="+", type=int_in(*POINTS_RANGE), default=[15000],
                     help="point-model sizes (paper method)")
+    vi.add_argument("--renderer", choices=["xray", "silhouette"], default="xray",
+                    help="xray: the independent image model (default); silhouette: the old filled silhouette")
+    vi.add_argument("--variant", nargs="+", default=[""], metavar="V",
+                    help="mesh variants: none, mirrored, scaled+15, scaled-15")
+    vi.add_argument("--angle", type=finite_float, default=90.0, help="degrees between the two views")
+    vi.add_argument("--tilt", type=finite_float, default=0.0, help="degrees the views are tilted out of a common plane")
+    vi.add_argument("--offset", nargs=2, type=finite_float, default=[0.0, 0.0], metavar=("DU", "DV"),
+                    help="principal point offset (px): the object off the image centre")
+    vi.add_argument("--source-distance", nargs=2, type=finite_float, default=[1000.0, 1000.0], metavar=("D1", "D2"),
+                    help="source to object distance per view (mm)")
+    vi.add_argument("--bits", type=int, choices=[8, 16], default=16, help="xray: image bit depth")
+    vi.add_argument("--mu", type=finite_float, default=None, help="xray: the metal's attenuation (1/mm; default CoCr, 1.0)")
+    vi.add_argument("--image-size", type=int, default=1024, help="image width and height (px; same field of view)")
+    vi.add_argument("--distortion", type=finite_float, default=0.0, metavar="K1",
+                    help="xray: radial distortion applied to the images, then corrected before matching")
     _add_validation_options(vi)
     vi.set_defaults(func=cmd_validate_idealized)
     vp = vs.add_parser("spheres", help="Table 3: eight stacked 12.70 mm spheres")
@@ -253,54 +268,158 @@ def cmd_match(args) -> int:
     images = _load_images(args.image, views)
     mesh = _load_model(args.model)
     start = _start_pose(args.start)
+    settings = _settings(args)
+    try:
+        settings.validate()
+    except ValueError as exc:
+        raise _UsageError(f"fluorogui: {exc}") from None
+    _check_start_visible(views, mesh, start, args.image)
     if args.outline:
-        problem = MatchProblem(mesh, views, _splines(args.outline, images, args.image, views, mesh, start))
-        result = match(problem, start, _settings(args))
+        splines = _splines(args.outline, images, args.image, views, mesh, start)
+        result = match(MatchProblem(mesh, views, splines), start, settings)
     else:
         # the one segment -> match -> re-segment loop of the app and of tracking
         try:
-            result = segment_and_match(images, views, mesh, start, _settings(args)).result
+            outcome = segment_and_match(images, views, mesh, start, settings)
         except SegmentationError as exc:
             raise InputError(args.image[exc.view],
                              f"no outline of the component found near the start pose ({exc.reason})") from None
+        result, splines = outcome.result, outcome.splines
+    status, reason = _judge_on_images(images, views, mesh, result, splines)
+    if status != "matched" and result.converged:
+        result.converged, result.message = False, reason
+    sd = result.sd or [float("nan")] * 6
     if args.json:
         d = result.to_dict()
         print(json.dumps({k: d[k] for k in ("pose", "objective_mm", "per_view_mean_mm", "calls", "seconds",
-                                              "converged", "method")} | {"message": d["message"]}))
+                                              "converged", "method")}
+                         | {"sd": [v if np.isfinite(v) else None for v in sd], "status": status,
+                            "reason": result.message, "message": d["message"]}))
     else:
         labels = ("x", "y", "z", "alpha", "beta", "gamma")
         print("pose: " + "  ".join(f"{l}={v:.4f}" for l, v in zip(labels, result.pose)))
+        print("SD:   " + "  ".join(f"{l}={v:.4f}" for l, v in zip(labels, sd)))
         print(f"objective {result.objective_mm:.4f} mm (per view {', '.join(f'{v:.4f}' for v in result.per_view_mean_mm)}), "
               f"{result.calls} calls, {result.seconds:.3f} s, {'converged' if result.converged else 'NOT converged: ' + result.message}")
     return 0 if result.converged else 3
 
 
+def _check_start_visible(views, mesh, start, image_paths) -> None:
+    """Refuse a start pose that puts the component (its centroid) outside an image: the
+    outline there cannot be segmented or matched."""
+    from fluorogui.core.pose import transform_points
+    from fluorogui.io.errors import InputError
+
+    centre = transform_points(start, mesh.centroid[None, :])
+    for path, view in zip(image_paths, views):
+        depth = float((centre[0] - view.source) @ view.normal)
+        uv = view.project(centre)[0] if depth > 0 else np.array([np.nan, np.nan])
+        w, h = view.image_size
+        if not (depth > 0 and 0 <= uv[0] <= w - 1 and 0 <= uv[1] <= h - 1):
+            raise InputError(path, "the start pose puts the component outside this image "
+                                   f"(its centre projects to u={uv[0]:.0f}, v={uv[1]:.0f}; image {w}x{h})")
+
+
+def _judge_on_images(images, views, mesh, result, splines) -> tuple[str, str]:
+    """The tracking's quality checks (``core.quality``) on a single match: residual per
+    view, model outline on image edges, image outline on the model, field of view."""
+    from fluorogui.core.quality import assess, judge
+    from fluorogui.core.shape_search import image_field
+
+    outlines = [sp.sample(max(64, int(sp.length_px)), skip_gaps=True) for sp in splines]
+    fields = [image_field(image, margin_px=2) for image in images]
+    quality = assess(images, views, mesh, result.pose, result.converged, result.per_view_mean_mm, outlines,
+                     fields=fields, model_outlines=result.outlines_px)
+    return judge(quality, view_names=[f"view {k + 1}" for k in range(len(views))])
+
+
+def _xray_renderer(args):
+    """The independent image model as ``idealized_case``'s renderer (None: the old one)."""
+    if args.renderer != "xray":
+        return None
+    from fluorogui.validation.xray import MU_METAL, Body, XrayModel, undistort_image, xray_image
+
+    model = XrayModel(bits=args.bits, distortion_k1=args.distortion)
+    mu = args.mu or MU_METAL
+
+    def render(view, meshes, rng):
+        image = xray_image(view, [Body(v, f, mu) for v, f in meshes], model, rng)
+        return undistort_image(image, args.distortion) if args.distortion else image
+
+    return render
+
+
+#: a start ending farther than this from the truth (mm, deg) is in a wrong basin
+WRONG_MM, WRONG_DEG = 0.05, 0.05
+
+
 def cmd_validate_idealized(args) -> int:
-    from fluorogui.core.validation import idealized_case
+    from fluorogui.core.validation import idealized_case, mesh_variant, two_views
 
     check_output_folder(args.out)
-
-    payload, rows = {"protocol": "idealized", "cases": []}, []
+    if not 64 <= args.image_size <= 4096:
+        raise _UsageError(f"fluorogui: --image-size {args.image_size}: give 64 to 4096 pixels")
+    views = two_views(args.angle, args.tilt, tuple(args.offset), tuple(args.source_distance),
+                      image_size=(args.image_size, args.image_size), pitch=315.0 / args.image_size)
+    render = _xray_renderer(args)
+    print(f"idealized: {args.renderer} images, views {args.angle:g} deg apart, tilt {args.tilt:g} deg, "
+          f"offset {args.offset[0]:g}/{args.offset[1]:g} px, sources {args.source_distance[0]:g}/"
+          f"{args.source_distance[1]:g} mm" + (f", {args.bits}-bit, metal {args.mu or 1.0:g}/mm, distortion k1 {args.distortion:g} (corrected)"
+                                                  if render else "") + f"; {args.starts} starts per case\n")
+    payload, rows = {"protocol": "idealized", "renderer": args.renderer, "cases": []}, []
     for model_path in args.model:
-        mesh = _load_model(model_path)
-        for method in args.method:
-            table = []
-            densities = args.density if method == "paper" else [None]
-            for density in densities:
-                for flexion in args.flexion:
-                    settings = _settings(args, method, multistart=False)
-                    if density:
-                        settings.model_points = density
-                    label = f"{flexion:g} deg" + (f", {density} pts" if density else "")
-                    case = idealized_case(mesh.vertices, mesh.faces, flexion, settings, args.starts, args.seed, label=label)
-                    table.append((label, case.summary))
-                    payload["cases"].append({"model": model_path, "method": method, **case.to_dict()})
-                    rows.append(_case_row(model_path, method, case))
-            _print_table(f"{Path(model_path).name} — method {method}: error mean±SD [RMSE]", table)
+        base = _load_model(model_path)
+        for variant in [v if v != "none" else "" for v in args.variant]:
+            try:
+                vertices, faces = mesh_variant(base.vertices, base.faces, variant)
+            except ValueError as exc:
+                raise _UsageError(f"fluorogui: --variant: {exc}") from None
+            name = Path(model_path).name + (f" ({variant})" if variant else "")
+            for method in args.method:
+                table = []
+                densities = args.density if method == "paper" else [None]
+                for density in densities:
+                    for flexion in args.flexion:
+                        settings = _settings(args, method, multistart=False)
+                        if density:
+                            settings.model_points = density
+                        label = f"{flexion:g} deg" + (f", {density} pts" if density else "")
+                        case = idealized_case(vertices, faces, flexion, settings, args.starts, args.seed,
+                                              views=views, label=label, render=render)
+                        table.append((label, case))
+                        payload["cases"].append({"model": model_path, "variant": variant, "method": method,
+                                                 **case.to_dict()})
+                        rows.append(_case_row(name, method, case) | _basin_counts(case))
+                _print_idealized_table(f"{name} — method {method}: error mean±SD [RMSE] of converged starts", table)
     _write_outputs(args.out, payload, rows)
     if args.json:
         print(json.dumps(payload))
     return 0
+
+
+def _basin_counts(case) -> dict:
+    """Starts in the right basin, converged ones, and converged ones in a wrong basin."""
+    err = np.abs(np.asarray(case.errors, dtype=float)).reshape(-1, 6)
+    right = (err[:, :3].max(1) <= WRONG_MM) & (err[:, 3:].max(1) <= WRONG_DEG)
+    conv = np.array([r.converged for r in case.results], dtype=bool)
+    return {"right_basin": int(right.sum()), "converged": int(conv.sum()), "false_converged": int((conv & ~right).sum()),
+            "worst_mm": round(float(err[:, :3].max()), 4), "worst_deg": round(float(err[:, 3:].max()), 4)}
+
+
+def _print_idealized_table(title, table):
+    """The paper's Table 1/2 layout plus, per case: converged starts, starts within
+    0.05 mm / 0.05 deg of the truth, converged starts outside it, and the worst start."""
+    from fluorogui.core.validation import DOF_LABELS
+
+    print(title)
+    head = f"{'case':<14}" + "".join(f"{d + (' (mm)' if k < 3 else ' (deg)'):>24}" for k, d in enumerate(DOF_LABELS))
+    print(head + f"{'conv':>7}{'right':>7}{'false':>7}{'worst mm/deg':>15}{'s/match':>9}")
+    for label, case in table:
+        s, b = case.summary, _basin_counts(case)
+        print(f"{label:<14}" + "".join(f"{_fmt_dof(s, k):>24}" for k in range(6))
+              + f"{b['converged']:>4}/{s.n_runs:<2}{b['right_basin']:>5}{b['false_converged']:>7}"
+              + f"{b['worst_mm']:>8.3f}/{b['worst_deg']:<6.3f}{s.median_seconds:>9.3f}")
+    print()
 
 
 def cmd_validate_spheres(args) -> int:

@@ -17,13 +17,17 @@ rotations scaled by the model radius, so rotation and translation steps are equa
 conditioned; Levenberg–Marquardt steps; an initial translation from the outline
 centroids in both views; optional restarts.
 
+Every result is then judged on its own evidence (``core.quality.check_match``) and gets
+its uncertainty (``pose_covariance``, six SDs in ``MatchResult.sd``): ``converged`` means
+the optimiser stopped and the checks passed; otherwise ``message`` says what failed.
+
 Poses in and out follow the DESIGN.md convention (mm, degrees). The objective is in mm
 on the intensifier plane (pixels times pixel pitch), as in the paper.
 """
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Callable, Sequence
 
 import numpy as np
@@ -33,7 +37,7 @@ from scipy.spatial import cKDTree
 from .geometry import View
 from .mesh import PreparedMesh, sample_surface
 from .outline import grid_outline, point_spacing_px
-from .pose import angles_from_matrix, as_pose, rotation_matrix, rotvec_matrix
+from .pose import angles_from_matrix, as_pose, pose_difference, rotation_matrix, rotvec_matrix
 from .silhouette import mesh_silhouette
 from .spline import resample_closed_polyline
 
@@ -69,6 +73,20 @@ class MatchSettings:
     def to_dict(self) -> dict:
         return asdict(self)
 
+    def validate(self) -> None:
+        """Refuse settings the matcher cannot work with (ValueError naming the option)."""
+        if self.outline_points is not None and self.outline_points < MIN_OUTLINE_POINTS:
+            raise ValueError(f"--outline-points {self.outline_points}: at least {MIN_OUTLINE_POINTS} outline "
+                             "points per view are needed to fix six pose variables")
+        if self.model_points < 100:
+            raise ValueError(f"--points {self.model_points}: a point model needs at least 100 points")
+        if self.starts < 1 or self.max_calls < 1:
+            raise ValueError("starts and max_calls must be positive")
+
+
+#: fewest outline points per view a match accepts (six unknowns, with room for noise)
+MIN_OUTLINE_POINTS = 8
+
 
 @dataclass
 class MatchResult:
@@ -89,6 +107,13 @@ class MatchResult:
     normal_matrix: np.ndarray | None = field(default=None, repr=False)
     #: fast method: the model outline (pixels) per view at the result, about 2 px apart
     outlines_px: list | None = field(default=None, repr=False)
+    #: standard deviations of the six pose variables (mm, deg) from the Gauss-Newton
+    #: covariance at the result (``pose_covariance``); inf where the outlines fix nothing
+    sd: list[float] | None = None
+    #: did the optimiser itself stop by its criterion (``converged`` also needs the checks)
+    optimiser_converged: bool = False
+    #: fast method: (pose, evaluation) at the result, reused by the covariance
+    _evaluation: tuple | None = field(default=None, repr=False, compare=False)
 
     def weakest_rotation_axis(self) -> np.ndarray | None:
         """Unit axis (world) of the turn the outlines constrain least, translation free to
@@ -113,6 +138,7 @@ class MatchResult:
             "method": self.method,
             "cancelled": bool(self.cancelled),
             "message": self.message,
+            "sd": None if self.sd is None else [float(v) for v in self.sd],
             "settings": self.settings,
         }
 
@@ -274,13 +300,17 @@ def visible_points(mask: np.ndarray | None, uv: np.ndarray) -> np.ndarray:
 class _FastEvaluation:
     """Residuals and Jacobian of the fast objective at one pose (correspondences frozen)."""
 
-    def __init__(self, problem: MatchProblem, R, c, settings: MatchSettings, image_samples):
+    def __init__(self, problem: MatchProblem, R, c, settings: MatchSettings, image_samples, image_params=None):
         mesh = problem.mesh
         t = c - R @ mesh.centroid
         rho = mesh.radius
         self.per_view_mm: list[float] = []
         self.outlines_px: list[np.ndarray] = []
         self.r, self.J, self.w = [], [], []
+        # per residual block: its view and where along the image outline (px of chord
+        # length) each residual sits, for the covariance's clusters of neighbours
+        self.view_of: list[int] = []
+        self.where: list[np.ndarray | None] = []
         for k, (view, spline, g) in enumerate(zip(problem.views, problem.splines, image_samples)):
             mask = problem.occluder(k)
             if settings.outline_points:
@@ -291,7 +321,7 @@ class _FastEvaluation:
             # model outline points to the image spline: signed distance along the spline normal
             X = fwd.model_points @ R.T + t
             uv, Jp = view.project_jacobian(X)
-            self.outlines_px.append(uv)
+            self.outlines_px.append(sil.points_px)
             if mask is not None:
                 seen = visible_points(mask, uv)
                 X, uv, Jp = X[seen], uv[seen], Jp[seen]
@@ -303,8 +333,11 @@ class _FastEvaluation:
                 if on_edge.sum() >= MIN_VISIBLE_POINTS:
                     X, uv, Jp = X[on_edge], uv[on_edge], Jp[on_edge]
                     dist, closest_pt, normal = dist[on_edge], closest_pt[on_edge], normal[on_edge]
+                    t_near = t_near[on_edge]
             self.per_view_mm.append(float(np.mean(dist)) * view.mm_per_px())
             self._add(np.einsum("ij,ij->i", normal, uv - closest_pt), np.einsum("ij,ijk->ik", normal, Jp), X, c, rho)
+            self.view_of.append(k)
+            self.where.append(t_near)
             if settings.symmetric:
                 # image outline samples to the model outline (the dense silhouette polyline)
                 _, idx = cKDTree(sil.points_px).query(g)
@@ -312,6 +345,8 @@ class _FastEvaluation:
                 Xm = sil.model_points[idx] @ R.T + t
                 uvm, Jm = view.project_jacobian(Xm)
                 self._add(np.einsum("ij,ij->i", n_model, uvm - g), np.einsum("ij,ijk->ik", n_model, Jm), Xm, c, rho)
+                self.view_of.append(k)
+                self.where.append(None if image_params is None else image_params[k])
         self.objective_mm = float(sum(self.per_view_mm))
 
     def _add(self, r: np.ndarray, nJ: np.ndarray, X: np.ndarray, c: np.ndarray, rho: float) -> None:
@@ -369,22 +404,29 @@ def _polygon_centroid(p: np.ndarray) -> np.ndarray:
     return np.array([((x + x1) * cross).sum(), ((y + y1) * cross).sum()]) / (6.0 * a)
 
 
+def _image_samples(problem: MatchProblem, settings: MatchSettings, whole: bool = False) -> list[np.ndarray]:
+    """Image outline samples per view (about ``spacing_px`` apart, or ``outline_points``);
+    unless ``whole``, without chords across gaps and without occluded points."""
+    n_samples = [settings.outline_points or max(16, int(s.length_px / settings.spacing_px)) for s in problem.splines]
+    if whole:
+        return [s.sample(n) for s, n in zip(problem.splines, n_samples)]
+    samples = [s.sample(n, skip_gaps=settings.skip_gaps and len(s.gaps) > 0) for s, n in zip(problem.splines, n_samples)]
+    return [g[visible_points(problem.occluder(k), g)] for k, g in enumerate(samples)]
+
+
 def _match_fast(problem, start, settings, progress, cancel) -> MatchResult:
     mesh = problem.mesh
     R, c = _to_state(start, mesh.centroid)
-    n_samples = [settings.outline_points or max(16, int(s.length_px / settings.spacing_px)) for s in problem.splines]
-    image_samples = [s.sample(n) for s, n in zip(problem.splines, n_samples)]
-    if settings.centre_first:
-        c = _initial_translation(problem, R, c, image_samples)  # whole outlines: centroids of closed curves
-    if settings.skip_gaps:  # chords across gaps are not image edges
-        image_samples = [s.sample(n, skip_gaps=True) if len(s.gaps) else g
-                         for s, n, g in zip(problem.splines, n_samples, image_samples)]
-    image_samples = [g[visible_points(problem.occluder(k), g)] for k, g in enumerate(image_samples)]
+    if settings.centre_first:  # whole outlines: centroids of closed curves
+        c = _initial_translation(problem, R, c, _image_samples(problem, settings, whole=True))
+    image_samples = _image_samples(problem, settings)
+    # where each image sample sits along its outline (for the covariance's stretches)
+    image_params = [sp.closest(g)[3] if len(g) else np.zeros(0) for sp, g in zip(problem.splines, image_samples)]
     calls = 0
     history: list[float] = []
     lam = 1e-3
     huber = settings.huber_px
-    ev = _FastEvaluation(problem, R, c, settings, image_samples)
+    ev = _FastEvaluation(problem, R, c, settings, image_samples, image_params)
     calls += 1
     cost = ev.robust_cost(huber)
     history.append(ev.objective_mm)
@@ -400,7 +442,7 @@ def _match_fast(problem, start, settings, progress, cancel) -> MatchResult:
         R_new = rotvec_matrix(w) @ R
         c_new = c + dc
         try:
-            ev_new = _FastEvaluation(problem, R_new, c_new, settings, image_samples)
+            ev_new = _FastEvaluation(problem, R_new, c_new, settings, image_samples, image_params)
         except ValueError:
             ev_new = None
         calls += 1
@@ -432,7 +474,77 @@ def _match_fast(problem, start, settings, progress, cancel) -> MatchResult:
     return MatchResult(pose, ev.objective_mm, ev.per_view_mm, calls, 0.0, converged and not cancelled,
                        "fast", settings.to_dict(), cancelled,
                        "" if converged else ("cancelled" if cancelled else "did not converge"), history,
-                       ev.normal_equations(huber)[0], ev.outlines_px)
+                       ev.normal_equations(huber)[0], ev.outlines_px, _evaluation=(pose, ev))
+
+
+# -- uncertainty ---------------------------------------------------------------------------------
+#: length (px along the image outline) of the stretches whose residuals are taken as one
+#: independent unit: neighbouring outline points share edge noise, blur and segmentation
+#: (measured on outlines with noise correlated over ~4 px: 24 px stretches still gave SDs
+#: 0.7x the observed spread, 48 px 0.73-1.34x; tests/core/test_matching_uncertainty.py)
+CLUSTER_PX = 48.0
+#: ... but at least this many stretches per view (small outlines)
+MIN_STRETCHES = 8
+
+
+def pose_covariance(problem: MatchProblem, pose, settings: MatchSettings | None = None,
+                    cluster_px: float = CLUSTER_PX, evaluation: tuple | None = None) -> np.ndarray:
+    """Covariance (6x6; mm and degrees) of the pose variables x, y, z, alpha, beta, gamma.
+
+    Gauss-Newton (Laplace) at ``pose`` with the residuals' own variance, as a sandwich
+    H^-1 B H^-1: H is the Gauss-Newton matrix of the fast objective and B sums the
+    gradient contributions of the residuals in stretches of ``cluster_px`` of image
+    outline (both directions of residual in one stretch together), so residuals that are
+    correlated along the outline (blur, segmentation, a systematic misfit) count as one
+    sample per stretch instead of one per point. Infinite where the outlines do not fix
+    a direction of motion."""
+    settings = replace(settings or MatchSettings(), method="fast")
+    mesh = problem.mesh
+    pose = as_pose(pose)
+    R, c = _to_state(pose, mesh.centroid)
+    if evaluation is not None and np.allclose(evaluation[0], pose, rtol=0, atol=1e-12):
+        ev = evaluation[1]  # the matcher's own last evaluation at this pose
+    else:
+        samples = _image_samples(problem, settings)
+        params = [sp.closest(g)[3] if len(g) else np.zeros(0) for sp, g in zip(problem.splines, samples)]
+        ev = _FastEvaluation(problem, R, c, settings, samples, params)
+    H = np.zeros((6, 6))
+    all_scores, all_keys = [], []
+    for r, J, w, k, where in zip(ev.r, ev.J, ev.w, ev.view_of, ev.where):
+        a = np.abs(r)
+        ww = w * np.where(a <= settings.huber_px, 1.0, settings.huber_px / np.maximum(a, 1e-12))
+        H += J.T @ (J * ww[:, None])
+        all_scores.append(J * (ww * r)[:, None])
+        spline = problem.splines[k]
+        length = min(cluster_px, spline.period / MIN_STRETCHES)
+        stretch = np.floor((spline.wrap(where) - spline.t_range[0]) / length).astype(np.int64)
+        all_keys.append(k * 1_000_000 + stretch)
+    keys, group = np.unique(np.concatenate(all_keys), return_inverse=True)
+    n = len(keys)
+    eig = np.linalg.eigvalsh(H)
+    if n <= 6 or eig[0] <= 1e-12 * max(eig[-1], 1e-300):
+        return np.full((6, 6), np.inf)
+    S = np.zeros((n, 6))
+    np.add.at(S, group.ravel(), np.vstack(all_scores))
+    B = S.T @ S * n / (n - 6)  # small-sample correction for the six fitted variables
+    Hi = np.linalg.inv(H)
+    cov = Hi @ B @ Hi
+    # from the matcher's variables (centroid shift, rotation vector x radius) to the pose's
+    A = np.zeros((6, 6))
+    h = 1e-4
+    for j in range(6):
+        d = np.zeros(6)
+        d[j] = h
+        plus = _to_pose(rotvec_matrix(d[3:] / mesh.radius) @ R, c + d[:3], mesh.centroid)
+        d[j] = -h
+        minus = _to_pose(rotvec_matrix(d[3:] / mesh.radius) @ R, c + d[:3], mesh.centroid)
+        A[:, j] = pose_difference(plus, minus) / (2 * h)
+    return A @ cov @ A.T
+
+
+def pose_sd(cov: np.ndarray) -> list[float]:
+    """Standard deviations (mm, deg) from a pose covariance."""
+    return [float(np.sqrt(v)) if np.isfinite(v) and v >= 0 else float("inf") for v in np.diag(cov)]
 
 
 def match(problem: MatchProblem, start, settings: MatchSettings | None = None,
@@ -442,6 +554,7 @@ def match(problem: MatchProblem, start, settings: MatchSettings | None = None,
     start = as_pose(start)
     if settings.method not in ("fast", "paper"):
         raise ValueError(f"unknown method {settings.method!r} (use 'fast' or 'paper')")
+    settings.validate()
     runner = _match_fast if settings.method == "fast" else _match_paper
     t0 = time.perf_counter()
     rng = np.random.default_rng(settings.seed)
@@ -460,5 +573,23 @@ def match(problem: MatchProblem, start, settings: MatchSettings | None = None,
             best.cancelled = True
             break
     best.calls = total_calls
+    best.optimiser_converged = best.converged
+    if not best.cancelled:
+        _judge(problem, best, settings)
     best.seconds = time.perf_counter() - t0
     return best
+
+
+def _judge(problem: MatchProblem, result: MatchResult, settings: MatchSettings) -> None:
+    """The result's uncertainty and its own evidence (``core.quality.check_match``): a
+    result that fails a check is not converged, and says why in ``message``."""
+    from .quality import check_match  # quality builds on this module
+
+    try:
+        result.sd = pose_sd(pose_covariance(problem, result.pose, settings, evaluation=result._evaluation))
+    except ValueError:  # the model behind a source at this pose
+        result.sd = [float("inf")] * 6
+    problems = check_match(problem, result)
+    if problems:
+        result.converged = False
+        result.message = "; ".join(([result.message] if result.message else []) + problems)

@@ -15,7 +15,9 @@ The checks here look at the result from several sides:
   degrees), against what the motion so far makes plausible.
 
 ``judge`` turns these into a status, ``matched`` or ``needs_review``, and a reason in
-plain words. Pure numpy / OpenCV.
+plain words. ``check_match`` is the matcher's own verdict on a single result, from what
+the match itself holds (residual per view, outline coverage both ways, the pose's
+standard deviations), applied to every match. Pure numpy / OpenCV.
 """
 from __future__ import annotations
 
@@ -52,6 +54,8 @@ class QualityThresholds:
     tol_px: float = 1.5
     max_jump_mm: float = 15.0  # centroid distance from the prediction
     max_jump_deg: float = 25.0
+    max_sd_mm: float = 2.0  # a pose whose outlines leave a translation this uncertain (1 SD) fails
+    max_sd_deg: float = 2.0  # ... or a rotation
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -156,6 +160,49 @@ def assess(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMe
             outside.append(outside_share(fields[k], model))
     jump = pose_jump(mesh, pose, predicted) if predicted is not None else (0.0, 0.0)
     return Quality(bool(converged), [float(v) for v in per_view_mean_mm], edge, support, *jump, outside)
+
+
+def check_match(problem, result, thresholds: QualityThresholds | None = None) -> list[str]:
+    """What a match's own evidence says against it, in plain words (empty: nothing).
+
+    ``problem`` is the ``MatchProblem`` it was matched on, ``result`` its ``MatchResult``
+    (with ``outlines_px``, the model outline at the result, and ``sd``). Checks, per view:
+    the mean outline distance against the absolute ceiling ``max_view_mm`` (the
+    sequence-relative limits are ``judge``'s); the share of the model outline lying on
+    the image outline and of the image outline lying on the model (both ways, so neither
+    can slide onto part of the other); and the uncertainty the outlines leave (the
+    Gauss-Newton matrix's conditioning, as standard deviations of the pose)."""
+    t = thresholds or QualityThresholds()
+    problems = []
+    names = [v.name or f"view {k + 1}" for k, v in enumerate(problem.views)]
+    for name, value in zip(names, result.per_view_mean_mm):
+        if not np.isfinite(value) or value > t.max_view_mm:
+            problems.append(f"outline distance {value:.2f} mm in {name} (limit {t.max_view_mm:.2f} mm)")
+    model_outlines = result.outlines_px or []
+    for k, (name, spline, model) in enumerate(zip(names, problem.splines, model_outlines)):
+        mask = problem.occluder(k)
+        model = np.asarray(model, dtype=float).reshape(-1, 2)
+        pts = model[visible_points(mask, model)]
+        if len(pts) < 3:
+            problems.append(f"the model outline is not visible in {name}")
+            continue
+        dist, _, _, t_near = spline.closest(pts)
+        measured = ~spline.in_gap(t_near) if len(spline.gaps) else np.ones(len(pts), dtype=bool)
+        on_image = float(np.mean(dist[measured] <= t.tol_px)) if measured.any() else 0.0
+        if on_image < t.min_edge_support:
+            problems.append(f"only {100 * on_image:.0f} % of the model outline lies on the image outline in {name}")
+        image = spline.sample(max(64, int(spline.length_px)), skip_gaps=True)
+        on_model = outline_support(image, model, mask, t.tol_px)
+        if on_model < t.min_outline_support:
+            problems.append(f"only {100 * on_model:.0f} % of the image outline lies on the model in {name}")
+    if result.sd is not None:
+        sd = np.asarray(result.sd, dtype=float)
+        labels = ("x", "y", "z", "alpha", "beta", "gamma")
+        loose = [f"{labels[j]} {sd[j]:.2g} {'mm' if j < 3 else 'deg'}" for j in range(6)
+                 if not np.isfinite(sd[j]) or sd[j] > (t.max_sd_mm if j < 3 else t.max_sd_deg)]
+        if loose:
+            problems.append("the outlines do not pin the pose down (SD " + ", ".join(loose) + ")")
+    return problems
 
 
 def judge(quality: Quality, thresholds: QualityThresholds | None = None,

@@ -42,6 +42,41 @@ def dual_orthogonal_views(source_to_centre: float = 1000.0, source_to_intensifie
     return views
 
 
+def two_views(angle_deg: float = 90.0, tilt_deg: float = 0.0, offset_px=(0.0, 0.0),
+              source_to_centre=(1000.0, 1000.0), source_to_intensifier=(1200.0, 1200.0),
+              image_size=(1024, 1024), pitch: float = 315.0 / 1024.0) -> list[View]:
+    """Two views ``angle_deg`` apart about the vertical (z) axis, both tilted ``tilt_deg``
+    up from horizontal, looking at the origin; ``offset_px`` moves the principal point
+    (the object sits off the image centre); source distances may differ per view."""
+    views = []
+    for k, phi in enumerate((-angle_deg / 2.0, angle_deg / 2.0)):
+        tilt = np.radians(tilt_deg) * (1 if k == 0 else -0.5)  # tilted differently: no common plane
+        d = np.array([np.cos(np.radians(phi)) * np.cos(tilt), np.sin(np.radians(phi)) * np.cos(tilt), np.sin(tilt)])
+        view = View.looking_at(-source_to_centre[k] * d, [0, 0, 0], [0, 0, 1], source_to_intensifier[k],
+                               image_size, pitch, name=f"view {k + 1}")
+        if any(offset_px):
+            pp = (view.principal_point[0] + offset_px[0], view.principal_point[1] + offset_px[1])
+            view = View(view.source, view.normal, view.e_u, view.e_v, view.distance, view.pitch, pp,
+                        view.image_size, view.name)
+        views.append(view)
+    return views
+
+
+def mesh_variant(vertices, faces, variant: str) -> tuple[np.ndarray, np.ndarray]:
+    """A variant of a mesh: ``mirrored`` (left knee from right: x -> -x, faces turned),
+    ``scaled+15`` / ``scaled-15`` (about its centroid), or ``""`` as it is."""
+    v, f = np.asarray(vertices, dtype=float), np.asarray(faces)
+    if not variant:
+        return v, f
+    if variant == "mirrored":
+        return v * [-1.0, 1.0, 1.0], f[:, ::-1].copy()
+    if variant.startswith("scaled"):
+        factor = 1.0 + float(variant[len("scaled"):]) / 100.0
+        c = v.mean(0)
+        return c + (v - c) * factor, f
+    raise ValueError(f"unknown mesh variant {variant!r} (mirrored, scaled+15, scaled-15)")
+
+
 def perturbed_starts(truth, n: int, rng: np.random.Generator, range_mm: float = 20.0,
                      range_deg: float = 20.0, sd_fraction: float = 1.0 / 3.0) -> np.ndarray:
     """``n`` starts: the truth plus truncated Gaussian noise (SD = range * sd_fraction)."""
@@ -135,14 +170,20 @@ def run_starts(problem: MatchProblem, truth, starts, settings: MatchSettings,
 
 
 def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings, n_starts: int = 10,
-                   seed: int = 0, views: list[View] | None = None, label: str = "") -> CaseResult:
-    """One row of Table 1/2: render, segment, match from perturbed starts, compare with the truth."""
+                   seed: int = 0, views: list[View] | None = None, label: str = "",
+                   render: Callable | None = None) -> CaseResult:
+    """One row of Table 1/2: render, segment, match from perturbed starts, compare with the truth.
+
+    ``render(view, [(world_vertices, faces)], rng) -> image`` makes the images; the
+    default is ``core.render.render_fluoro`` (a filled silhouette: the matcher's own model
+    of the image, so a bias of that model cancels out); the command line passes the
+    independent ``fluorogui.validation.xray`` model."""
     rng = np.random.default_rng(seed)
     views = views or dual_orthogonal_views()
     mesh = prepare_mesh(vertices, faces)
     truth = flexion_pose(vertices, flexion_deg)
     world = transform_points(truth, mesh.vertices)
-    images = [render_fluoro(v, [(world, mesh.faces)], rng) for v in views]
+    images = [(render or render_fluoro)(v, [(world, mesh.faces)], rng) for v in views]
     splines = outlines_from_images(images, views, mesh, truth)
     problem = MatchProblem(mesh, views, splines)
     starts = perturbed_starts(truth, n_starts, rng)

@@ -40,6 +40,7 @@ class PoseEditor(QWidget):
         self.frame_note.setObjectName("hint")
         self.frame_note.setWordWrap(True)
         self.spins: list[QDoubleSpinBox] = []
+        self.sd_labels: list[QLabel] = []
         grid = QGridLayout()
         grid.setHorizontalSpacing(8)
         for i, (label, tip) in enumerate(zip(AXIS_LABELS, AXIS_TIPS)):
@@ -57,6 +58,11 @@ class PoseEditor(QWidget):
             grid.addWidget(name, i, 0)
             grid.addWidget(spin, i, 1)
             self.spins.append(spin)
+            sd = QLabel("")
+            sd.setObjectName(f"sd_{AXES[i]}")
+            sd.setToolTip("Standard deviation of the matched value, from how well the outlines pin it down")
+            grid.addWidget(sd, i, 2)
+            self.sd_labels.append(sd)
         self.translation_step = QComboBox()
         self.rotation_step = QComboBox()
         for combo, steps, unit in ((self.translation_step, TRANSLATION_STEPS, "mm"),
@@ -97,6 +103,18 @@ class PoseEditor(QWidget):
                 spin.setValue(float(value))
         finally:
             self._updating = False
+
+    def set_uncertainty(self, sd) -> None:
+        """Show the match's standard deviations (mm, deg; None or inf: not determined) beside
+        the values, or nothing (``sd`` None: a pose placed or edited by hand)."""
+        for i, label in enumerate(self.sd_labels):
+            value = None if sd is None else sd[i]
+            if sd is None:
+                label.setText("")
+            elif value is None or not np.isfinite(value):
+                label.setText("± ?")
+            else:
+                label.setText(f"± {value:.3f}")
 
     def pose(self) -> np.ndarray:
         return np.array([spin.value() for spin in self.spins])

@@ -160,6 +160,7 @@ class SessionView:
             self.scene_widget.scene.render()
         if component == c.component:
             self.pose_editor.set_pose(pose)
+            self.pose_editor.set_uncertainty(_pose_sd(record))
 
     def _show_model_outline(self, component: str, pose, outlines=None) -> None:
         c, s = self.controller, self.controller.session
@@ -224,6 +225,7 @@ class SessionView:
         self.pose_editor.set_component(name if known else None)
         if known and c.frame is not None:
             self.pose_editor.set_pose(s.pose(name, c.frame))
+            self.pose_editor.set_uncertainty(_pose_sd(s.pose_record(name, c.frame)))
             self._show_pose_status()
         if self.scene_widget is not None and known:
             self.scene_widget.enable_gizmo(name)
@@ -252,3 +254,10 @@ class SessionView:
         state = s.frame_state(frame)
         self.timeline.set_state(frame, state)
         self.timeline.set_note(frame, self._frame_note(frame) if state == FrameState.NEEDS_REVIEW else "")
+
+
+def _pose_sd(record):
+    """The standard deviations stored with a record's match (None without a match)."""
+    if record is None or record.match is None:
+        return None
+    return record.match.quality.get("sd")

@@ -41,13 +41,23 @@ class FrameResult:
     def is_matched(self) -> bool:
         return self.status == MATCHED
 
+    @property
+    def sd(self) -> list[float | None] | None:
+        """Standard deviations of the pose (mm, deg; None where the outlines fix nothing)."""
+        if self.match is None or self.match.sd is None:
+            return None
+        return [round(float(v), 6) if np.isfinite(v) else None for v in self.match.sd]
+
     def record(self) -> PoseRecord | None:
         """The pose record to store (None when there is no pose at all)."""
         if self.pose is None:
             return None
         match = None
         if self.match is not None:
-            match = MatchRecord.from_result(self.match, self.quality.to_dict() if self.quality else None)
+            quality = self.quality.to_dict() if self.quality else {}
+            if self.match.sd is not None:  # the pose's standard deviations (mm, deg), kept with its checks
+                quality["sd"] = self.sd
+            match = MatchRecord.from_result(self.match, quality)
         return PoseRecord(np.asarray(self.pose, dtype=float), match, reviewed=False, status=self.status,
                           reason=self.reason)
 
@@ -61,6 +71,7 @@ class FrameResult:
             "objective_mm": None if m is None else round(float(m.objective_mm), 6),
             "per_view_mean_mm": None if m is None else [round(float(v), 6) for v in m.per_view_mean_mm],
             "converged": bool(m is not None and m.converged),
+            "sd": self.sd,
             "status": self.status,
             "reason": self.reason,
             "seconds": round(float(self.seconds), 4),

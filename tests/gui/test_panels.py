@@ -29,6 +29,15 @@ def test_pose_editor_emits_on_user_edits_only(qtbot):
     np.testing.assert_allclose(edits[-1], [2, 2, 3, 4, 0, 6])
 
 
+def test_pose_editor_shows_the_match_uncertainty(qtbot):
+    editor = PoseEditor()
+    qtbot.addWidget(editor)
+    editor.set_uncertainty([0.0123, 0.2, 1.5, 0.04, None, float("inf")])
+    assert [label.text() for label in editor.sd_labels] == ["± 0.012", "± 0.200", "± 1.500", "± 0.040", "± ?", "± ?"]
+    editor.set_uncertainty(None)  # a pose placed by hand: nothing to show
+    assert all(label.text() == "" for label in editor.sd_labels)
+
+
 def test_matcher_panel_settings_and_buttons(qtbot):
     panel = MatcherPanel()
     qtbot.addWidget(panel)

@@ -47,6 +47,8 @@ def test_match_both_lands_on_the_demo_truth_and_undoes_in_one_step(window, fine_
     assert window.timeline.state(0) == FrameState.MATCHED
     assert "femoral matched" in window.matcher.summary.text() and "tibial matched" in window.matcher.summary.text()
     assert window.matcher.plot.values  # the objective of the match
+    sd = s.pose_record(c.component, 0).match.quality["sd"]  # the Pose tab shows the match's SDs
+    assert len(sd) == 6 and [label.text() for label in window.pose_editor.sd_labels] == [f"± {v:.3f}" for v in sd]
     # one undo step, through the Qt stack and back
     assert c.undo_stack.count() == 1
     window.undo_action.trigger()

@@ -17,7 +17,7 @@ from fluorogui.io.project import load_project
 from fluorogui.workflow import Session
 
 JSON_FIELDS = {"frame", "component", "pose", "objective_mm", "per_view_mean_mm", "converged", "status", "reason",
-               "seconds"}
+               "seconds", "sd"}
 
 
 def _cli(*args, cwd=None):

@@ -55,7 +55,8 @@ def test_converged_wrong_pose_is_flagged_never_matched(demo, truth):
     session.set_pose("femoral", 1, wrong_start("femoral", 0, 15.0))
     femur = session.match(1, "femoral")[0]
     mm, deg = _error(femur, known)
-    assert femur.match.converged and deg > 10.0  # really wrong (measured 14.9 deg)
+    assert deg > 10.0  # really wrong (measured 14.9 deg)
+    assert femur.match.optimiser_converged and not femur.match.converged, femur.match.message  # its own checks
     assert femur.status == "needs_review" and "image edges" in femur.reason
     assert session.pose_record("femoral", 1).needs_review
     assert session.frame_state(1) == FrameState.NEEDS_REVIEW
@@ -155,3 +156,14 @@ def test_session_addresses_frames_by_number_and_places_models(tmp_path):
 def test_pose_records_of_unknown_status_are_refused():
     with pytest.raises(ValueError, match="unknown pose status"):
         PoseRecord(np.zeros(6), None, status="great")
+
+
+def test_matched_pose_keeps_its_sd_in_the_project(demo):
+    session = Session.open(demo)
+    result = session.match(1, "femoral")[0]
+    assert result.status == "matched" and len(result.to_json()["sd"]) == 6
+    sd = np.array(result.sd)
+    assert np.all(sd > 0) and np.all(sd[:3] < 0.05) and np.all(sd[3:] < 0.1), sd  # the demo matches to ~0.01
+    session.save()
+    stored = Session.open(demo).pose_record("femoral", 1).match.quality["sd"]
+    np.testing.assert_allclose(stored, sd)

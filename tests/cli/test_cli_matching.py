@@ -1,0 +1,82 @@
+"""`fluorogui match` refuses what it cannot match and never reports a wrong pose as converged."""
+import json
+
+import numpy as np
+import pytest
+
+from fluorogui.cli import main
+from fluorogui.core.mesh import prepare_mesh
+from fluorogui.core.phantoms import tibial_component_mesh
+from fluorogui.core.pose import transform_points
+from fluorogui.core.render import render_fluoro
+from fluorogui.core.validation import dual_orthogonal_views, flexion_pose
+from fluorogui.io.calibration import save_view_json
+from fluorogui.io.images import write_image
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    import pyvista as pv
+
+    d = tmp_path_factory.mktemp("scene")
+    v, f = tibial_component_mesh()
+    mesh = prepare_mesh(v, f)
+    truth = flexion_pose(v, 30.0)
+    world = transform_points(truth, mesh.vertices)
+    rng = np.random.default_rng(3)
+    args = ["match"]
+    for k, view in enumerate(dual_orthogonal_views()):
+        save_view_json(view, d / f"cam{k}.json")
+        args += ["--camera", str(d / f"cam{k}.json")]
+    images = []
+    for k, view in enumerate(dual_orthogonal_views()):
+        image = render_fluoro(view, [(world, mesh.faces)], rng)
+        if k == 1:  # a second image where the component is not: background and noise only
+            blank = render_fluoro(view, [], rng)
+            write_image(d / "blank.png", blank, bits=16)
+        write_image(d / f"img{k}.png", image, bits=16)
+        images.append(str(d / f"img{k}.png"))
+    model = d / "tibia.stl"
+    pv.PolyData(v, np.column_stack([np.full(len(f), 3), f]).ravel()).save(str(model))
+    return {"args": args, "images": images, "model": str(model), "truth": truth, "blank": str(d / "blank.png")}
+
+
+def _run(scene, start, images=None, extra=()):
+    args = list(scene["args"])
+    for i in images or scene["images"]:
+        args += ["--image", i]
+    return args + ["--model", scene["model"], "--start", *[str(x) for x in start], *extra]
+
+
+def test_match_reports_sd_status_and_reason(scene, capsys):
+    start = scene["truth"] + np.array([2.0, -1.0, 1.0, 2.0, -2.0, 1.0])
+    assert main(_run(scene, start, extra=["--json"])) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["converged"] and out["status"] == "matched" and out["reason"] == ""
+    err = np.abs(np.array(out["pose"]) - scene["truth"])
+    sd = np.array(out["sd"])
+    assert sd.shape == (6,) and np.all(sd > 0)
+    # the reported uncertainty is of the size of the error (here a few thousandths)
+    assert np.all(sd[:3] < 0.05) and np.all(sd[3:] < 0.1) and np.all(err < 10 * sd + 0.01), (err, sd)
+
+
+@pytest.mark.parametrize("n", ["1", "2", "7"])
+def test_too_few_outline_points_are_refused(scene, capsys, n):
+    code = main(_run(scene, scene["truth"], extra=["--outline-points", n]))
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and f"--outline-points {n}" in err and "at least 8" in err
+
+
+def test_start_outside_the_images_is_refused(scene, capsys):
+    start = scene["truth"] + np.array([0.0, 0.0, 400.0, 0, 0, 0])  # 400 mm up: above both fields of view
+    code = main(_run(scene, start))
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1
+    assert "img0.png" in err and "outside this image" in err
+
+
+def test_component_missing_from_one_view_is_never_converged(scene, capsys):
+    start = scene["truth"] + np.array([1.0, -1.0, 1.0, 1.0, -1.0, 1.0])
+    code = main(_run(scene, start, images=[scene["images"][0], scene["blank"]], extra=["--json"]))
+    out = json.loads(capsys.readouterr().out)  # an outline of noise is found; the result must admit it
+    assert code == 3 and not out["converged"] and out["status"] == "needs_review" and "view 2" in out["reason"]
