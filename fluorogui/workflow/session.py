@@ -42,6 +42,8 @@ from fluorogui.workflow.work import WorkMixin
 
 COMPONENT_ORDER = ("femoral", "tibial")
 IMAGE_CACHE_FRAMES = 6
+#: Default depth of a model along a single view's central ray, as a fraction of the source-intensifier distance.
+SINGLE_PLANE_DEPTH = 0.85
 ORIENTATION_PRESETS = (
     ("Upright (all angles 0)", (0.0, 0.0, 0.0)),
     ("Flexed 30°", (30.0, 0.0, 0.0)),
@@ -241,6 +243,8 @@ class Session(WorkMixin):
         if len(views) >= 2:
             centres = [(np.asarray(v.image_size, dtype=float) - 1) / 2 for v in views[:2]]
             point, _ = triangulate(views[:2], centres)
+        elif views:  # single plane: on the central ray, where a knee usually sits (~85% of the way)
+            point = views[0].source + views[0].normal * SINGLE_PLANE_DEPTH * views[0].distance
         else:
             point = np.zeros(3)
         centroid = np.zeros(3)
