@@ -39,6 +39,8 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--model", required=True, metavar="MESH", help="component mesh in mm (STL/PLY/OBJ/VTK)")
     m.add_argument("--start", nargs=6, type=float, required=True, metavar=("X", "Y", "Z", "ALPHA", "BETA", "GAMMA"))
     m.add_argument("--outline", action="append", metavar="CSV", help="ordered outline points u,v (twice)")
+    m.add_argument("--correction", action="append", metavar="CORR.json",
+                   help="distortion correction per camera (fluorogui calibrate distortion)")
     _add_match_options(m)
     m.add_argument("--json", action="store_true", help="print one JSON object")
     m.set_defaults(func=cmd_match)
@@ -80,6 +82,9 @@ def build_parser() -> argparse.ArgumentParser:
     from fluorogui.commands import add_parsers
 
     add_parsers(sub)
+    from fluorogui.commands import calibrate
+
+    calibrate.add_parsers(sub)
     return p
 
 
@@ -108,8 +113,20 @@ def _load_views(paths):
     return [load_view(p, name=f"view {k + 1}") for k, p in enumerate(paths)]
 
 
+def _with_corrections(views, paths):
+    """The views carrying their distortion corrections (one file per view), if any."""
+    from fluorogui.io.corrections import attach_correction, load_correction
+
+    if not paths:
+        return views
+    if len(paths) != len(views):
+        raise _UsageError(f"fluorogui: give one --correction per --camera ({len(views)}), got {len(paths)}")
+    return [attach_correction(v, load_correction(p)) for v, p in zip(views, paths)]
+
+
 def _load_images(paths, views):
     from fluorogui.io.calibration import check_image_size
+    from fluorogui.io.corrections import correct_view_image
     from fluorogui.io.images import read_image
 
     if len(paths or []) != len(views):
@@ -119,7 +136,7 @@ def _load_images(paths, views):
     for p, v in zip(paths, views):
         image = read_image(p)
         check_image_size(v, image.shape, p)
-        images.append(image)
+        images.append(correct_view_image(image, v))
     return images
 
 
@@ -235,7 +252,7 @@ def cmd_match(args) -> int:
     from fluorogui.core.pipeline import SegmentationError, segment_and_match
     from fluorogui.io.errors import InputError
 
-    views = _load_views(args.camera)
+    views = _with_corrections(_load_views(args.camera), args.correction)
     images = _load_images(args.image, views)
     mesh = _load_model(args.model)
     start = _start_pose(args.start)

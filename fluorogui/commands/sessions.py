@@ -24,6 +24,8 @@ def add_parsers(sub) -> None:
     i.add_argument("--images2", metavar="DIR", help="images of camera 2")
     i.add_argument("--pairs", metavar="CSV", help="frame,cam1,cam2 pairs (instead of --images1/--images2)")
     i.add_argument("--model", action="append", metavar="NAME=MESH", help="femoral=MESH and tibial=MESH")
+    i.add_argument("--correction", action="append", metavar="CORR.json",
+                   help="distortion correction per camera, stored with its view in the project")
     i.add_argument("--force", action="store_true", help="replace an existing project file")
     i.set_defaults(func=run_import)
 
@@ -87,6 +89,13 @@ def run_import(args) -> int:
             raise UsageError("fluorogui: import: give --images1 and --images2, or --pairs")
         sources = None if args.pairs else [Path(args.images1), Path(args.images2)]
         project = import_session(args.camera, sources, models, args.pairs, allow_unequal=True)
+    if args.correction:
+        from fluorogui.io.corrections import attach_correction, load_correction
+
+        if len(args.correction) != len(project.views):
+            raise UsageError(f"fluorogui: import: give one --correction per camera ({len(project.views)}), "
+                             f"got {len(args.correction)}")
+        project.views = [attach_correction(v, load_correction(p)) for v, p in zip(project.views, args.correction)]
     counts = [len(s.paths) for s in project.sequences]
     if len(set(counts)) > 1:
         short = min(range(len(counts)), key=lambda k: counts[k])

@@ -200,6 +200,23 @@ def write_image(path, array, bits: int = 8) -> None:
         raise InputError(path, f"could not save: {describe_os_error(exc)}") from None
 
 
+def write_rgb_png(path, rgb) -> None:
+    """Write an (H, W, 3) uint8 RGB picture as PNG (residual maps, overlays)."""
+    path = Path(path)
+    pixels = np.asarray(rgb)
+    if pixels.ndim != 3 or pixels.shape[2] != 3 or pixels.dtype != np.uint8:
+        raise InputError(path, f"can only write RGB uint8 pictures, got {pixels.shape} {pixels.dtype}")
+    ok, data = cv2.imencode(".png", np.ascontiguousarray(pixels[..., ::-1]))
+    if not ok:
+        raise InputError(path, "could not encode the PNG picture")
+    try:
+        tmp = path.with_name(f".{path.name}.tmp")
+        tmp.write_bytes(data.tobytes())
+        tmp.replace(path)
+    except OSError as exc:
+        raise InputError(path, f"could not save: {describe_os_error(exc)}") from None
+
+
 # -- format readers ----------------------------------------------------------------------------
 def _check_file(path: Path) -> None:
     if not path.exists():

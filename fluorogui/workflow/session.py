@@ -32,6 +32,7 @@ from fluorogui.core.pose import as_pose, rotation_matrix
 from fluorogui.core.session import OutlineRecord, PoseRecord, Project
 from fluorogui.core.spline import OutlineError, OutlineSpline
 from fluorogui.io.errors import InputError
+from fluorogui.io.corrections import correct_view_image
 from fluorogui.io.images import read_image
 from fluorogui.io.meshes import load_mesh
 from fluorogui.io.project import load_project, save_project
@@ -185,7 +186,8 @@ class Session(WorkMixin):
             if path in self._images:
                 self._images.move_to_end(path)
                 return self._images[path]
-        image = read_image(path)
+        views = self.project.views
+        image = correct_view_image(read_image(path), views[view] if view < len(views) else None)
         with self._cache_lock:
             self._images[path] = image
             while len(self._images) > IMAGE_CACHE_FRAMES * max(1, self.n_views):
