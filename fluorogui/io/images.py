@@ -145,8 +145,8 @@ def image_info(path) -> ImageInfo:
     if suffix in TIFF_SUFFIXES:
         return _tiff_info(path)
     if suffix in CV2_SUFFIXES:
-        width, height, bits, mode = _pillow_header(path)
-        return ImageInfo(suffix.lstrip(".").upper().replace("JPG", "JPEG"), width, height, 1, bits, mode)
+        width, height, bits, _ = _pillow_header(path)
+        return ImageInfo(suffix.lstrip(".").upper().replace("JPG", "JPEG"), width, height, 1, bits)
     raise InputError(path, f"unsupported image type '{suffix or '(none)'}' (use TIFF, PNG, JPEG, BMP, DICOM, AVI or MP4)")
 
 

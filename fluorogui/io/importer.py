@@ -35,6 +35,7 @@ from __future__ import annotations
 import csv
 import os
 import re
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence, Union
 
@@ -48,7 +49,9 @@ from fluorogui.io.images import (
     IMAGE_SUFFIXES,
     VIDEO_SUFFIXES,
     frame_count,
+    ImageInfo,
     frame_reference,
+    image_info,
     read_image,
     split_frame_reference,
 )
@@ -172,6 +175,28 @@ def resolve_image_source(source: ImageSource) -> list[Path]:
     if len(files) == 1:
         return resolve_image_source(files[0])
     return [_checked_image_file(p) for p in files]
+
+
+@dataclass
+class SourcePreview:
+    """What an image source holds, for an import dialog: frame count, the first frame's
+    format / size / bit depth, and the first frame itself (2D float32 in [0, 1])."""
+
+    frames: int
+    info: ImageInfo
+    first: np.ndarray
+
+    def describe(self) -> str:
+        info = self.info
+        detail = f", {info.detail}" if info.detail and info.detail != "none" else ""
+        return (f"{self.frames} frame{'s' if self.frames != 1 else ''}: {info.format} {info.width}x{info.height}, "
+                f"{info.bits}-bit{detail}")
+
+
+def preview_image_source(source: ImageSource) -> SourcePreview:
+    """Frame count and first frame of one view's source; raises InputError naming the file."""
+    frames = resolve_image_source(source)
+    return SourcePreview(len(frames), image_info(frames[0]), read_image(frames[0]))
 
 
 def list_image_files(folder) -> list[Path]:
@@ -446,6 +471,7 @@ __all__ = [
     "extract_video_frames",
     "import_session",
     "list_image_files",
+    "preview_image_source",
     "read_pairs_csv",
     "resolve_image_source",
 ]

@@ -52,6 +52,13 @@ def test_jpeg_tiff_8_and_12_bit(tmp_path):
         assert np.abs(image - pixels).max() <= levels
 
 
+def test_png_header_bit_depth(tmp_path):
+    cv2.imwrite(str(tmp_path / "a.png"), gradient(np.uint16))
+    cv2.imwrite(str(tmp_path / "b.png"), gradient(np.uint8))
+    assert image_info(tmp_path / "a.png").describe() == "PNG 64x48, 16-bit"
+    assert image_info(tmp_path / "b.png").describe() == "PNG 64x48, 8-bit"
+
+
 def test_16_bit_keeps_every_level(tmp_path):
     pixels = np.arange(30000, 30000 + 48 * 64, dtype=np.uint16).reshape(48, 64)  # one level apart
     tifffile.imwrite(tmp_path / "deep.tif", pixels, compression="lzw")
