@@ -106,3 +106,8 @@ def test_import_stores_corrections_and_the_session_applies_them(tmp_path, capsys
                  "--correction", str(tmp_path / "bad.json"), "--correction", str(tmp_path / "bad.json")]) == 2
     one_line_error(capsys, "bad.json")
     assert not (tmp_path / "q.fluoro").exists()
+    image = str(project.sequences[0].paths[0])
+    assert main(["match", "--camera", str(data / "calibration/cam1.json"), "--image", image,
+                 "--model", str(data / "models/femoral_component.stl"), "--start", "0", "0", "0", "0", "0", "0",
+                 "--correction", str(tmp_path / "corr.json"), "--correction", str(tmp_path / "corr.json")]) == 2
+    one_line_error(capsys, "one --correction per --camera")

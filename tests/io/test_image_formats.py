@@ -201,3 +201,30 @@ def test_oversized_headers_refused_before_decoding(tmp_path):
     for name in ("huge.png", "huge.tif", "huge.dcm"):
         message = error_of(read_image, tmp_path / name)
         assert message.startswith(str(tmp_path / name)) and "over the limit" in message and "16384" in message
+
+
+def test_jpeg_baseline_multiframe_dicom(tmp_path):
+    """8-bit JPEG-compressed XA runs (the common lossy fluoroscopy export) decode frame by frame."""
+    from pydicom.dataset import Dataset, FileMetaDataset
+    from pydicom.encaps import encapsulate
+    from pydicom.uid import JPEGBaseline8Bit, XRayAngiographicImageStorage, generate_uid
+
+    frames = [np.tile(np.linspace(20 + 60 * k, 200, 40, dtype=np.uint8), (32, 1)) for k in range(3)]
+    meta = FileMetaDataset()
+    meta.MediaStorageSOPClassUID = XRayAngiographicImageStorage
+    meta.MediaStorageSOPInstanceUID = generate_uid()
+    meta.TransferSyntaxUID = JPEGBaseline8Bit
+    ds = Dataset()
+    ds.file_meta = meta
+    ds.SOPClassUID, ds.SOPInstanceUID = XRayAngiographicImageStorage, meta.MediaStorageSOPInstanceUID
+    ds.Rows, ds.Columns, ds.NumberOfFrames = 32, 40, 3
+    ds.SamplesPerPixel, ds.PhotometricInterpretation = 1, "MONOCHROME2"
+    ds.BitsAllocated, ds.BitsStored, ds.HighBit, ds.PixelRepresentation = 8, 8, 7, 0
+    ds.PixelData = encapsulate([cv2.imencode(".jpg", f, [cv2.IMWRITE_JPEG_QUALITY, 95])[1].tobytes() for f in frames])
+    ds["PixelData"].VR = "OB"
+    ds.save_as(tmp_path / "xa.dcm", enforce_file_format=True)
+    info = image_info(tmp_path / "xa.dcm")
+    assert info.frames == 3 and "JPEG" in info.detail
+    for k in range(3):
+        image = read_image(frame_reference(tmp_path / "xa.dcm", k)) * 255.0
+        assert np.abs(image - frames[k]).max() <= 3  # lossy at quality 95
