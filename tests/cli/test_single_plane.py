@@ -83,3 +83,17 @@ def test_real_single_plane_against_jointtrack(shared_data, capsys, component, me
     assert np.all(np.abs(difference[:2]) < 1.0), difference  # measured 0.2 (femur), 0.6 mm (tibia)
     assert abs(difference[2]) < 20.0, difference  # measured 5.7 (femur), 14.6 mm (tibia)
     assert np.all(np.abs(difference[3:]) < 1.5), difference  # measured up to 0.9 deg
+
+
+def test_import_single_plane_explicit_files(shared_data, tmp_path, capsys):
+    from fluorogui.io.project import load_project
+
+    folder = shared_data / "single-plane-tka"
+    out = tmp_path / "single.fluoro"
+    assert main(["import", "--out", str(out), "--camera", str(folder / "calibration.txt"), "--images1", str(folder),
+                 "--model", f"femoral={folder / 'KR_right_7_fem.stl'}"]) == 0
+    project = load_project(out)
+    assert len(project.views) == 1 and project.frames == [0, 1, 2] and [m.component for m in project.models] == ["femoral"]
+    assert main(["import", "--out", str(tmp_path / "x.fluoro"), "--camera", str(folder / "calibration.txt"),
+                 "--images1", str(folder), "--images2", str(folder), "--model", f"femoral={folder / 'KR_right_7_fem.stl'}"]) == 2
+    assert "--images1 only" in capsys.readouterr().err
