@@ -13,6 +13,8 @@ Formats, detected by content (never by extension):
 * JointTrack ``JT_INTCALIB``: principal distance, principal-point x / y offset, pixel
   pitch (mm). Camera frame: source at the origin looking down -Z, image y up.
 * fluorogui JSON: ``{"format": "fluorogui-calibration", "version": 1, "view": {...}}``.
+* A DICOM image whose header has the source distances and detector pixel spacing: a
+  starting geometry (``fluorogui.io.dicom.dicom_starting_view``), to be refined.
 
 Every format is written too (``save_view``), as exactly as it is read. MayaCam 2.0's
 optional ``undistortion`` block (OpenCV's k1 k2 p1 p2 k3 ... with the file's K) is kept in
@@ -50,6 +52,8 @@ def load_view(path, name: str = "", *, image_size=JOINTTRACK_DEFAULT_IMAGE_SIZE)
     formats that do not store it (JointTrack).
     """
     path = Path(path)
+    if _is_dicom(path):
+        return _dicom_view(path, name)
     text = _read_text(path)
     lines = [line.strip() for line in text.splitlines() if line.strip()]
     if not lines:
@@ -197,6 +201,26 @@ def jointtrack_to_pose(row) -> np.ndarray:
     row = np.asarray(row, dtype=float).reshape(6)
     alpha, beta, gamma = angles_from_matrix(jointtrack_matrix(row))
     return np.array([row[0], row[1], row[2], alpha, beta, gamma])
+
+
+def _is_dicom(path: Path) -> bool:
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(132)
+    except OSError:
+        return False
+    return len(head) == 132 and head[128:] == b"DICM"
+
+
+def _dicom_view(path: Path, name: str) -> View:
+    """A starting view from a DICOM image's header (source distances, detector pixel spacing)."""
+    from fluorogui.io.dicom import dicom_starting_view
+
+    view = dicom_starting_view(path, name)
+    if view is None:
+        raise InputError(path, "DICOM header lacks DistanceSourceToDetector, DistanceSourceToPatient or "
+                               "ImagerPixelSpacing, so it gives no view geometry; calibrate the view instead")
+    return view
 
 
 # -- reading helpers --------------------------------------------------------------------------

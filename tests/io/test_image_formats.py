@@ -143,6 +143,13 @@ def test_dicom_starting_view_from_header(tmp_path):
     assert uv[1, 0] - uv[0, 0] == pytest.approx(1100 / 800 / 0.25)
     make_dicom(tmp_path / "plain.dcm", twelve_bit_frames(1)[0])
     assert dicom_starting_view(tmp_path / "plain.dcm") is None
+    # offered wherever a calibration is taken
+    from fluorogui.io.calibration import load_view
+
+    offered = load_view(tmp_path / "g.dcm")
+    assert offered.extra["starting_geometry"] and offered.to_dict() == {**view.to_dict(), "name": "g"}
+    with pytest.raises(InputError, match="gives no view geometry"):
+        load_view(tmp_path / "plain.dcm")
 
 
 def write_video(path, levels, size=(32, 24), fourcc="MJPG"):
