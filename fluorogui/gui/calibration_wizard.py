@@ -36,7 +36,7 @@ from PySide6.QtWidgets import (
 
 from fluorogui.gui.worker import TaskRunner
 
-PICTURE_PX = 300
+PICTURE_PX = 240
 N_VIEWS = 2
 
 
@@ -298,7 +298,7 @@ class CalibrationWizard(QWizard):
         self.addPage(self.bead_page)
         self.views: list = []
         self.written: list[Path] = []
-        self.resize(760, 760)
+        self.resize(760, 660)
 
     def accept(self) -> None:
         from fluorogui.io.calibration import save_view_json, save_view_mayacam2

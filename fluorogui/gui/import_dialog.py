@@ -77,7 +77,7 @@ _OTHER_FIELDS = [
 ]
 FIELD_KEYS = ("calibration1", "images1", "calibration2", "images2", "pairs_csv", "femoral", "tibial")
 #: Side (px) of the first-frame previews.
-PREVIEW_PX = 120
+PREVIEW_PX = 96
 REQUIRED_LABELS = {
     "calibration1": "the calibration of view 1",
     "calibration2": "the calibration of view 2",
