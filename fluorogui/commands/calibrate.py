@@ -57,6 +57,9 @@ def run_distortion(args) -> int:
     print(f"{args.plate}: {s['holes']} holes on a {args.grid} grid ({s['discarded']} blobs discarded), "
           f"{s['mm_per_px']:.4f} mm/px at the plate")
     print(f"residual RMS {s['rms_px']:.4f} px ({s['rms_mm']:.4f} mm), max {s['max_px']:.4f} px ({s['max_mm']:.4f} mm)")
+    if "left_out_rms_px" in s:
+        print(f"each hole left out of the local fits: RMS {s['left_out_rms_px']:.4f} px, "
+              f"max {s['left_out_max_px']:.4f} px")
     if args.picture:
         write_rgb_png(args.picture, residual_picture(image, fit))
         print(f"wrote {args.picture}")

@@ -17,7 +17,8 @@ holes (square or hexagonal, known spacing):
 4. Optionally a local weighted-mean model (``LocalCorrection``, as XMALab does): a
    second-order fit over the ``neighbours`` nearest holes around each hole, blended with
    weights ``1 - 3 r^2 + 2 r^3`` that reach zero at the farthest of those neighbours;
-   outside the plate it falls back to the global polynomial.
+   outside the plate it falls back to the global polynomial. It nearly interpolates its
+   holes, so its residual is also reported with each hole left out (``left_out_px``).
 
 Every model maps distorted pixels to ideal ones (``correct_points``) and back
 (``distort_points``, by fixed-point iteration: the distortion is a small departure from
@@ -131,6 +132,7 @@ class LocalCorrection(Correction):
     _fits: np.ndarray = field(init=False, repr=False)
     _radius: np.ndarray = field(init=False, repr=False)
     _tree: cKDTree = field(init=False, repr=False)
+    _members: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self):
         self.distorted = np.asarray(self.distorted, dtype=float)
@@ -146,6 +148,36 @@ class LocalCorrection(Correction):
             target = self.ideal[idx[i]] - self.distorted[idx[i]]
             fits[i] = np.linalg.lstsq(basis, target, rcond=None)[0].T
         self._fits = fits
+        self._members = idx
+
+    def left_out_residuals(self) -> np.ndarray:
+        """Residual (px) at each hole predicted without it: every local fit that used the hole
+        is refitted without it, and the hole's own fit is left out of the blend. The local
+        model nearly interpolates its holes, so only this residual says how well it predicts."""
+        out = np.empty(len(self.distorted))
+        for i in range(len(self.distorted)):
+            d = self.distorted[i]
+            near = np.asarray(self._tree.query_ball_point(d, float(self._radius.max())))
+            near = near[near != i]
+            r = np.linalg.norm(d - self.distorted[near], axis=1) / self._radius[near]
+            near, r = near[r < 1.0], r[r < 1.0]
+            if len(near) == 0:
+                out[i] = np.linalg.norm(self.fallback.correct_points(d[None])[0] - self.ideal[i])
+                continue
+            w = 1.0 - 3.0 * r**2 + 2.0 * r**3
+            values = np.empty((len(near), 2))
+            for k, j in enumerate(near):
+                members = self._members[j]
+                if i in members:
+                    members = members[members != i]
+                    local = (self.distorted[members] - self.distorted[j]) / self._radius[j]
+                    fit = np.linalg.lstsq(_monomials(local, 2), self.ideal[members] - self.distorted[members],
+                                          rcond=None)[0].T
+                else:
+                    fit = self._fits[j]
+                values[k] = fit @ _monomials(((d - self.distorted[j]) / self._radius[j])[None], 2)[0]
+            out[i] = np.linalg.norm(d + w @ values / w.sum() - self.ideal[i])
+        return out
 
     def correct_points(self, uv) -> np.ndarray:
         d = np.atleast_2d(np.asarray(uv, dtype=float))
@@ -345,6 +377,7 @@ class PlateFit:
     discarded: int
     grid: str
     spacing_mm: float
+    left_out_px: np.ndarray | None = None  # local model: residual at each hole predicted without it
 
     @property
     def rms_px(self) -> float:
@@ -355,10 +388,14 @@ class PlateFit:
         return float(self.residual_px.max())
 
     def summary(self) -> dict:
-        return {"holes": int(len(self.holes_px)), "discarded": int(self.discarded), "grid": self.grid,
-                "spacing_mm": self.spacing_mm, "mm_per_px": self.mm_per_px,
-                "rms_px": self.rms_px, "max_px": self.max_px,
-                "rms_mm": self.rms_px * self.mm_per_px, "max_mm": self.max_px * self.mm_per_px}
+        out = {"holes": int(len(self.holes_px)), "discarded": int(self.discarded), "grid": self.grid,
+               "spacing_mm": self.spacing_mm, "mm_per_px": self.mm_per_px,
+               "rms_px": self.rms_px, "max_px": self.max_px,
+               "rms_mm": self.rms_px * self.mm_per_px, "max_mm": self.max_px * self.mm_per_px}
+        if self.left_out_px is not None:
+            out["left_out_rms_px"] = float(np.sqrt(np.mean(self.left_out_px**2)))
+            out["left_out_max_px"] = float(self.left_out_px.max())
+        return out
 
 
 def fit_plate(image: np.ndarray, spacing_mm: float, grid: str = "square", model: str = "global",
@@ -377,12 +414,14 @@ def fit_plate(image: np.ndarray, spacing_mm: float, grid: str = "square", model:
     holes = centres[members]
     polynomial, ideal = _fit_global(holes, indices, (w, h), grid, degree)
     correction: Correction = polynomial
+    left_out = None
     if model == "local":
         correction = LocalCorrection(holes, ideal, neighbours, polynomial)
+        left_out = correction.left_out_residuals()
     residual = np.linalg.norm(correction.correct_points(holes) - ideal, axis=1)
     step_px = _lattice_step_px(ideal, indices)
     return PlateFit(correction, polynomial, holes, indices, ideal, residual, spacing_mm / step_px,
-                    len(centres) - len(members), grid, float(spacing_mm))
+                    len(centres) - len(members), grid, float(spacing_mm), left_out)
 
 
 def _lattice_step_px(ideal: np.ndarray, indices: np.ndarray) -> float:
