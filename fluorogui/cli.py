@@ -48,11 +48,14 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", parser_class=_Parser)
 
     m = sub.add_parser("match", help="match one component in one image pair")
-    m.add_argument("--camera", action="append", required=True, metavar="CAM", help="calibration file (twice)")
-    m.add_argument("--image", action="append", required=True, metavar="IMG", help="image file (twice)")
+    m.add_argument("--camera", action="append", required=True, metavar="CAM", help="calibration file (twice; once for single-plane)")
+    m.add_argument("--image", action="append", required=True, metavar="IMG",
+                   help="image file per camera; FILE@N is frame N (0-based) of a multi-frame DICOM or video")
     m.add_argument("--model", required=True, metavar="MESH", help="component mesh in mm (STL/PLY/OBJ/VTK)")
     m.add_argument("--start", nargs=6, type=finite_float, required=True, metavar=("X", "Y", "Z", "ALPHA", "BETA", "GAMMA"))
     m.add_argument("--outline", action="append", metavar="CSV", help="ordered outline points u,v (twice)")
+    m.add_argument("--correction", action="append", metavar="CORR.json",
+                   help="distortion correction per camera (fluorogui calibrate distortion)")
     _add_match_options(m)
     m.add_argument("--json", action="store_true", help="print one JSON object")
     m.set_defaults(func=cmd_match)
@@ -110,6 +113,9 @@ def build_parser() -> argparse.ArgumentParser:
     from fluorogui.commands import add_parsers
 
     add_parsers(sub)
+    from fluorogui.commands import calibrate
+
+    calibrate.add_parsers(sub)
     return p
 
 
@@ -133,22 +139,35 @@ def _add_validation_options(p):
 def _load_views(paths):
     from fluorogui.io.calibration import load_view
 
-    if len(paths) != 2:
-        raise _UsageError(f"fluorogui: give exactly two --camera files (got {len(paths)})")
+    if len(paths) not in (1, 2):
+        raise _UsageError(f"fluorogui: give two --camera files, or one for a single-plane view (got {len(paths)})")
     return [load_view(p, name=f"view {k + 1}") for k, p in enumerate(paths)]
+
+
+def _with_corrections(views, paths):
+    """The views carrying their distortion corrections (one file per view), if any."""
+    from fluorogui.io.corrections import attach_correction, load_correction
+
+    if not paths:
+        return views
+    if len(paths) != len(views):
+        raise _UsageError(f"fluorogui: give one --correction per --camera ({len(views)}), got {len(paths)}")
+    return [attach_correction(v, load_correction(p)) for v, p in zip(views, paths)]
 
 
 def _load_images(paths, views):
     from fluorogui.io.calibration import check_image_size
+    from fluorogui.io.corrections import correct_view_image
     from fluorogui.io.images import read_image
 
-    if len(paths or []) != 2:
-        raise _UsageError(f"fluorogui: give exactly two --image files (got {len(paths or [])})")
+    if len(paths or []) != len(views):
+        raise _UsageError(f"fluorogui: give one --image per --camera ({len(views)}), got {len(paths or [])}; "
+                          "FILE@N picks frame N of a multi-frame DICOM or video")
     images = []
     for p, v in zip(paths, views):
         image = read_image(p)
         check_image_size(v, image.shape, p)
-        images.append(image)
+        images.append(correct_view_image(image, v))
     return images
 
 
@@ -182,8 +201,8 @@ def _splines(outline_paths, images, image_paths, views, mesh, pose):
     from fluorogui.io.errors import InputError
     from fluorogui.io.outlines import read_outline_csv
 
-    if outline_paths and len(outline_paths) != 2:
-        raise _UsageError(f"fluorogui: give two --outline files or none (got {len(outline_paths)})")
+    if outline_paths and len(outline_paths) != len(views):
+        raise _UsageError(f"fluorogui: give one --outline per view or none (got {len(outline_paths)})")
     splines = []
     for k, view in enumerate(views):
         if outline_paths:
@@ -264,7 +283,7 @@ def cmd_match(args) -> int:
     from fluorogui.core.pipeline import SegmentationError, segment_and_match
     from fluorogui.io.errors import InputError
 
-    views = _load_views(args.camera)
+    views = _with_corrections(_load_views(args.camera), args.correction)
     images = _load_images(args.image, views)
     mesh = _load_model(args.model)
     start = _start_pose(args.start)
@@ -289,6 +308,10 @@ def cmd_match(args) -> int:
     if status != "matched" and result.converged:
         result.converged, result.message = False, reason
     sd = result.sd or [float("nan")] * 6
+    if len(views) == 1:
+        from fluorogui.workflow.messages import SINGLE_PLANE_NOTE
+
+        print(f"note: {SINGLE_PLANE_NOTE}", file=sys.stderr)
     if args.json:
         d = result.to_dict()
         print(json.dumps({k: d[k] for k in ("pose", "objective_mm", "per_view_mean_mm", "calls", "seconds",

@@ -215,12 +215,12 @@ class View:
             "pitch_mm": list(self.pitch),
             "principal_point_px": list(self.principal_point),
             "image_size_px": list(self.image_size),
-        }
+        } | ({"distortion": self.extra["distortion"]} if self.extra.get("distortion") else {})
 
     @classmethod
     def from_dict(cls, d: dict) -> "View":
         try:
-            return cls(
+            view = cls(
                 source=d["source_mm"],
                 normal=d["normal"],
                 e_u=d["e_u"],
@@ -231,6 +231,11 @@ class View:
                 image_size=d["image_size_px"],
                 name=d.get("name", ""),
             )
+            if d.get("distortion"):
+                if not isinstance(d["distortion"], dict) or "model" not in d["distortion"]:
+                    raise GeometryError("view's 'distortion' must be an object with a 'model'")
+                view.extra["distortion"] = d["distortion"]  # a correction (fluorogui.core.distortion)
+            return view
         except KeyError as exc:
             raise GeometryError(f"view is missing the field {exc.args[0]!r}") from None
         except (TypeError, ValueError) as exc:

@@ -4,15 +4,19 @@ A thin front end of ``fluorogui.io.importer``: every check happens in ``import_s
 when the user presses OK. A bad file keeps the dialog open with the problem shown in red
 under the form (and the field at fault outlined); on success ``self.project`` holds the
 new Project and the dialog closes accepted. "From folder…" fills every field from a
-folder laid out like ``data/biplane-tka``. ``fill(**paths)`` sets fields from code (tests,
+folder laid out like ``data/biplane-tka`` (or, with view 2 left empty, a single-plane one like
+``data/single-plane-tka``). Under each view's fields a preview shows the first frame, the
+frame count, and the format and bit depth of the images (``preview_image_source``).
+``fill(**paths)`` sets fields from code (tests,
 drag and drop); paths can also be dropped on a field, or a whole folder on the dialog.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
-from PySide6.QtCore import Qt
-from PySide6.QtGui import QAction, QGuiApplication
+import numpy as np
+from PySide6.QtCore import Qt, QTimer
+from PySide6.QtGui import QAction, QGuiApplication, QImage, QPixmap
 from PySide6.QtWidgets import (
     QDialog,
     QDialogButtonBox,
@@ -31,7 +35,13 @@ from PySide6.QtWidgets import (
 from fluorogui.core.session import Project
 from fluorogui.io.errors import InputError
 from fluorogui.io.images import IMAGE_SUFFIXES, VIDEO_SUFFIXES
-from fluorogui.io.importer import CALIBRATION_SUFFIXES, detect_biplane_folder, import_session
+from fluorogui.io.importer import (
+    CALIBRATION_SUFFIXES,
+    detect_biplane_folder,
+    detect_single_plane_folder,
+    import_session,
+    preview_image_source,
+)
 from fluorogui.io.meshes import MESH_SUFFIXES
 
 #: Separator of several image files in one field.
@@ -66,6 +76,8 @@ _OTHER_FIELDS = [
     ("tibial", "Tibial component:", "mesh", "Surface model of the tibial component (STL, PLY, OBJ, VTK; in mm)."),
 ]
 FIELD_KEYS = ("calibration1", "images1", "calibration2", "images2", "pairs_csv", "femoral", "tibial")
+#: Side (px) of the first-frame previews.
+PREVIEW_PX = 96
 REQUIRED_LABELS = {
     "calibration1": "the calibration of view 1",
     "calibration2": "the calibration of view 2",
@@ -110,8 +122,8 @@ class ImportDialog(QDialog):
         self.fields: dict[str, QLineEdit] = {}
         self._start_dir = str(start_dir or Path.home())
 
-        intro = QLabel("Choose the calibration and images of both views and the two implant models, "
-                       "or fill everything from a folder laid out like cam1/, cam2/, calibration/, models/.")
+        intro = QLabel("Choose the calibration and images of each view (one view for a single-plane study) and "
+                       "the implant models, or fill everything from a session folder.")
         intro.setWordWrap(True)
         self.from_folder_button = QPushButton("From folder…")
         self.from_folder_button.setToolTip(
@@ -124,10 +136,18 @@ class ImportDialog(QDialog):
         form = QFormLayout()
         form.setFieldGrowthPolicy(QFormLayout.FieldGrowthPolicy.AllNonFixedFieldsGrow)
         form.setLabelAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+        self.previews: dict[int, QLabel] = {}
+        self.preview_texts: dict[int, QLabel] = {}
+        self._preview_timer = QTimer(self)
+        self._preview_timer.setSingleShot(True)
+        self._preview_timer.setInterval(250)
+        self._preview_timer.timeout.connect(self.update_previews)
         for k in (1, 2):
-            form.addRow(self._heading(f"View {k}"))
+            form.addRow(self._heading(f"View {k}" + (" (leave empty for a single-plane session)" if k == 2 else "")))
             for key, label, kind, tip in _VIEW_FIELDS:
                 self._add_field(form, key.format(k=k), label, kind, tip.format(k=k))
+            self.fields[f"images{k}"].textChanged.connect(lambda _text: self._preview_timer.start())
+            form.addRow("", self._preview_row(k))
         form.addRow(self._heading("Frames"))
         self._add_field(form, *_OTHER_FIELDS[0])
         form.addRow(self._heading("Implant models"))
@@ -199,6 +219,53 @@ class ImportDialog(QDialog):
         form.addRow(label_widget, holder)
         self.fields[key] = edit
 
+    def _preview_row(self, k: int) -> QWidget:
+        picture = QLabel()
+        picture.setObjectName(f"preview{k}")
+        picture.setFixedSize(PREVIEW_PX, PREVIEW_PX)
+        picture.setAlignment(Qt.AlignmentFlag.AlignCenter)
+        picture.setStyleSheet("background: #202020; color: #909090;")
+        picture.setText("no images")
+        text = QLabel()
+        text.setObjectName(f"preview_text{k}")
+        text.setWordWrap(True)
+        text.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        row = QHBoxLayout()
+        row.setContentsMargins(0, 0, 0, 0)
+        row.addWidget(picture)
+        row.addWidget(text, 1)
+        holder = QWidget()
+        holder.setLayout(row)
+        self.previews[k], self.preview_texts[k] = picture, text
+        return holder
+
+    def update_previews(self) -> None:
+        """Show each view's first frame, frame count, format and bit depth (or the problem)."""
+        for k in (1, 2):
+            source = self._image_source(self.fields[f"images{k}"].text())
+            picture, text = self.previews[k], self.preview_texts[k]
+            if source is None:
+                picture.clear()
+                picture.setText("no images")
+                text.setText("")
+                continue
+            try:
+                preview = preview_image_source(source)
+            except (InputError, ValueError) as exc:
+                picture.clear()
+                picture.setText("?")
+                text.setText(f"<span style='{ERROR_STYLE}'>{exc}</span>")
+                continue
+            picture.setPixmap(_thumbnail(preview.first))
+            text.setText(preview.describe())
+
+    @staticmethod
+    def _image_source(field_text: str):
+        parts = [p.strip() for p in field_text.split(FILE_SEPARATOR.strip()) if p.strip()]
+        if not parts:
+            return None
+        return Path(parts[0]) if len(parts) == 1 else [Path(p) for p in parts]
+
     # -- filling -------------------------------------------------------------------------------
     def fill(self, **paths) -> None:
         """Set fields by key (see ``FIELD_KEYS``): a path, or a list of paths for images."""
@@ -216,11 +283,12 @@ class ImportDialog(QDialog):
 
     def fill_from_folder(self, folder) -> bool:
         """Fill the fields from a biplane folder; show why not when it is not one."""
-        found = detect_biplane_folder(folder)
+        found = detect_biplane_folder(folder) or detect_single_plane_folder(folder)
         if found is None:
-            self._show_error(f"{folder}: not a biplane session folder (expected calibration/, cam1/ and cam2/)")
+            self._show_error(f"{folder}: not a session folder (expected calibration/, cam1/ and cam2/, "
+                             "or one calibration file with its images for a single-plane session)")
             return False
-        values = {"pairs_csv": found["pairs_csv"]}
+        values = {"pairs_csv": found["pairs_csv"], "calibration2": None, "images2": None}
         for k, (calibration, images) in enumerate(zip(found["calibrations"], found["image_sources"]), start=1):
             values[f"calibration{k}"] = calibration
             values[f"images{k}"] = images
@@ -234,18 +302,20 @@ class ImportDialog(QDialog):
     def import_arguments(self) -> dict:
         """The keyword arguments of ``import_session`` from the fields (ValueError if incomplete)."""
         text = {key: edit.text().strip() for key, edit in self.fields.items()}
-        required = [k for k in REQUIRED_LABELS if not (text["pairs_csv"] and k.startswith("images"))]
-        missing = [REQUIRED_LABELS[k] for k in required if not text[k]]
+        single = not text["calibration2"] and not text["images2"] and not text["pairs_csv"]
+        n_views = 1 if single else 2
+        required = [k for k in REQUIRED_LABELS if not (text["pairs_csv"] and k.startswith("images"))
+                    and not (single and k.endswith("2"))]
+        missing = [REQUIRED_LABELS[k] for k in required if not text[k] and k not in ("femoral", "tibial")]
+        if not text["femoral"] and not text["tibial"]:
+            missing.append("at least one implant model")
         if missing:
             raise ValueError("Choose " + ", ".join(missing) + ".")
-        images = []
-        for k in (1, 2):
-            parts = [p.strip() for p in text[f"images{k}"].split(FILE_SEPARATOR.strip()) if p.strip()]
-            images.append(Path(parts[0]) if len(parts) == 1 else [Path(p) for p in parts])
+        images = [self._image_source(text[f"images{k}"]) for k in range(1, n_views + 1)]
         return {
-            "calibrations": [Path(text["calibration1"]), Path(text["calibration2"])],
+            "calibrations": [Path(text[f"calibration{k}"]) for k in range(1, n_views + 1)],
             "image_sources": [] if text["pairs_csv"] else images,
-            "models": {"femoral": Path(text["femoral"]), "tibial": Path(text["tibial"])},
+            "models": {c: Path(text[c]) for c in ("femoral", "tibial") if text[c]},
             "pairs_csv": Path(text["pairs_csv"]) if text["pairs_csv"] else None,
         }
 
@@ -325,6 +395,17 @@ class ImportDialog(QDialog):
         if len(urls) == 1 and urls[0].isLocalFile():
             self.fill_from_folder(urls[0].toLocalFile())
             event.acceptProposedAction()
+
+
+def _thumbnail(image: np.ndarray) -> QPixmap:
+    """A PREVIEW_PX pixmap of a float image in [0, 1], windowed on its 1st-99.5th percentiles."""
+    step = max(1, int(max(image.shape) // (2 * PREVIEW_PX)))
+    small = np.asarray(image[::step, ::step], dtype=np.float32)
+    lo, hi = np.percentile(small, [1.0, 99.5])
+    gray = np.ascontiguousarray(np.clip((small - lo) / max(hi - lo, 1e-6) * 255, 0, 255).astype(np.uint8))
+    qimage = QImage(gray.data, gray.shape[1], gray.shape[0], gray.strides[0], QImage.Format.Format_Grayscale8)
+    return QPixmap.fromImage(qimage.copy()).scaled(PREVIEW_PX, PREVIEW_PX, Qt.AspectRatioMode.KeepAspectRatio,
+                                                    Qt.TransformationMode.SmoothTransformation)
 
 
 def _mentions(field_text: str, path: str) -> bool:

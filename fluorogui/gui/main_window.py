@@ -179,6 +179,14 @@ class MainWindow(SessionFiles, SessionView, MatchControl, ReviewActions, HelpAct
         self.addAction(action)
         return action
 
+    def calibrate_fluoroscope(self) -> None:
+        """The calibration wizard (distortion from plates, geometry from a bead phantom)."""
+        from fluorogui.gui.calibration_wizard import CalibrationWizard
+
+        wizard = CalibrationWizard(self)
+        if wizard.exec():
+            self.statusBar().showMessage("Wrote " + ", ".join(str(p) for p in wizard.written), 10000)
+
     def _build_actions(self) -> None:
         c = self.controller
         menu = self.menuBar()
@@ -200,6 +208,9 @@ class MainWindow(SessionFiles, SessionView, MatchControl, ReviewActions, HelpAct
         file_menu.addSeparator()
         file_menu.addAction(self.save_action)
         file_menu.addAction(self.save_as_action)
+        file_menu.addSeparator()
+        self.calibrate_action = self._action("&Calibrate fluoroscope (plate, beads)…", self.calibrate_fluoroscope)
+        file_menu.addAction(self.calibrate_action)
         file_menu.addSeparator()
         file_menu.addAction(self.quit_action)
         self._knee_menu_actions(file_menu, self.quit_action)

@@ -16,6 +16,7 @@ from PySide6.QtCore import QTimer
 from fluorogui.gui import jobs
 from fluorogui.gui.eta import Eta, describe
 from fluorogui.io.errors import InputError
+from fluorogui.workflow.messages import view_count_note
 from fluorogui.workflow.results import FAILED, NEEDS_REVIEW
 
 LIVE_3D_INTERVAL_S = 0.4  # the 3D model follows a live match at most this often
@@ -84,14 +85,16 @@ class MatchControl:
         self._follow_timer.timeout.connect(self._follow)
 
     # -- starting work -----------------------------------------------------------------------------
-    def _ready(self, title: str) -> bool:
+    def _ready(self, title: str, views: int = 1) -> bool:
         """Whether a task can start now (else the user is told why, or nothing while
-        another task runs)."""
+        another task runs); ``views``: the fewest views it works with (a single-plane
+        session matches and tracks, but finding implants needs two)."""
         if self.runner.is_running():
             return False
         c, s = self.controller, self.controller.session
-        if c.frame is None or s.n_views < 2 or not s.components():
-            self._warn(title, "Open a session with two views and a model first.")
+        if c.frame is None or s.n_views < views or not s.components():
+            need = "two views" if views >= 2 else "a calibrated view"
+            self._warn(title, f"Open a session with {need} and a model first.")
             return False
         return True
 
@@ -163,7 +166,7 @@ class MatchControl:
 
     def find_implants(self) -> bool:
         """Locate every component in the frame on screen (a global search, in the worker)."""
-        if not self._ready("Cannot search"):
+        if not self._ready("Cannot search", views=2):
             return False
         c, s = self.controller, self.controller.session
         try:
@@ -280,6 +283,9 @@ class MatchControl:
         advice = (" Check the outlines and match again (F5), or accept the pose as it is (Ctrl+Return)."
                   if flagged else " Ctrl+Return accepts.")
         text = f"Frame {results[0].frame if results else c.frame}: " + "; ".join(parts) + "." + advice
+        note = view_count_note(c.session.n_views)
+        if note:
+            text += f" Note: {note}."
         self.matcher.show_summary(text)
         self.statusBar().showMessage(text, 20000)
 

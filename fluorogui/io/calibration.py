@@ -13,6 +13,12 @@ Formats, detected by content (never by extension):
 * JointTrack ``JT_INTCALIB``: principal distance, principal-point x / y offset, pixel
   pitch (mm). Camera frame: source at the origin looking down -Z, image y up.
 * fluorogui JSON: ``{"format": "fluorogui-calibration", "version": 1, "view": {...}}``.
+* A DICOM image whose header has the source distances and detector pixel spacing: a
+  starting geometry (``fluorogui.io.dicom.dicom_starting_view``), to be refined.
+
+Every format is written too (``save_view``), as exactly as it is read. MayaCam 2.0's
+optional ``undistortion`` block (OpenCV's k1 k2 p1 p2 k3 ... with the file's K) is kept in
+``view.extra["distortion"]`` and applied by ``fluorogui.core.distortion``.
 
 JointTrack pose files (``JT_EULER_312``) are read here too since they live in the
 JointTrack camera frame that ``JT_INTCALIB`` defines.
@@ -48,6 +54,8 @@ def load_view(path, name: str = "", *, image_size=JOINTTRACK_DEFAULT_IMAGE_SIZE)
     formats that do not store it (JointTrack).
     """
     path = Path(path)
+    if _is_dicom(path):
+        return _dicom_view(path, name)
     text = _read_text(path)
     lines = [line.strip() for line in text.splitlines() if line.strip()]
     if not lines:
@@ -75,6 +83,79 @@ def save_view_json(view: View, path) -> None:
     """Write a view as fluorogui calibration JSON, atomically."""
     document = {"format": CALIBRATION_FORMAT, "version": CALIBRATION_VERSION, "view": view.to_dict()}
     atomic_write_text(path, json.dumps(document, indent=2, allow_nan=False) + "\n")
+
+
+def save_view(view: View, path, fmt: str = "json") -> None:
+    """Write a view in ``fmt``: "json", "mayacam2", "mayacam1" or "jointtrack", atomically.
+
+    Numbers are written with 17 significant digits, so reading the file back gives the
+    same numbers (round trip exact to ~1e-16 relative). Raises InputError naming the file
+    when the format cannot hold the view (MayaCam 1.0: one focal length; JointTrack: a
+    view in its own camera frame, square pixels).
+    """
+    writers = {"json": save_view_json, "mayacam2": save_view_mayacam2, "mayacam1": save_view_mayacam1,
+               "jointtrack": save_view_jointtrack}
+    if fmt not in writers:
+        raise ValueError(f"unknown calibration format {fmt!r} (use {', '.join(writers)})")
+    writers[fmt](view, path)
+
+
+def _num(value: float) -> str:
+    return repr(float(value))
+
+
+def save_view_mayacam2(view: View, path) -> None:
+    """Write a view as MayaCam 2.0 (XMALab's export: image size width first, K, R, t, and the
+    ``undistortion`` block when the view carries OpenCV distortion coefficients)."""
+    K, R, t = view.K, view.R, view.t
+    lines = ["image size", f"{view.image_size[0]},{view.image_size[1]}", "", "camera matrix"]
+    lines += [",".join(_num(v) for v in row) for row in K] + ["", "rotation"]
+    lines += [",".join(_num(v) for v in row) for row in R] + ["", "translation"]
+    lines += [_num(v) for v in t] + [""]
+    distortion = view.extra.get("distortion") or {}
+    if distortion.get("model") == "opencv":
+        lines += ["undistortion", ",".join(_num(v) for v in distortion["coefficients"]), ""]
+    atomic_write_text(path, "\n".join(lines))
+
+
+def save_view_mayacam1(view: View, path) -> None:
+    """Write a view as MayaCam 1.0 (the inverse of the reader: Autoscoper's Camera::loadMayaCam1)."""
+    fx, fy = view.focal_px
+    if abs(fx - fy) > 1e-9 * fx:
+        raise InputError(path, f"MayaCam 1.0 holds one focal length; this view has {fx:.6g} and {fy:.6g} px")
+    A = np.column_stack([view.e_u, -view.e_v, -view.normal])  # camera-to-world, OpenGL camera axes
+    yaw = math.degrees(math.atan2(A[1, 0], A[0, 0]))
+    pitch = math.degrees(math.atan2(-A[2, 0], math.hypot(A[2, 1], A[2, 2])))
+    roll = math.degrees(math.atan2(A[2, 1], A[2, 2]))
+    width, height = view.image_size
+    u0 = view.principal_point[0] + 1.0  # 1-based, v0 counted from the image bottom
+    v0 = (height - 1.0) - view.principal_point[1] + 1.0
+    scale = 0.1
+    rows = [
+        view.source.tolist(),
+        [roll, pitch, yaw],
+        [scale * (width / 2 - u0), scale * (height / 2 - v0), -scale * fx],
+        [u0, v0, -fx],
+    ]
+    text = "\n".join(",".join(_num(v) for v in row) for row in rows) + f"\n{scale},{width},{height}\n"
+    atomic_write_text(path, text)
+
+
+def save_view_jointtrack(view: View, path) -> None:
+    """Write a view as JointTrack ``JT_INTCALIB``; only a view in JointTrack's own camera frame
+    (source at the origin looking down -Z, image y up) with square pixels fits."""
+    canonical = (np.allclose(view.source, 0, atol=1e-9) and np.allclose(view.normal, (0, 0, -1), atol=1e-12)
+                 and np.allclose(view.e_u, (1, 0, 0), atol=1e-12) and np.allclose(view.e_v, (0, -1, 0), atol=1e-12))
+    if not canonical:
+        raise InputError(path, "JointTrack JT_INTCALIB holds a view in its own camera frame (source at the origin, "
+                               "looking down -Z); this view is elsewhere: save it as MayaCam or JSON")
+    if abs(view.pitch[0] - view.pitch[1]) > 1e-12 * view.pitch[0]:
+        raise InputError(path, "JointTrack JT_INTCALIB needs square pixels")
+    width, height = view.image_size
+    pitch = view.pitch[0]
+    x_off = (view.principal_point[0] - width / 2.0) * pitch
+    y_off = (height / 2.0 - view.principal_point[1]) * pitch
+    atomic_write_text(path, "JT_INTCALIB\n" + "\n".join(_num(v) for v in (view.distance, x_off, y_off, pitch)) + "\n")
 
 
 def check_image_size(view: View, image_shape, path) -> None:
@@ -122,6 +203,26 @@ def jointtrack_to_pose(row) -> np.ndarray:
     row = np.asarray(row, dtype=float).reshape(6)
     alpha, beta, gamma = angles_from_matrix(jointtrack_matrix(row))
     return np.array([row[0], row[1], row[2], alpha, beta, gamma])
+
+
+def _is_dicom(path: Path) -> bool:
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(132)
+    except OSError:
+        return False
+    return len(head) == 132 and head[128:] == b"DICM"
+
+
+def _dicom_view(path: Path, name: str) -> View:
+    """A starting view from a DICOM image's header (source distances, detector pixel spacing)."""
+    from fluorogui.io.dicom import dicom_starting_view
+
+    view = dicom_starting_view(path, name)
+    if view is None:
+        raise InputError(path, "DICOM header lacks DistanceSourceToDetector, DistanceSourceToPatient or "
+                               "ImagerPixelSpacing, so it gives no view geometry; calibrate the view instead")
+    return view
 
 
 # -- reading helpers --------------------------------------------------------------------------
@@ -197,6 +298,13 @@ def _parse_mayacam2(path: Path, lines: list[str], name: str) -> View:
         raise InputError(path, "camera matrix is singular")
     view = View.from_pinhole(K, R, t, (int(size[0]), int(size[1])), pitch=DEFAULT_PITCH_MM, name=name)
     view.extra.update(source_format="MayaCam 2.0", pitch_assumed=True)
+    if "undistortion" in sections:
+        rows = [_numbers(path, row, "section 'undistortion'") for row in sections["undistortion"]]
+        coefficients = [value for row in rows for value in row]
+        if len(coefficients) not in (4, 5, 8, 12, 14):
+            raise InputError(path, f"section 'undistortion' has {len(coefficients)} numbers; OpenCV's distortion "
+                                   "model takes 4, 5, 8, 12 or 14 (k1 k2 p1 p2 [k3 [k4 k5 k6 ...]])")
+        view.extra["distortion"] = {"model": "opencv", "camera_matrix": K.tolist(), "coefficients": coefficients}
     return view
 
 

@@ -1,5 +1,13 @@
 """Read fluoroscopic images and videos as 2D grayscale float32 arrays in [0, 1]; write images.
 
+Formats: TIFF (8/16-bit, uncompressed, LZW, Deflate, PackBits, JPEG through imagecodecs;
+stacks), PNG, JPEG, BMP, DICOM (single- and multi-frame, compressed transfer syntaxes:
+``fluorogui.io.dicom``), AVI / MP4 (lazily, frame by frame: ``fluorogui.io.video``). One
+frame of a multi-frame file is named ``FILE@N`` (0-based). Every reader checks the size
+in the header against ``MAX_IMAGE_SIDE_PX`` / ``MAX_IMAGE_PIXELS`` before decoding.
+16-bit images keep their full depth (float32 holds every 16-bit level); the display
+windows them (``fluorogui.gui.image_panel``).
+
 Integer images are scaled by their type's full range (8-bit / 255, 16-bit / 65535), so a
 sequence keeps one intensity scale from frame to frame. DICOM pixel data get their rescale
 slope / intercept and are scaled by the stored bit range; MONOCHROME1 is inverted so bone
@@ -7,6 +15,8 @@ and metal look the same as in the other formats. Colour images become luminance.
 """
 from __future__ import annotations
 
+import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -23,29 +33,130 @@ IMAGE_SUFFIXES = TIFF_SUFFIXES + CV2_SUFFIXES + DICOM_SUFFIXES
 _LUMA_RGB = np.array([0.299, 0.587, 0.114])
 
 
+# -- limits and frame references -----------------------------------------------------------
+#: Largest image side accepted, checked in the file's header before anything is decoded.
+MAX_IMAGE_SIDE_PX = 16384
+#: Largest image accepted (pixels): 64 Mpx, i.e. 256 MiB as float32.
+MAX_IMAGE_PIXELS = 8192 * 8192
+_FRAME_REFERENCE = re.compile(r"^(?P<file>.+)@(?P<index>\d+)$")
+
+
+@dataclass(frozen=True)
+class ImageInfo:
+    """What a file's header says: format, size (px), frame count, bits per sample."""
+
+    format: str
+    width: int
+    height: int
+    frames: int
+    bits: int
+    detail: str = ""  # compression, transfer syntax or codec
+
+    def describe(self) -> str:
+        frames = f", {self.frames} frames" if self.frames != 1 else ""
+        detail = f", {self.detail}" if self.detail else ""
+        return f"{self.format} {self.width}x{self.height}, {self.bits}-bit{frames}{detail}"
+
+
+def frame_reference(path, index: int) -> Path:
+    """The path naming frame ``index`` (0-based) of a multi-frame file or video: ``FILE@N``."""
+    return Path(f"{path}@{int(index)}")
+
+
+def split_frame_reference(path) -> tuple[Path, int | None]:
+    """``FILE@N`` to (FILE, N); an existing file (even with '@' in its name) to (path, None)."""
+    path = Path(path)
+    match = _FRAME_REFERENCE.match(str(path))
+    if match is None or path.exists():
+        return path, None
+    return Path(match.group("file")), int(match.group("index"))
+
+
+def is_multi_frame(path) -> bool:
+    """True for videos and for DICOM / TIFF files holding more than one frame."""
+    return image_info(path).frames > 1 or Path(path).suffix.lower() in VIDEO_SUFFIXES
+
+
 # -- reading ------------------------------------------------------------------------------------
 def read_image(path) -> np.ndarray:
-    """One image file as a 2D float32 array in [0, 1] (rows, columns)."""
+    """One image as a 2D float32 array in [0, 1] (rows, columns).
+
+    ``path`` is an image file, or ``FILE@N`` for frame N (0-based) of a multi-frame DICOM,
+    a TIFF stack or a video. The header's size is checked before any decoding.
+    """
+    path, index = split_frame_reference(path)
+    _check_file(path)
+    if index is not None:
+        return read_frame(path, index)
+    info = image_info(path)
+    if info.frames > 1:
+        kind = "stack of" if info.format == "TIFF" else "DICOM holds" if info.format == "DICOM" else "video of"
+        raise InputError(path, f"{kind} {info.frames} frames; give one frame as {path.name}@N (0-based) "
+                               "or the whole file as an image sequence")
+    return read_frame(path, 0)
+
+
+def read_frame(path, index: int) -> np.ndarray:
+    """Frame ``index`` (0-based) of any supported file (a single image has only frame 0)."""
     path = Path(path)
     _check_file(path)
+    index = int(index)
+    if index < 0:
+        raise InputError(path, f"frame index {index} is negative")
     suffix = path.suffix.lower()
+    if suffix in VIDEO_SUFFIXES:
+        from fluorogui.io.video import read_video_frame_raw, video_info
+
+        _check_size(path, *_video_size(video_info(path)))
+        return _to_unit_gray(path, read_video_frame_raw(path, index), "bgr")
+    if suffix in DICOM_SUFFIXES or (suffix not in TIFF_SUFFIXES + CV2_SUFFIXES and _has_dicom_preamble(path)):
+        from fluorogui.io.dicom import read_dicom_frame, read_dicom_header
+
+        header = read_dicom_header(path)
+        _check_size(path, header.width, header.height)
+        return read_dicom_frame(path, index, header)
     if suffix in TIFF_SUFFIXES:
-        pixels, channel_order = _read_tiff(path), "rgb"
-    elif suffix in CV2_SUFFIXES:
-        pixels, channel_order = _read_cv2(path), "bgr"
-    elif suffix in DICOM_SUFFIXES or _has_dicom_preamble(path):
-        return _read_dicom(path)
-    elif suffix in VIDEO_SUFFIXES:
-        raise InputError(path, "is a video: import its frames with read_video_frames")
-    else:
-        raise InputError(
-            path, f"unsupported image type '{suffix or '(none)'}' (use TIFF, PNG, JPEG, BMP or DICOM)"
-        )
-    return _to_unit_gray(path, pixels, channel_order)
+        return _to_unit_gray(path, _read_tiff(path, index), "rgb")
+    if suffix in CV2_SUFFIXES:
+        if index != 0:
+            raise InputError(path, f"is a single image; frame {index} does not exist")
+        _check_size(path, *_pillow_size(path))
+        return _to_unit_gray(path, _read_cv2(path), "bgr")
+    raise InputError(
+        path, f"unsupported image type '{suffix or '(none)'}' (use TIFF, PNG, JPEG, BMP, DICOM, AVI or MP4)"
+    )
+
+
+def image_info(path) -> ImageInfo:
+    """Format, size, frame count and bit depth from the header alone (no pixel decoding)."""
+    path, index = split_frame_reference(path)
+    _check_file(path)
+    suffix = path.suffix.lower()
+    if suffix in VIDEO_SUFFIXES:
+        from fluorogui.io.video import video_info
+
+        v = video_info(path)
+        return ImageInfo(suffix.lstrip(".").upper(), v.width, v.height, v.frames, 8, f"codec {v.codec}")
+    if suffix in DICOM_SUFFIXES or (suffix not in TIFF_SUFFIXES + CV2_SUFFIXES and _has_dicom_preamble(path)):
+        from fluorogui.io.dicom import read_dicom_header
+
+        h = read_dicom_header(path)
+        return ImageInfo("DICOM", h.width, h.height, h.frames, h.bits, h.transfer_syntax)
+    if suffix in TIFF_SUFFIXES:
+        return _tiff_info(path)
+    if suffix in CV2_SUFFIXES:
+        width, height, bits, _ = _pillow_header(path)
+        return ImageInfo(suffix.lstrip(".").upper().replace("JPG", "JPEG"), width, height, 1, bits)
+    raise InputError(path, f"unsupported image type '{suffix or '(none)'}' (use TIFF, PNG, JPEG, BMP, DICOM, AVI or MP4)")
+
+
+def frame_count(path) -> int:
+    """Frames in a file: 1 for a single image, N for a multi-frame DICOM, TIFF stack or video."""
+    return image_info(path).frames
 
 
 def read_video_frames(path, indices=None) -> list[np.ndarray]:
-    """Frames of an AVI / MP4 video as 2D float32 arrays in [0, 1].
+    """Frames of an AVI / MP4 video as 2D float32 arrays in [0, 1], read lazily one by one.
 
     ``indices`` selects frames (0-based); None reads them all. An index past the end of the
     video raises InputError.
@@ -54,34 +165,11 @@ def read_video_frames(path, indices=None) -> list[np.ndarray]:
     _check_file(path)
     if path.suffix.lower() not in VIDEO_SUFFIXES:
         raise InputError(path, f"unsupported video type '{path.suffix or '(none)'}' (use AVI or MP4)")
-    capture = cv2.VideoCapture(str(path))
-    try:
-        if not capture.isOpened():
-            raise InputError(path, "cannot open the video (corrupt file or unsupported codec)")
-        wanted = None if indices is None else sorted({int(i) for i in indices})
-        if wanted is not None and wanted and wanted[0] < 0:
-            raise InputError(path, f"frame index {wanted[0]} is negative")
-        frames: dict[int, np.ndarray] = {}
-        index = 0
-        last = None if wanted is None else (wanted[-1] if wanted else -1)
-        while last is None or index <= last:
-            ok, frame = capture.read()
-            if not ok:
-                break
-            if wanted is None or index in wanted:
-                frames[index] = _to_unit_gray(path, frame, "bgr")
-            index += 1
-    finally:
-        capture.release()
-    if wanted is None:
-        if not frames:
-            raise InputError(path, "the video has no readable frames")
-        return [frames[i] for i in sorted(frames)]
-    missing = [i for i in wanted if i not in frames]
-    if missing:
-        raise InputError(path, f"the video has {index} readable frames; frame {missing[0]} does not exist")
-    order = [int(i) for i in indices]
-    return [frames[i] for i in order]
+    if indices is None:
+        from fluorogui.io.video import video_info
+
+        indices = range(video_info(path).frames)
+    return [read_frame(path, i) for i in indices]
 
 
 # -- writing --------------------------------------------------------------------------------------
@@ -112,6 +200,23 @@ def write_image(path, array, bits: int = 8) -> None:
         raise InputError(path, f"could not save: {describe_os_error(exc)}") from None
 
 
+def write_rgb_png(path, rgb) -> None:
+    """Write an (H, W, 3) uint8 RGB picture as PNG (residual maps, overlays)."""
+    path = Path(path)
+    pixels = np.asarray(rgb)
+    if pixels.ndim != 3 or pixels.shape[2] != 3 or pixels.dtype != np.uint8:
+        raise InputError(path, f"can only write RGB uint8 pictures, got {pixels.shape} {pixels.dtype}")
+    ok, data = cv2.imencode(".png", np.ascontiguousarray(pixels[..., ::-1]))
+    if not ok:
+        raise InputError(path, "could not encode the PNG picture")
+    try:
+        tmp = path.with_name(f".{path.name}.tmp")
+        tmp.write_bytes(data.tobytes())
+        tmp.replace(path)
+    except OSError as exc:
+        raise InputError(path, f"could not save: {describe_os_error(exc)}") from None
+
+
 # -- format readers ----------------------------------------------------------------------------
 def _check_file(path: Path) -> None:
     check_input_file(path, "image file")  # regular files only: a FIFO would block
@@ -123,16 +228,45 @@ def _check_file(path: Path) -> None:
         raise InputError(path, "file is empty")
 
 
-def _read_tiff(path: Path) -> np.ndarray:
+def _tiff_info(path: Path) -> ImageInfo:
     import tifffile
 
     try:
         with tifffile.TiffFile(path) as tif:
-            if len(tif.pages) > 1:
-                raise InputError(
-                    path, f"contains a stack of {len(tif.pages)} images; fluorogui needs one 2D image per file"
-                )
             page = tif.pages[0]
+            frames = len(tif.pages)
+            if frames == 1 and page.ndim == 3 and page.samplesperpixel == 1:
+                frames = page.shape[0]  # a volume stored in one page
+            return ImageInfo("TIFF", int(page.imagewidth), int(page.imagelength), frames,
+                             int(page.bitspersample), _compression_name(page.compression))
+    except OSError as exc:
+        raise InputError(path, f"cannot read the file: {describe_os_error(exc)}") from None
+    except Exception as exc:  # tifffile raises several types on corrupt data
+        raise InputError(path, f"corrupt or truncated TIFF ({type(exc).__name__})") from None
+
+
+def _compression_name(code) -> str:
+    import tifffile
+
+    try:
+        return tifffile.COMPRESSION(int(code)).name.lower()
+    except ValueError:
+        return f"compression {int(code)}"
+
+
+def _read_tiff(path: Path, index: int = 0) -> np.ndarray:
+    import tifffile
+
+    info = _tiff_info(path)
+    _check_size(path, info.width, info.height)
+    if index >= info.frames:
+        raise InputError(path, f"the TIFF has {info.frames} frames; frame {index} does not exist")
+    try:
+        with tifffile.TiffFile(path) as tif:
+            if len(tif.pages) == 1 and info.frames > 1:
+                _check_claimed_pixels(path, int(np.prod(tif.pages[0].shape, dtype=np.float64)))  # before allocating
+                return tif.pages[0].asarray()[index]
+            page = tif.pages[index]
             _check_claimed_pixels(path, int(np.prod(page.shape, dtype=np.float64)))  # before allocating
             pixels = page.asarray()
             if pixels.ndim == 3 and page.planarconfig == tifffile.PLANARCONFIG.SEPARATE:
@@ -143,7 +277,49 @@ def _read_tiff(path: Path) -> np.ndarray:
     except OSError as exc:
         raise InputError(path, f"cannot read the file: {describe_os_error(exc)}") from None
     except Exception as exc:  # tifffile raises several types on corrupt data
-        raise InputError(path, f"corrupt or truncated TIFF ({type(exc).__name__})") from None
+        raise InputError(path, f"corrupt or truncated TIFF ({type(exc).__name__}: {exc})") from None
+
+
+def _pillow_header(path: Path) -> tuple[int, int, int, str]:
+    """Width, height, bits and mode of a PNG / JPEG / BMP from its header (Pillow opens lazily)."""
+    import warnings
+
+    from PIL import Image
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            with Image.open(path) as im:
+                width, height, mode = im.size[0], im.size[1], im.mode
+    except Image.DecompressionBombError:
+        raise InputError(path, f"image header claims a size over the limit of {_limit_text()}; "
+                               "refused before decoding") from None
+    except Exception:
+        raise InputError(path, f"corrupt or unreadable {path.suffix.lstrip('.').upper()} image") from None
+    bits = 16 if mode.startswith("I;16") or mode == "I" else 8
+    return width, height, bits, mode
+
+
+def _pillow_size(path: Path) -> tuple[int, int]:
+    width, height, _, _ = _pillow_header(path)
+    return width, height
+
+
+def _video_size(info) -> tuple[int, int]:
+    return info.width, info.height
+
+
+def _limit_text() -> str:
+    return f"{MAX_IMAGE_SIDE_PX} px a side or {MAX_IMAGE_PIXELS:,} pixels"
+
+
+def _check_size(path: Path, width: int, height: int) -> None:
+    """Refuse absurd sizes from the header, before a decoder allocates them."""
+    if width <= 0 or height <= 0:
+        raise InputError(path, f"image header gives an empty size {width}x{height}")
+    if max(width, height) > MAX_IMAGE_SIDE_PX or width * height > MAX_IMAGE_PIXELS:
+        raise InputError(path, f"image header claims {width}x{height} px, over the limit of {_limit_text()}; "
+                               "refused before decoding")
 
 
 def _read_cv2(path: Path) -> np.ndarray:
@@ -189,42 +365,6 @@ def _has_dicom_preamble(path: Path) -> bool:
     except OSError:
         return False
     return len(head) == 132 and head[128:] == b"DICM"
-
-
-def _read_dicom(path: Path) -> np.ndarray:
-    import pydicom
-    from pydicom.errors import InvalidDicomError
-
-    try:
-        dataset = pydicom.dcmread(path)
-        pixels = dataset.pixel_array
-    except InvalidDicomError:
-        raise InputError(path, "not a valid DICOM file") from None
-    except OSError as exc:
-        raise InputError(path, f"cannot read the file: {describe_os_error(exc)}") from None
-    except AttributeError:
-        raise InputError(path, "DICOM file has no pixel data") from None
-    except Exception as exc:  # pydicom raises several types on corrupt pixel data
-        raise InputError(path, f"corrupt or truncated DICOM pixel data ({type(exc).__name__})") from None
-    photometric = str(getattr(dataset, "PhotometricInterpretation", "MONOCHROME2")).upper()
-    samples = int(getattr(dataset, "SamplesPerPixel", 1))
-    if samples > 1:
-        if pixels.ndim != 3:
-            raise InputError(path, f"DICOM holds {pixels.shape[0]} colour frames; fluorogui needs one image")
-        return _to_unit_gray(path, pixels, "rgb")
-    if pixels.ndim != 2:
-        raise InputError(path, f"DICOM holds {pixels.shape[0]} frames; fluorogui needs one 2D image per file")
-    slope = float(getattr(dataset, "RescaleSlope", 1.0) or 1.0)
-    intercept = float(getattr(dataset, "RescaleIntercept", 0.0) or 0.0)
-    bits = int(getattr(dataset, "BitsStored", 8 * pixels.dtype.itemsize))
-    signed = int(getattr(dataset, "PixelRepresentation", 0)) == 1
-    low, high = (-(2 ** (bits - 1)), 2 ** (bits - 1) - 1) if signed else (0, 2**bits - 1)
-    ends = sorted((low * slope + intercept, high * slope + intercept))
-    values = pixels.astype(np.float64) * slope + intercept
-    image = (values - ends[0]) / max(ends[1] - ends[0], 1e-12)
-    if photometric == "MONOCHROME1":
-        image = 1.0 - image
-    return np.clip(image, 0.0, 1.0).astype(np.float32)
 
 
 # -- conversion -----------------------------------------------------------------------------------

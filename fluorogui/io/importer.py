@@ -13,9 +13,10 @@ An image source is one of:
   ("frame_2" before "frame_10"), hidden files skipped;
 * a list of image files, in the given order;
 * one image file (a sequence of one frame);
-* one video (AVI / MP4 / MOV / MKV): its frames are extracted once to 8-bit PNG files in
-  ``<video folder>/<video stem>_frames/`` (a project refers to image files), and reused
-  when the video has not changed since.
+* one multi-frame file (a DICOM run, a TIFF stack) or one video (AVI / MP4 / MOV / MKV):
+  one frame reference ``FILE@N`` per frame, read lazily when the frame is shown or
+  matched (``fluorogui.io.images.read_image``); nothing is extracted to disk
+  (``extract_video_frames`` remains for users who want PNG files).
 
 A pairs CSV (like ``data/biplane-tka/pairs.csv``) has a header ``frame,cam1,cam2`` and one
 line per frame: the frame number, then one image path per view, relative to the CSV's
@@ -23,13 +24,18 @@ folder (absolute paths are kept). With it, the image sources are not needed.
 
 ``detect_biplane_folder`` recognises a folder laid out like ``data/biplane-tka``
 (``calibration/``, ``cam1/``, ``cam2/``, ``models/``, ``pairs.csv``) and returns the
-arguments of ``import_session`` for it.
+arguments of ``import_session`` for it; ``detect_single_plane_folder`` recognises one
+calibrated view laid out like ``data/single-plane-tka`` (one calibration file, the images
+beside it or in one image folder, the meshes beside it or in ``models/``). One view is a
+valid session: out-of-plane translation (along the view's central ray) is then its weak
+direction.
 """
 from __future__ import annotations
 
 import csv
 import os
 import re
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence, Union
 
@@ -39,7 +45,16 @@ import numpy as np
 from fluorogui.core.session import ImageSequence, ModelEntry, Project
 from fluorogui.io.calibration import check_image_size, load_view
 from fluorogui.io.errors import InputError, describe_os_error
-from fluorogui.io.images import IMAGE_SUFFIXES, VIDEO_SUFFIXES, read_image
+from fluorogui.io.images import (
+    IMAGE_SUFFIXES,
+    VIDEO_SUFFIXES,
+    frame_count,
+    ImageInfo,
+    frame_reference,
+    image_info,
+    read_image,
+    split_frame_reference,
+)
 from fluorogui.io.meshes import MESH_SUFFIXES, load_mesh
 from fluorogui.io.tables import read_text_table
 
@@ -114,11 +129,13 @@ def import_session(
 
 def import_folder(folder, allow_unequal: bool = False) -> Project:
     """A new Project from a folder laid out like ``data/biplane-tka`` (see
-    ``detect_biplane_folder``); raises InputError naming the folder when it is not one."""
-    found = detect_biplane_folder(folder)
+    ``detect_biplane_folder``) or, with one calibrated view, like ``data/single-plane-tka``
+    (``detect_single_plane_folder``); raises InputError naming the folder when it is neither."""
+    found = detect_biplane_folder(folder) or detect_single_plane_folder(folder)
     if found is None:
-        raise InputError(folder, "not a biplane session folder: it needs calibration/ with one file per camera, "
-                                 "cam1/ and cam2/ image folders, and models/ with femoral and tibial meshes")
+        raise InputError(folder, "not a session folder: a biplane one needs calibration/ with one file per camera, "
+                                 "cam1/ and cam2/ image folders and models/; a single-plane one needs one "
+                                 "calibration file (e.g. JointTrack JT_INTCALIB) and its images")
     if not found["models"]:
         raise InputError(Path(folder) / "models", "no femoral or tibial mesh found (names must contain fem / tib)")
     return import_session(found["calibrations"], found["image_sources"], found["models"], found["pairs_csv"],
@@ -141,22 +158,46 @@ def check_implant_model(path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def resolve_image_source(source: ImageSource) -> list[Path]:
-    """The image files of one view's source (folder, list of files, one image or one video)."""
+    """The frames of one view's source (folder, list of files, one image, one multi-frame file
+    or one video); a frame of a multi-frame file or video is the reference ``FILE@N``."""
     if isinstance(source, (str, os.PathLike)):
         path = _absolute(source)
         if path.is_dir():
             return list_image_files(path)
-        if not path.exists():
-            raise InputError(path, "file or folder not found")
-        if path.suffix.lower() in VIDEO_SUFFIXES:
-            return extract_video_frames(path)
+        base, index = split_frame_reference(path)
+        if not base.exists():
+            raise InputError(base, "file or folder not found")
+        if index is None and (path.suffix.lower() in VIDEO_SUFFIXES or frame_count(path) > 1):
+            return [frame_reference(path, k) for k in range(frame_count(path))]
         return [_checked_image_file(path)]
     files = [_absolute(p) for p in source]
     if not files:
         raise ValueError("an empty list of image files")
-    if len(files) == 1 and files[0].suffix.lower() in VIDEO_SUFFIXES:
+    if len(files) == 1:
         return resolve_image_source(files[0])
     return [_checked_image_file(p) for p in files]
+
+
+@dataclass
+class SourcePreview:
+    """What an image source holds, for an import dialog: frame count, the first frame's
+    format / size / bit depth, and the first frame itself (2D float32 in [0, 1])."""
+
+    frames: int
+    info: ImageInfo
+    first: np.ndarray
+
+    def describe(self) -> str:
+        info = self.info
+        detail = f", {info.detail}" if info.detail and info.detail != "none" else ""
+        return (f"{self.frames} frame{'s' if self.frames != 1 else ''}: {info.format} {info.width}x{info.height}, "
+                f"{info.bits}-bit{detail}")
+
+
+def preview_image_source(source: ImageSource) -> SourcePreview:
+    """Frame count and first frame of one view's source; raises InputError naming the file."""
+    frames = resolve_image_source(source)
+    return SourcePreview(len(frames), image_info(frames[0]), read_image(frames[0]))
 
 
 def list_image_files(folder) -> list[Path]:
@@ -323,6 +364,62 @@ def detect_biplane_folder(folder) -> dict | None:
     }
 
 
+def detect_single_plane_folder(folder) -> dict | None:
+    """Arguments of ``import_session`` for one calibrated view, or None.
+
+    Needed: exactly one calibration file that loads (in the folder or in ``calibration/``)
+    and images: the folder's own image files, else its one image folder (or a video /
+    multi-frame file). Meshes whose names say fem / tib, beside the images or in
+    ``models/``. JointTrack pose files (``*.jts``) are left for the user to compare.
+    """
+    folder = _absolute(folder)
+    if not folder.is_dir():
+        return None
+    try:
+        children = [p for p in folder.iterdir() if not p.name.startswith(".")]
+    except OSError:
+        return None
+    calibration_dir = _child_folder(children, _CALIBRATION_FOLDERS)
+    places = [folder] + ([calibration_dir] if calibration_dir is not None else [])
+    calibrations = []
+    for place in places:
+        for p in sorted(place.iterdir(), key=_natural_key):
+            if p.is_file() and p.suffix.lower() in CALIBRATION_SUFFIXES and not p.name.startswith(".") \
+                    and p.name.lower() != "pairs.csv":
+                try:
+                    load_view(p)
+                except InputError:
+                    continue
+                calibrations.append(p)
+    if len(calibrations) != 1:
+        return None
+    images = [p for p in children if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES + VIDEO_SUFFIXES]
+    image_dirs = [p for p in children if p.is_dir() and p != calibration_dir
+                  and p.name.lower() not in _MODEL_FOLDERS and _has_images(p)]
+    if images:
+        source = images[0] if len(images) == 1 else folder
+    elif len(image_dirs) == 1:
+        source = image_dirs[0]
+    else:
+        return None
+    models: dict[str, Path] = {}
+    model_dir = _child_folder(children, _MODEL_FOLDERS)
+    meshes = [p for p in (model_dir.iterdir() if model_dir is not None else children)
+              if p.is_file() and p.suffix.lower() in MESH_SUFFIXES]
+    for component, hints in _COMPONENT_HINTS.items():
+        found = sorted((p for p in meshes if any(h in p.stem.lower() for h in hints)), key=_natural_key)
+        if found:
+            models[component] = found[0]
+    return {"calibrations": calibrations, "image_sources": [source], "models": models, "pairs_csv": None}
+
+
+def _has_images(folder: Path) -> bool:
+    try:
+        return any(p.suffix.lower() in IMAGE_SUFFIXES for p in folder.iterdir())
+    except OSError:
+        return False
+
+
 # -- helpers --------------------------------------------------------------------------------
 def _absolute(path) -> Path:
     return Path(os.path.normpath(Path(path).expanduser().absolute()))
@@ -333,15 +430,16 @@ def _natural_key(path: Path):
 
 
 def _checked_image_file(path: Path) -> Path:
-    if path.is_dir():
-        raise InputError(path, "is a folder; give a folder as the whole image source, not in a list of files")
-    if not path.exists():
-        raise InputError(path, "file not found")
-    suffix = path.suffix.lower()
-    if suffix in VIDEO_SUFFIXES:
-        raise InputError(path, "is a video: give it alone as the image source of its view")
-    if suffix not in IMAGE_SUFFIXES:
-        raise InputError(path, f"unsupported image type '{suffix or '(none)'}' (use TIFF, PNG, JPEG, BMP or DICOM)")
+    base, index = split_frame_reference(path)
+    if base.is_dir():
+        raise InputError(base, "is a folder; give a folder as the whole image source, not in a list of files")
+    if not base.exists():
+        raise InputError(base, "file not found")
+    suffix = base.suffix.lower()
+    if suffix in VIDEO_SUFFIXES and index is None:
+        raise InputError(base, "is a video: give it alone as the image source of its view, or one frame as FILE@N")
+    if suffix not in IMAGE_SUFFIXES + VIDEO_SUFFIXES:
+        raise InputError(base, f"unsupported image type '{suffix or '(none)'}' (use TIFF, PNG, JPEG, BMP or DICOM)")
     return path
 
 
@@ -363,9 +461,11 @@ def _child_folder(children: list[Path], names: Sequence[str]) -> Path | None:
 __all__ = [
     "check_implant_model",
     "detect_biplane_folder",
+    "detect_single_plane_folder",
     "extract_video_frames",
     "import_session",
     "list_image_files",
+    "preview_image_source",
     "read_pairs_csv",
     "resolve_image_source",
 ]

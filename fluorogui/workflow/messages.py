@@ -45,3 +45,12 @@ def image_missing(view: int, problem: str) -> str:
 
 def where(frame: int, component: str | None = None) -> str:
     return f"frame {frame}" + (f", {component}" if component else "")
+
+
+SINGLE_PLANE_NOTE = ("single-plane session: translation along the X-ray beam (out of the image plane) is the "
+                     "weak direction; expect errors there several times larger than in the image plane")
+
+
+def view_count_note(n_views: int) -> str | None:
+    """What a user must know about a session's geometry (one view: the weak direction)."""
+    return SINGLE_PLANE_NOTE if n_views == 1 else None

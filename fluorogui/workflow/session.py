@@ -34,6 +34,7 @@ from fluorogui.core.pose import as_pose, rotation_matrix
 from fluorogui.core.session import OutlineRecord, PoseRecord, Project
 from fluorogui.core.spline import OutlineError, OutlineSpline
 from fluorogui.io.errors import InputError
+from fluorogui.io.corrections import correct_view_image
 from fluorogui.io.images import read_image
 from fluorogui.io.meshes import load_mesh
 from fluorogui.io.project import load_project, save_project
@@ -45,6 +46,8 @@ from fluorogui.workflow.work import WorkMixin
 
 COMPONENT_ORDER = ("femoral", "tibial")
 IMAGE_CACHE_FRAMES = 6
+#: Default depth of a model along a single view's central ray, as a fraction of the source-intensifier distance.
+SINGLE_PLANE_DEPTH = 0.85
 ORIENTATION_PRESETS = (
     ("Upright (all angles 0)", (0.0, 0.0, 0.0)),
     ("Flexed 30°", (30.0, 0.0, 0.0)),
@@ -187,7 +190,8 @@ class Session(WorkMixin, KneeMixin):
             if path in self._images:
                 self._images.move_to_end(path)
                 return self._images[path]
-        image = read_image(path)
+        views = self.project.views
+        image = correct_view_image(read_image(path), views[view] if view < len(views) else None)
         with self._cache_lock:
             self._images[path] = image
             while len(self._images) > IMAGE_CACHE_FRAMES * max(1, self.n_views):
@@ -262,6 +266,8 @@ class Session(WorkMixin, KneeMixin):
         if len(views) >= 2:
             centres = [(np.asarray(v.image_size, dtype=float) - 1) / 2 for v in views[:2]]
             point, _ = triangulate(views[:2], centres)
+        elif views:  # single plane: on the central ray, where a knee usually sits (~85% of the way)
+            point = views[0].source + views[0].normal * SINGLE_PLANE_DEPTH * views[0].distance
         else:
             point = np.zeros(3)
         centroid = np.zeros(3)

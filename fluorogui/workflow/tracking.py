@@ -32,6 +32,7 @@ from fluorogui.core.quality import FAILED, MATCHED
 from fluorogui.core.session import PoseRecord
 from fluorogui.core.spline import OutlineSpline
 from fluorogui.io.errors import InputError
+from fluorogui.io.corrections import correct_view_image
 from fluorogui.io.images import read_image
 from fluorogui.workflow.framematch import Cancelled, ComponentInput, FrameMatcher
 from fluorogui.workflow.motion import MotionModel
@@ -161,7 +162,8 @@ class TrackJob:
         return results
 
     def _images(self, frame: int) -> list[np.ndarray]:
-        return read_frame_images(frame, self.image_paths.get(frame, []), len(self.views), self.image_counts)
+        return read_frame_images(frame, self.image_paths.get(frame, []), len(self.views), self.image_counts,
+                                 self.views)
 
     def _predicted(self, c, frame, motion, starts) -> np.ndarray | None:
         p = motion[c].predict(frame)
@@ -183,16 +185,18 @@ class TrackJob:
 
 
 def read_frame_images(frame: int, paths: Sequence[Path | None], n_views: int,
-                      counts: Sequence[int] = ()) -> list[np.ndarray]:
-    """The images of a frame, one per view; raises InputError naming the view (and how many
-    images its camera has) when one is missing, or the file when it cannot be read."""
+                      counts: Sequence[int] = (), views: Sequence | None = None) -> list[np.ndarray]:
+    """The images of a frame, one per view (corrected for each view's distortion when
+    ``views`` are given); raises InputError naming the view (and how many images its camera
+    has) when one is missing, or the file when it cannot be read."""
     paths = list(paths) + [None] * (n_views - len(paths))
     out = []
     for view, path in enumerate(paths):
         if path is None:
             count = f" (this camera has {counts[view]} images)" if view < len(counts) else ""
             raise InputError(f"view {view + 1}", f"no image for frame {frame}{count}")
-        out.append(read_image(path))
+        image = read_image(path)
+        out.append(correct_view_image(image, views[view]) if views is not None and view < len(views) else image)
     return out
 
 

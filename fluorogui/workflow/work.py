@@ -39,7 +39,7 @@ class MatchJob:
             cancel: Callable[[], bool] | None = None) -> list[FrameResult] | None:
         """The results, or None when cancelled. ``live(component, calls, objective_mm, pose)``
         follows every step of the matcher. Raises InputError for a missing image."""
-        images = read_frame_images(self.frame, self.image_paths, len(self.views))
+        images = read_frame_images(self.frame, self.image_paths, len(self.views), views=self.views)
         matcher = FrameMatcher(self.views, self.settings, _near_search(self.views, self.settings), live)
         try:
             found = matcher.match_frame(self.frame, images, self.inputs, self.fixed, cancel)
@@ -61,7 +61,7 @@ class FindJob:
             cancel: Callable[[], bool] | None = None) -> dict[str, Placement] | None:
         from fluorogui.workflow.finding import SearchCancelled, find_in_frame
 
-        images = read_frame_images(self.frame, self.image_paths, len(self.views))
+        images = read_frame_images(self.frame, self.image_paths, len(self.views), views=self.views)
         try:
             return find_in_frame(self.frame, images, self.views, self.meshes, progress=progress, cancel=cancel)
         except SearchCancelled:

@@ -154,7 +154,8 @@ def test_wrong_number_of_cameras_is_one_line(scene, capsys):
     args = _args(scene)
     i = args.index("--camera")
     del args[i:i + 2]
-    _expect_error(args, capsys, "two --camera")
+    _expect_error(args, capsys, "one --image per --camera")  # one camera is single-plane: needs one image
+    _expect_error(_args(scene) + ["--camera", scene["cams"][0]], capsys, "two --camera")
 
 
 def test_cli_runs_as_a_module_without_qt(scene):

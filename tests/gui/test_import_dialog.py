@@ -63,11 +63,11 @@ def test_bad_path_shows_the_error_inline_and_stays_open(dialog, demo_folder):
 
 
 def test_incomplete_form_says_what_is_missing(dialog, demo_folder):
-    dialog.fill(calibration1=demo_folder / "calibration" / "cam1.json")
+    dialog.fill(calibration1=demo_folder / "calibration" / "cam1.json", images2=demo_folder / "cam2")
     dialog.accept()
     assert dialog.isVisible() and dialog.project is None
     text = dialog.error_label.text()
-    assert "calibration of view 2" in text and "femoral component" in text
+    assert "calibration of view 2" in text and "images of view 1" in text and "implant model" in text
     assert "calibration of view 1" not in text
 
 
@@ -82,7 +82,7 @@ def test_pairs_csv_makes_image_fields_optional(dialog, demo_folder):
 def test_from_folder_with_a_non_session_folder_reports_it(dialog, tmp_path, monkeypatch):
     monkeypatch.setattr(QFileDialog, "getExistingDirectory", lambda *a, **k: str(tmp_path))
     dialog.from_folder_button.click()
-    assert dialog.error_label.isVisible() and "not a biplane session folder" in dialog.error_label.text()
+    assert dialog.error_label.isVisible() and "not a session folder" in dialog.error_label.text()
     assert all(edit.text() == "" for edit in dialog.fields.values())
 
 
@@ -102,3 +102,25 @@ def test_from_folder_fills_every_field_from_real_data(dialog, shared_data, monke
 def test_every_field_has_a_tooltip(dialog):
     assert all(edit.toolTip() for edit in dialog.fields.values())
     assert dialog.from_folder_button.toolTip()
+
+
+def test_previews_show_first_frame_count_format_and_depth(dialog, demo_folder, qtbot):
+    dialog.fill(**good_paths(demo_folder))
+    dialog.update_previews()
+    assert not dialog.previews[1].pixmap().isNull() and not dialog.previews[2].pixmap().isNull()
+    assert dialog.preview_texts[1].text() == "2 frames: PNG 96x96, 8-bit"
+    dialog.fill(images2=demo_folder / "nowhere")
+    qtbot.waitUntil(lambda: "not found" in dialog.preview_texts[2].text(), timeout=2000)  # after the debounce
+    assert dialog.previews[2].pixmap().isNull()
+
+
+def test_single_plane_folder_fills_view_1_and_imports(dialog, shared_data, monkeypatch):
+    folder = shared_data / "single-plane-tka"
+    monkeypatch.setattr(QFileDialog, "getExistingDirectory", lambda *a, **k: str(folder))
+    dialog.from_folder_button.click()
+    assert dialog.fields["calibration1"].text() == str(folder / "calibration.txt")
+    assert dialog.fields["calibration2"].text() == "" and dialog.fields["images2"].text() == ""
+    dialog.update_previews()
+    assert dialog.preview_texts[1].text() == "3 frames: TIFF 1024x1024, 8-bit"
+    dialog.accept()
+    assert dialog.result() == QDialog.DialogCode.Accepted and len(dialog.project.views) == 1

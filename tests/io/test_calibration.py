@@ -269,3 +269,90 @@ def test_check_image_size(tmp_path):
     with pytest.raises(InputError) as info:
         check_image_size(view, (512, 640), "img.tif")
     assert str(info.value) == "img.tif: image is 640x512 px but the calibration 'cam1' is for 1024x1024 px"
+
+
+# -- writing: round trips -------------------------------------------------------------------------
+def _assert_same_view(a: View, b: View, rtol=1e-9):
+    for key in ("source", "normal", "e_u", "e_v"):
+        np.testing.assert_allclose(getattr(a, key), getattr(b, key), rtol=rtol, atol=rtol * 1e-3)
+    assert a.distance == pytest.approx(b.distance, rel=rtol)
+    np.testing.assert_allclose(a.pitch, b.pitch, rtol=rtol)
+    np.testing.assert_allclose(a.principal_point, b.principal_point, rtol=rtol)
+    assert a.image_size == b.image_size
+
+
+def _numbers_of(text: str) -> np.ndarray:
+    import re
+
+    return np.array([float(x) for x in re.findall(r"[-+]?\d+\.?\d*(?:[eE][-+]?\d+)?", text)])
+
+
+@pytest.mark.parametrize("fmt", ["json", "mayacam2", "mayacam1"])
+def test_view_file_view_round_trip(tmp_path, fmt):
+    from fluorogui.io.calibration import save_view
+
+    view = View.looking_at((812.3, -95.1, 240.7), (3.2, 1.1, -4.0), (0.1, 0.2, 1.0), 1187.654321,
+                           (1024, 768), DEFAULT_PITCH_MM, name="cam")
+    view = View(view.source, view.normal, view.e_u, view.e_v, view.distance, view.pitch, (530.25, 371.875),
+                view.image_size, "cam")
+    save_view(view, tmp_path / "v.txt", fmt)
+    back = load_view(tmp_path / "v.txt", name="cam")
+    _assert_same_view(view, back)
+
+
+@pytest.mark.parametrize("fmt", ["mayacam2", "mayacam1"])
+def test_file_view_file_round_trip_real(tmp_path, fmt):
+    from fluorogui.io.calibration import save_view
+
+    original = data_file("biplane-tka", "calibration", "cam2_mayacam2.txt")
+    view = load_view(original)
+    if fmt == "mayacam1":  # one focal length only: refused for this camera (fx != fy), fine when equal
+        with pytest.raises(InputError, match="one focal length"):
+            save_view(view, tmp_path / "refused.txt", fmt)
+        assert not (tmp_path / "refused.txt").exists()
+        view = View(view.source, view.normal, view.e_u, view.e_v, view.distance, (view.pitch[0],) * 2,
+                    view.principal_point, view.image_size)
+    save_view(view, tmp_path / "a.txt", fmt)
+    save_view(load_view(tmp_path / "a.txt"), tmp_path / "b.txt", fmt)
+    first, second = (_numbers_of((tmp_path / n).read_text()) for n in ("a.txt", "b.txt"))
+    np.testing.assert_allclose(second, first, rtol=1e-9, atol=1e-9)
+    if fmt == "mayacam2":  # the exported numbers are the file's own
+        np.testing.assert_allclose(first, _numbers_of(original.read_text()), rtol=1e-9, atol=1e-9)
+
+
+def test_mayacam2_width_first(tmp_path):
+    from fluorogui.io.calibration import save_view_mayacam2
+
+    view = load_view(write(tmp_path, MAYACAM2.replace("1024,1024", "1280,720")))
+    assert view.image_size == (1280, 720)
+    save_view_mayacam2(view, tmp_path / "out.txt")
+    assert (tmp_path / "out.txt").read_text().splitlines()[1] == "1280,720"
+
+
+def test_jointtrack_round_trip_and_refusal(tmp_path):
+    from fluorogui.io.calibration import save_view_jointtrack
+
+    path = write(tmp_path, "JT_INTCALIB\n1198\n3.73\n-7.46\n0.373\n")
+    view = load_view(path)
+    save_view_jointtrack(view, tmp_path / "jt.txt")
+    np.testing.assert_allclose(_numbers_of((tmp_path / "jt.txt").read_text()), [1198, 3.73, -7.46, 0.373], rtol=1e-12)
+    _assert_same_view(view, load_view(tmp_path / "jt.txt"))
+    moved = View.looking_at((0, 0, 1000), (0, 0, 0), (0, 1, 0), 1198, (1024, 1024), 0.373)
+    with pytest.raises(InputError, match="own camera frame"):
+        save_view_jointtrack(moved, tmp_path / "no.txt")
+    assert not (tmp_path / "no.txt").exists()
+
+
+def test_mayacam2_undistortion_block_read_written_and_kept_in_json(tmp_path):
+    from fluorogui.io.calibration import save_view_mayacam2
+
+    coefficients = [-0.12, 0.034, 0.0011, -0.0007, 0.002, 0.0, 0.0, 0.0]
+    text = MAYACAM2 + "\nundistortion\n" + ",".join(map(str, coefficients)) + "\n"
+    view = load_view(write(tmp_path, text))
+    assert view.extra["distortion"]["model"] == "opencv"
+    assert view.extra["distortion"]["coefficients"] == coefficients
+    save_view_mayacam2(view, tmp_path / "again.txt")
+    assert load_view(tmp_path / "again.txt").extra["distortion"]["coefficients"] == coefficients
+    save_view_json(view, tmp_path / "v.json")
+    assert load_view(tmp_path / "v.json").extra["distortion"] == view.extra["distortion"]
+    assert_error(write(tmp_path, MAYACAM2 + "\nundistortion\n0.1,0.2,0.3\n", "bad.txt"), "section 'undistortion' has 3")

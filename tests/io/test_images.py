@@ -194,7 +194,7 @@ def test_corrupt_and_truncated(tmp_path):
 
 def test_stack_refused(tmp_path):
     tifffile.imwrite(tmp_path / "stack.tif", np.zeros((3, 8, 8), np.uint8), photometric="minisblack")
-    assert "stack of 3 images" in error_of(read_image, tmp_path / "stack.tif")
+    assert "stack of 3 frames" in error_of(read_image, tmp_path / "stack.tif")
     volume = np.zeros((2, 8, 8), np.uint8)
     tifffile.imwrite(tmp_path / "planes.tif", volume, photometric="minisblack", metadata=None, contiguous=True)
     message = error_of(read_image, tmp_path / "planes.tif")

@@ -4,6 +4,7 @@ from __future__ import annotations
 import csv
 import json
 import shutil
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -12,15 +13,17 @@ import pytest
 from fluorogui.core.phantoms import tibial_component_mesh
 from fluorogui.io.demo import build_demo_project, write_stl
 from fluorogui.io.errors import InputError
-from fluorogui.io.images import write_image
+from fluorogui.io.images import read_image, write_image
 from fluorogui.io.importer import (
     detect_biplane_folder,
+    detect_single_plane_folder,
     extract_video_frames,
+    import_folder,
     import_session,
     list_image_files,
     read_pairs_csv,
 )
-from fluorogui.io.project import load_project
+from fluorogui.io.project import load_project, save_project
 
 SIZE = 96  # small demo images keep these tests fast
 
@@ -209,23 +212,71 @@ def test_pairs_csv_decides_frames_and_reports_its_errors(session):
     assert error.path == str(folder / "cam2" / "missing.png") and "pairs.csv" in error.problem
 
 
-def test_video_source_is_extracted_once(session, tmp_path):
-    folder, arguments = session
-    video = tmp_path / "cam2.avi"
-    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (SIZE, SIZE), isColor=False)
+def write_video(path, levels):
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, (SIZE, SIZE), isColor=False)
     if not writer.isOpened():
         pytest.skip("OpenCV has no AVI writer here")
-    for level in (40, 120, 200):
+    for level in levels:
         writer.write(np.full((SIZE, SIZE), level, np.uint8))
     writer.release()
+
+
+def test_video_source_is_read_lazily(session, tmp_path):
+    folder, arguments = session
+    video = tmp_path / "cam2.avi"
+    write_video(video, (40, 120, 200))
     arguments["image_sources"][1] = video
     project = import_session(**arguments)
     frames = project.sequences[1].paths
-    assert [p.name for p in frames] == ["frame_000000.png", "frame_000001.png", "frame_000002.png"]
-    assert all(p.parent == tmp_path / "cam2_frames" for p in frames)
-    assert abs(cv2.imread(str(frames[2]), 0).mean() - 200) < 8
-    stamp = frames[0].stat().st_mtime_ns
-    assert extract_video_frames(video) == frames and frames[0].stat().st_mtime_ns == stamp  # reused
+    assert frames == [Path(f"{video}@{k}") for k in range(3)]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cam2.avi", "session"]  # nothing extracted
+    assert abs(float(read_image(frames[2]).mean()) * 255 - 200) < 8
+    saved = tmp_path / "session" / "lazy.fluoro"
+    save_project(project, saved)
+    assert load_project(saved).sequences[1].paths == frames
+
+
+def test_video_frame_count_must_match(session, tmp_path):
+    _, arguments = session
+    video = tmp_path / "cam2.avi"
+    write_video(video, (40, 120))  # the other camera has 3 images
+    arguments["image_sources"][1] = video
+    error = error_of(import_session, **arguments)
+    assert error.path == str(video) and "has 2 images" in error.problem and "3" in error.problem
+
+
+def test_extract_video_frames_still_available(tmp_path):
+    video = tmp_path / "clip.avi"
+    write_video(video, (40, 200))
+    frames = extract_video_frames(video)
+    assert [p.name for p in frames] == ["frame_000000.png", "frame_000001.png"]
+    assert abs(cv2.imread(str(frames[1]), 0).mean() - 200) < 8
+
+
+def test_single_plane_real_folder(shared_data):
+    folder = shared_data / "single-plane-tka"
+    found = detect_single_plane_folder(folder)
+    assert found["calibrations"] == [folder / "calibration.txt"]
+    assert found["image_sources"] == [folder]
+    assert found["models"] == {"femoral": folder / "KR_right_7_fem.stl", "tibial": folder / "KR_right_6_tib.stl"}
+    project = import_folder(folder)
+    assert len(project.views) == 1 and project.frames == [0, 1, 2]
+    assert [p.name for p in project.sequences[0].paths] == [f"AT_K1_V1_0{n}.tif" for n in (160, 170, 180)]
+    assert project.views[0].distance == 1198.0 and project.views[0].pitch == (0.373, 0.373)
+
+
+def test_single_plane_folder_with_image_folder(session, tmp_path):
+    folder, arguments = session
+    single = tmp_path / "single"
+    single.mkdir()
+    shutil.copy(arguments["calibrations"][0], single / "calibration.json")
+    shutil.copytree(folder / "cam1", single / "images")
+    shutil.copytree(folder / "models", single / "models")
+    assert detect_biplane_folder(single) is None
+    project = import_folder(single)
+    assert len(project.views) == 1 and len(project.frames) == 3 and len(project.models) == 2
+    (single / "calibration.json").unlink()
+    assert "not a session folder" in error_of(import_folder, single).problem
 
 
 def test_detect_rejects_other_folders(tmp_path, session):

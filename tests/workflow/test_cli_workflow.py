@@ -106,7 +106,7 @@ def test_demo_and_import_write_projects(tmp_path, capsys):
     explicit = load_project(tmp_path / "e.fluoro")
     assert explicit.sequences == imported.sequences and explicit.models == imported.models
     assert main(["import", str(tmp_path), "--out", str(tmp_path / "x.fluoro")]) == 2
-    assert "not a biplane session folder" in capsys.readouterr().err
+    assert "not a session folder" in capsys.readouterr().err
 
 
 def test_import_of_unequal_cameras_warns_and_flags_later(tmp_path, capsys):
