@@ -18,6 +18,7 @@ import numpy as np
 from PySide6.QtCore import Qt, QTimer
 from PySide6.QtGui import QAction, QGuiApplication, QImage, QPixmap
 from PySide6.QtWidgets import (
+    QComboBox,
     QDialog,
     QDialogButtonBox,
     QFileDialog,
@@ -153,6 +154,14 @@ class ImportDialog(QDialog):
         form.addRow(self._heading("Implant models"))
         for spec in _OTHER_FIELDS[1:]:
             self._add_field(form, *spec)
+        self.side = QComboBox()
+        self.side.setObjectName("import_side")
+        for text, value in (("Right knee", "right"), ("Left knee", "left"), ("Not known yet", None)):
+            self.side.addItem(text, value)
+        self.side.setToolTip("Which knee: the signs of varus, rotation and medial translation depend on it "
+                             "(can be changed later in the Kinematics tab)")
+        self.side.setCurrentIndex(2)  # asked, not assumed: the Kinematics tab says "not set" until chosen
+        form.addRow("Knee", self.side)
 
         self.error_label = QLabel()
         self.error_label.setObjectName("import_error")
@@ -335,6 +344,10 @@ class ImportDialog(QDialog):
             return
         finally:
             QGuiApplication.restoreOverrideCursor()
+        if self.side.currentData():
+            from fluorogui.workflow.knee import KNEE_KEY
+
+            project.settings.setdefault(KNEE_KEY, {})["side"] = self.side.currentData()
         self.project = project
         self.error_label.hide()
         super().accept()

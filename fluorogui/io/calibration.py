@@ -35,7 +35,7 @@ from pydantic import ValidationError
 
 from fluorogui.core.geometry import DEFAULT_PITCH_MM, GeometryError, View
 from fluorogui.core.pose import angles_from_matrix
-from fluorogui.io.errors import InputError, atomic_write_text, read_input_bytes
+from fluorogui.io.errors import InputError, atomic_write_text, read_input_bytes, check_input_file
 from fluorogui.io.schema import CalibrationDocument, DocumentError, describe, parse_json
 
 CALIBRATION_FORMAT = "fluorogui-calibration"
@@ -53,7 +53,7 @@ def load_view(path, name: str = "", *, image_size=JOINTTRACK_DEFAULT_IMAGE_SIZE)
     ``name`` defaults to the file's stem. ``image_size`` (width, height) is only used by
     formats that do not store it (JointTrack).
     """
-    path = Path(path)
+    path = check_input_file(path, "calibration file")  # before any open: a FIFO must not block
     if _is_dicom(path):
         return _dicom_view(path, name)
     text = _read_text(path)

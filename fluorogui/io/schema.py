@@ -18,7 +18,7 @@ from __future__ import annotations
 import base64
 import json
 import math
-from typing import Annotated, Any, Literal
+from typing import Optional, Annotated, Any, Literal
 
 import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
@@ -231,6 +231,14 @@ class ViewDocument(_Strict):
     pitch_mm: fixed(2, Annotated[float, Field(allow_inf_nan=False, gt=0, le=100)])
     principal_point_px: fixed(2, Coordinate)
     image_size_px: fixed(2, Annotated[int, Field(ge=1, le=100_000)])
+    # an image-intensifier correction (fluorogui.core.distortion), checked by View.from_dict
+    distortion: Optional[dict] = None
+
+    def model_dump(self, **kwargs):  # no "distortion": None key for views without one
+        out = super().model_dump(**kwargs)
+        if out.get("distortion") is None:
+            out.pop("distortion", None)
+        return out
 
 
 class CalibrationDocument(_Strict):

@@ -44,6 +44,14 @@ def test_good_paths_import_and_accept(dialog, demo_folder):
     assert dialog.project is not None and dialog.project.frames == [0, 1]
     assert dialog.project.sequences[1].paths == sorted((demo_folder / "cam2").iterdir())
     assert sorted(m.component for m in dialog.project.models) == ["femoral", "tibial"]
+    assert "kinematics" not in dialog.project.settings  # the side was not chosen
+
+
+def test_the_chosen_knee_side_goes_into_the_project(dialog, demo_folder):
+    dialog.fill(**good_paths(demo_folder))
+    dialog.side.setCurrentIndex(dialog.side.findData("left"))
+    dialog.accept()
+    assert dialog.project.settings["kinematics"]["side"] == "left"
 
 
 def test_bad_path_shows_the_error_inline_and_stays_open(dialog, demo_folder):
