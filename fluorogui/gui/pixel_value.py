@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from fluorogui.io.images import has_dicom_preamble
+
 KEEP_IMAGES = 4
 
 
@@ -25,7 +27,7 @@ def read_raw_pixels(path) -> np.ndarray | None:
             import tifffile
 
             return np.asarray(tifffile.imread(path, key=0))
-        if suffix in (".dcm", ".dicom") or _is_dicom(path):
+        if suffix in (".dcm", ".dicom") or has_dicom_preamble(path):
             import pydicom
 
             dataset = pydicom.dcmread(path)
@@ -41,15 +43,6 @@ def read_raw_pixels(path) -> np.ndarray | None:
         return pixels
     except Exception:  # noqa: BLE001 - an unreadable file falls back to the scaled value
         return None
-
-
-def _is_dicom(path: Path) -> bool:
-    try:
-        with open(path, "rb") as handle:
-            head = handle.read(132)
-    except OSError:
-        return False
-    return head[128:132] == b"DICM"
 
 
 def format_value(value) -> str:

@@ -35,7 +35,8 @@ from pydantic import ValidationError
 
 from fluorogui.core.geometry import DEFAULT_PITCH_MM, GeometryError, View
 from fluorogui.core.pose import angles_from_matrix
-from fluorogui.io.errors import InputError, atomic_write_text, read_input_bytes, check_input_file
+from fluorogui.io.errors import InputError, atomic_write_text, check_input_file, read_input_bytes
+from fluorogui.io.images import has_dicom_preamble
 from fluorogui.io.schema import CalibrationDocument, DocumentError, describe, parse_json
 
 CALIBRATION_FORMAT = "fluorogui-calibration"
@@ -54,7 +55,7 @@ def load_view(path, name: str = "", *, image_size=JOINTTRACK_DEFAULT_IMAGE_SIZE)
     formats that do not store it (JointTrack).
     """
     path = check_input_file(path, "calibration file")  # before any open: a FIFO must not block
-    if _is_dicom(path):
+    if has_dicom_preamble(path):
         return _dicom_view(path, name)
     text = _read_text(path)
     lines = [line.strip() for line in text.splitlines() if line.strip()]
@@ -203,15 +204,6 @@ def jointtrack_to_pose(row) -> np.ndarray:
     row = np.asarray(row, dtype=float).reshape(6)
     alpha, beta, gamma = angles_from_matrix(jointtrack_matrix(row))
     return np.array([row[0], row[1], row[2], alpha, beta, gamma])
-
-
-def _is_dicom(path: Path) -> bool:
-    try:
-        with open(path, "rb") as handle:
-            head = handle.read(132)
-    except OSError:
-        return False
-    return len(head) == 132 and head[128:] == b"DICM"
 
 
 def _dicom_view(path: Path, name: str) -> View:

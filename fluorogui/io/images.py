@@ -109,7 +109,7 @@ def read_frame(path, index: int) -> np.ndarray:
 
         _check_size(path, *_video_size(video_info(path)))
         return _to_unit_gray(path, read_video_frame_raw(path, index), "bgr")
-    if suffix in DICOM_SUFFIXES or (suffix not in TIFF_SUFFIXES + CV2_SUFFIXES and _has_dicom_preamble(path)):
+    if suffix in DICOM_SUFFIXES or (suffix not in TIFF_SUFFIXES + CV2_SUFFIXES and has_dicom_preamble(path)):
         from fluorogui.io.dicom import read_dicom_frame, read_dicom_header
 
         header = read_dicom_header(path)
@@ -137,7 +137,7 @@ def image_info(path) -> ImageInfo:
 
         v = video_info(path)
         return ImageInfo(suffix.lstrip(".").upper(), v.width, v.height, v.frames, 8, f"codec {v.codec}")
-    if suffix in DICOM_SUFFIXES or (suffix not in TIFF_SUFFIXES + CV2_SUFFIXES and _has_dicom_preamble(path)):
+    if suffix in DICOM_SUFFIXES or (suffix not in TIFF_SUFFIXES + CV2_SUFFIXES and has_dicom_preamble(path)):
         from fluorogui.io.dicom import read_dicom_header
 
         h = read_dicom_header(path)
@@ -358,7 +358,8 @@ def _looks_truncated(path: Path, data: np.ndarray) -> bool:
     return False
 
 
-def _has_dicom_preamble(path: Path) -> bool:
+def has_dicom_preamble(path: Path) -> bool:
+    """True when the file starts with DICOM's 128-byte preamble and ``DICM``."""
     try:
         with open(path, "rb") as handle:
             head = handle.read(132)
