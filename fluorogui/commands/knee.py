@@ -63,21 +63,21 @@ def run_export(args) -> int:
         raise UsageError(f"fluorogui: export: --view {args.view}: the project has {session.n_views} "
                          f"view{'s' if session.n_views != 1 else ''} (1 = first)")
     if args.side:
-        session.project.settings.setdefault("kinematics", {})["side"] = args.side
+        session.set_side(args.side)  # for this export only: the project is not saved
     elif session.side is None and (args.poses or args.kinematics or args.plot):
         warn("the project does not say which knee this is; right assumed (use --side)")
+    rows = session.knee_rows() if (args.poses or args.kinematics or args.plot) else []
     written = []
     if args.poses:
-        written.append(exports.export_poses_csv(session, args.poses))
+        written.append(exports.export_poses_csv(session, args.poses, rows))
     if args.kinematics:
-        written.append(exports.export_kinematics_csv(session, args.kinematics))
+        written.append(exports.export_kinematics_csv(session, args.kinematics, rows))
     if args.tra:
         written.append(exports.export_tra(session, args.tra))
     if args.jts:
         written += exports.export_jts(session, args.jts, args.view - 1)
     if args.plot:
-        written.append(exports.export_plot(session, args.plot, args.against))
-    rows = session.knee_rows() if (args.poses or args.kinematics or args.plot) else []
+        written.append(exports.export_plot(session, args.plot, args.against, rows))
     review = [r.frame for r in rows if r.status == "needs_review"]
     missing = [r.frame for r in rows if r.status == "missing"]
     if review:

@@ -155,14 +155,9 @@ def default_femoral_frame(vertices, faces) -> np.ndarray:
     side = np.abs(normals @ ml) < 0.2
     candidates = side & (normals @ guess3 > np.cos(np.radians(35)))
     z = guess3
-    if candidates.any():
-        try:
-            cut = _dominant_plane_normal(normals[candidates], area[candidates], cos_tol=0.998)
-            if cut @ guess3 < 0:
-                cut = -cut
-            z = _unit(cut - (cut @ ml) * ml)
-        except (ValueError, TypeError):
-            pass
+    if candidates.any():  # every candidate faces along the guess, so the cut's normal does too
+        cut = _dominant_plane_normal(normals[candidates], area[candidates], cos_tol=0.998)
+        z = _unit(cut - (cut @ ml) * ml)
     ap = np.cross(z, ml)
     heights = vertices @ z
     high = heights > heights.max() - 0.15 * (heights.max() - heights.min())

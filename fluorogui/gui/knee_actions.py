@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from PySide6.QtCore import Qt, QTimer
+from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -143,12 +143,17 @@ class KneeActions:
         if dialog.exec() != QDialog.DialogCode.Accepted:
             return
         targets = dialog.targets()
+        try:
+            rows = session.knee_rows()  # once, for every file written
+        except (InputError, KinematicsError, KeyError) as exc:
+            self._warn("Export failed", str(exc))
+            return
         writers = {
-            "poses": lambda p: [exports.export_poses_csv(session, p)],
-            "kinematics": lambda p: [exports.export_kinematics_csv(session, p)],
+            "poses": lambda p: [exports.export_poses_csv(session, p, rows)],
+            "kinematics": lambda p: [exports.export_kinematics_csv(session, p, rows)],
             "tra": lambda p: [exports.export_tra(session, p)],
             "jts": lambda p: exports.export_jts(session, p, dialog.view.currentData()),
-            "plot": lambda p: [exports.export_plot(session, p)],
+            "plot": lambda p: [exports.export_plot(session, p, rows=rows)],
         }
         written = []
         try:
@@ -221,7 +226,6 @@ class KneeActions:
             self._warn("Anatomical frame", str(exc))
             return
         dialog = AnatomicalFrameDialog(component, current, default, session.anatomical_frame_source(component), self)
-        dialog.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose, False)
         if dialog.exec() != QDialog.DialogCode.Accepted:
             return
         if dialog.reset_requested and (abs(dialog.result_matrix - default).max() < 1e-8):

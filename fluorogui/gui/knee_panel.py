@@ -124,26 +124,12 @@ class KneePanel(QWidget):
 
     def redraw(self) -> None:
         side = self.side.currentData() or "right"
-        self.axes = draw_kinematics(self.figure, self.rows, side, self.against.currentData(),
-                                    current_frame=self.current_frame)
-        self._apply_palette()
-        self.canvas.draw_idle()
-
-    def _apply_palette(self) -> None:
-        """Colours of the figure from the widget's palette (light or dark theme)."""
-        palette = self.palette()
-        window, base, text = (palette.color(role).name() for role in (
+        palette = self.palette()  # the theme's colours (light or dark)
+        colours = tuple(palette.color(role).name() for role in (
             QPalette.ColorRole.Window, QPalette.ColorRole.Base, QPalette.ColorRole.Text))
-        self.figure.set_facecolor(window)
-        if self.figure._suptitle is not None:
-            self.figure._suptitle.set_color(text)
-        for ax in self.axes:
-            ax.set_facecolor(base)
-            ax.title.set_color(text)
-            ax.xaxis.label.set_color(text)
-            ax.tick_params(colors=text)
-            for spine in ax.spines.values():
-                spine.set_color(text)
+        self.axes = draw_kinematics(self.figure, self.rows, side, self.against.currentData(),
+                                    current_frame=self.current_frame, colours=colours)
+        self.canvas.draw_idle()
 
     # -- what the user does ------------------------------------------------------------------------
     def _side_activated(self, _index: int) -> None:

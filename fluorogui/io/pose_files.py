@@ -195,10 +195,10 @@ def write_csv(path, header_comments: list[str], columns: list[str], rows: list[l
     atomic_write_text(path, buffer.getvalue())
 
 
-def read_csv_table(path, required: tuple[str, ...]) -> list[dict]:
+def read_csv_table(path, required: tuple[str, ...], lines: list[str] | None = None) -> list[dict]:
     """Rows (dicts) of a CSV whose ``#`` lines are comments; refuses missing columns."""
     path = Path(path)
-    lines = [line for line in read_text_lines(path) if not line.lstrip().startswith("#")]
+    lines = [line for line in (read_text_lines(path) if lines is None else lines) if not line.lstrip().startswith("#")]
     reader = csv.reader(lines)
     try:
         header = [h.strip() for h in next(reader)]
@@ -220,7 +220,8 @@ def read_csv_table(path, required: tuple[str, ...]) -> list[dict]:
     return rows
 
 
-def read_long_poses(path, components=("femoral", "tibial")) -> dict[tuple[int, str], np.ndarray]:
+def read_long_poses(path, components=("femoral", "tibial"), lines: list[str] | None = None
+                    ) -> dict[tuple[int, str], np.ndarray]:
     """Poses by (frame, component) from a CSV with ``frame,component,x,y,z,alpha,beta,gamma``.
 
     NaN poses are kept (as NaN) so the caller can report the frame; a repeated frame and
@@ -228,7 +229,7 @@ def read_long_poses(path, components=("femoral", "tibial")) -> dict[tuple[int, s
     """
     path = Path(path)
     out: dict[tuple[int, str], np.ndarray] = {}
-    for number, row in enumerate(read_csv_table(path, ("frame", "component", *POSE_KEYS)), start=1):
+    for number, row in enumerate(read_csv_table(path, ("frame", "component", *POSE_KEYS), lines), start=1):
         where = f"data row {number}"
         frame_text = row["frame"]
         try:
@@ -246,10 +247,11 @@ def read_long_poses(path, components=("femoral", "tibial")) -> dict[tuple[int, s
     return out
 
 
-def read_wide_poses(path, components=("femoral", "tibial")) -> dict[tuple[int, str], np.ndarray]:
+def read_wide_poses(path, components=("femoral", "tibial"), lines: list[str] | None = None
+                    ) -> dict[tuple[int, str], np.ndarray]:
     """Poses by (frame, component) from our wide export CSV (``femoral_x`` … columns)."""
     path = Path(path)
-    rows = read_csv_table(path, ("frame",))
+    rows = read_csv_table(path, ("frame",), lines)
     present = [c for c in components if rows and all(f"{c}_{k}" in rows[0] for k in POSE_KEYS)]
     if rows and not present:
         raise InputError(path, "has neither long (component, x, …) nor wide (femoral_x, …) pose columns")
@@ -270,7 +272,8 @@ def read_wide_poses(path, components=("femoral", "tibial")) -> dict[tuple[int, s
 def read_pose_csv(path, components=("femoral", "tibial")) -> dict[tuple[int, str], np.ndarray]:
     """Long or wide pose CSV, whichever the header says."""
     path = Path(path)
-    header = next((line for line in read_text_lines(path) if line.strip() and not line.lstrip().startswith("#")), "")
+    lines = read_text_lines(path)  # read once, parsed by whichever reader the header asks for
+    header = next((line for line in lines if line.strip() and not line.lstrip().startswith("#")), "")
     if "component" in [h.strip() for h in header.split(",")]:
-        return read_long_poses(path, components)
-    return read_wide_poses(path, components)
+        return read_long_poses(path, components, lines)
+    return read_wide_poses(path, components, lines)

@@ -95,17 +95,18 @@ def pose_rows(session, rows: list[KneeRow]) -> list[list]:
     return out
 
 
-def export_poses_csv(session, path) -> Path:
+def export_poses_csv(session, path, rows: list[KneeRow] | None = None) -> Path:
+    """``rows``: the session's ``knee_rows()`` when the caller already has them."""
     path = check_output_file(path)
-    rows = session.knee_rows()
+    rows = session.knee_rows() if rows is None else rows
     write_csv(path, header_lines(session, "poses and kinematics, one row per frame"),
               pose_columns(session.n_views), pose_rows(session, rows))
     return path
 
 
-def export_kinematics_csv(session, path) -> Path:
+def export_kinematics_csv(session, path, rows: list[KneeRow] | None = None) -> Path:
     path = check_output_file(path)
-    rows = session.knee_rows()
+    rows = session.knee_rows() if rows is None else rows
     write_csv(path, header_lines(session, "knee kinematics, one row per frame"),
               ["frame", *KINEMATICS_COLUMNS, "status", "reason"],
               [[r.frame, *(float(v) for v in r.values.values()), r.status, r.reason] for r in rows])
@@ -145,13 +146,13 @@ def export_jts(session, folder, view: int) -> list[Path]:
     return written
 
 
-def export_plot(session, path, against: str = "frame") -> Path:
+def export_plot(session, path, against: str = "frame", rows: list[KneeRow] | None = None) -> Path:
     from fluorogui.workflow.knee_plot import save_kinematics_figure
 
     path = check_output_file(path)
     if path.suffix.lower() not in (".png", ".svg", ".pdf"):
         raise InputError(path, "the figure must be .png, .svg or .pdf")
-    save_kinematics_figure(session.knee_rows(), path, side=session.side or "right", against=against,
+    save_kinematics_figure(session.knee_rows() if rows is None else rows, path, side=session.side or "right", against=against,
                            title=session.path.stem if session.path else "")
     return path
 

@@ -48,11 +48,9 @@ class KneeRow:
 
 def record_sd(record: PoseRecord | None) -> np.ndarray:
     """The six pose SDs a match reported (mm, degrees), NaN where it reported none."""
-    if record is None or record.match is None:
+    if record is None or record.match is None or not isinstance(record.match.quality, dict):
         return np.full(6, np.nan)
-    sd = getattr(record.match, "sd", None)
-    if sd is None and isinstance(record.match.quality, dict):
-        sd = record.match.quality.get("sd")
+    sd = record.match.quality.get("sd")  # where the matcher keeps it (``core.matching.MatchResult.sd``)
     try:
         sd = np.asarray(sd, dtype=float).reshape(6)
     except (TypeError, ValueError):
@@ -83,19 +81,20 @@ def row_status(records: dict) -> tuple[str, str]:
 class KneeMixin:
     """Kinematics methods of ``Session`` (a mixin; needs ``project`` and ``raw_mesh``)."""
 
-    def _knee(self) -> dict:
+    def _knee(self, create: bool = False) -> dict:
+        """The knee's settings (made in the project only when ``create``, for a change)."""
         knee = self.project.settings.get(KNEE_KEY)
         if not isinstance(knee, dict):
             knee = {}
-            self.project.settings[KNEE_KEY] = knee
+            if create:
+                self.project.settings[KNEE_KEY] = knee
         return knee
 
     # -- side -------------------------------------------------------------------------------
     @property
     def side(self) -> str | None:
         """``right``, ``left``, or None when nobody said (kinematics then assume right)."""
-        value = self.project.settings.get(KNEE_KEY, {}).get("side") if isinstance(
-            self.project.settings.get(KNEE_KEY), dict) else None
+        value = self._knee().get("side")
         return value if value in ("right", "left") else None
 
     def set_side(self, side: str) -> None:
@@ -108,7 +107,7 @@ class KneeMixin:
         self.history.push(Command(text, key, before, after, self._store_knee))
 
     def _store_knee(self, key: str, value) -> None:
-        knee = self._knee()
+        knee = self._knee(create=True)
         if key == "side":
             knee["side"] = value
         elif value is None:

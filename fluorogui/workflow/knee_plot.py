@@ -20,7 +20,7 @@ def kinematics_arrays(rows) -> dict[str, np.ndarray]:
     frames = np.array([r.frame for r in rows], dtype=float)
     values = np.array([r.values.values() for r in rows], dtype=float).reshape(len(rows), 6)
     review = np.array([r.status == "needs_review" for r in rows], dtype=bool)
-    sd = np.array([getattr(r, "sd", np.full(6, np.nan)) for r in rows], dtype=float).reshape(len(rows), 6)
+    sd = np.array([r.sd for r in rows], dtype=float).reshape(len(rows), 6)
     residual = np.full(len(rows), np.nan)
     for i, r in enumerate(rows):
         objectives = [rec.match.objective_mm for rec in r.records.values() if rec is not None and rec.match is not None]
@@ -50,10 +50,11 @@ def _flagged(ax, x, y, trusted) -> None:
 
 
 def draw_kinematics(figure: Figure, rows, side: str = "right", against: str = "frame", title: str = "",
-                    current_frame: int | None = None) -> list:
+                    current_frame: int | None = None, colours: tuple[str, str, str] | None = None) -> list:
     """Draw on ``figure`` (cleared first); returns the seven axes (six values, residual).
 
     Each axes' ``gid`` is its column name, so a click can be mapped back to a frame.
+    ``colours`` (background, plot area, text) follow an app's theme; default: matplotlib's.
     """
     figure.clear()
     figure.set_layout_engine("constrained")
@@ -98,7 +99,18 @@ def draw_kinematics(figure: Figure, rows, side: str = "right", against: str = "f
     for ax in axes[2::3][:2]:
         ax.set_xlabel(x_label, fontsize=7)
     heading = f"Knee kinematics ({side} knee; tibia relative to femur, Grood & Suntay)"
-    figure.suptitle(f"{title}: {heading}" if title else heading, fontsize=9)
+    suptitle = figure.suptitle(f"{title}: {heading}" if title else heading, fontsize=9)
+    if colours is not None:
+        background, area, text = colours
+        figure.set_facecolor(background)
+        suptitle.set_color(text)
+        for ax in axes:
+            ax.set_facecolor(area)
+            ax.title.set_color(text)
+            ax.xaxis.label.set_color(text)
+            ax.tick_params(colors=text)
+            for spine in ax.spines.values():
+                spine.set_color(text)
     return axes
 
 
