@@ -116,9 +116,8 @@ class KneeActions:
     def refresh_knee(self) -> None:
         """Recompute the rows from the session (cheap) and hand them to the panel."""
         session = self.session
-        if not session.frames or any(session.project.model(c) is None for c in ("femoral", "tibial")):
+        if not session.frames:
             self.knee_panel.set_rows([], None)
-            self.knee_panel.status.setText("Kinematics need both a femoral and a tibial model.")
             return
         try:
             rows = session.knee_rows()

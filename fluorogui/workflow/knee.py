@@ -153,11 +153,14 @@ class KneeMixin:
     def knee_rows(self, frames=None) -> list[KneeRow]:
         """Kinematics of every frame (NaN with a reason where a component has no pose)."""
         side = self.side or "right"
-        anat = {c: self.anatomical_frame(c) for c in KNEE_COMPONENTS}
+        absent = [c for c in KNEE_COMPONENTS if self.project.model(c) is None]
+        anat = {c: self.anatomical_frame(c) for c in KNEE_COMPONENTS if c not in absent}
         rows = []
         for frame in (self.frames if frames is None else frames):
             records = {c: self.project.poses.get((frame, c)) for c in KNEE_COMPONENTS}
             status, reason = row_status(records)
+            if absent:  # a one-component session: poses export, kinematics are NaN
+                status, reason = "missing", f"no {' or '.join(absent)} model in this session"
             sd = np.full(6, np.nan)
             if status == "missing":
                 values = KneeKinematics.missing()

@@ -196,3 +196,16 @@ def test_match_sds_become_kinematics_sds_and_export_columns(demo, truth, tmp_pat
     one = dict(zip(header, lines[2].split(",")))
     assert float(one["femoral_sd_y"]) == pytest.approx(0.02)
     assert float(one["flexion_deg_sd"]) == pytest.approx(row.sd[0])
+
+
+def test_a_one_component_session_exports_poses_with_nan_kinematics(demo, truth, tmp_path):
+    session = Session.open(demo)
+    put_truth(session, truth)
+    session.project.models = [m for m in session.project.models if m.component == "femoral"]
+    rows = session.knee_rows()
+    assert all(r.status == "missing" and r.reason == "no tibial model in this session" for r in rows)
+    assert all(np.all(np.isnan(r.values.values())) for r in rows)
+    export_poses_csv(session, tmp_path / "p.csv")
+    data = [line for line in (tmp_path / "p.csv").read_text().splitlines() if not line.startswith("#")]
+    row = dict(zip(data[0].split(","), data[1].split(",")))
+    assert float(row["femoral_x"]) == pytest.approx(truth(session)[0]["femoral"][0])
