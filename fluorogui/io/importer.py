@@ -316,11 +316,8 @@ def detect_biplane_folder(folder) -> dict | None:
     ``image_sources``, ``models``, ``pairs_csv`` (None when absent).
     """
     folder = _absolute(folder)
-    if not folder.is_dir():
-        return None
-    try:
-        children = [p for p in folder.iterdir() if not p.name.startswith(".")]
-    except OSError:
+    children = _visible_children(folder)
+    if children is None:
         return None
     cameras = sorted(
         ((int(m.group(1)), p) for p in children if p.is_dir() and (m := _CAMERA_FOLDER.match(p.name))),
@@ -373,11 +370,8 @@ def detect_single_plane_folder(folder) -> dict | None:
     ``models/``. JointTrack pose files (``*.jts``) are left for the user to compare.
     """
     folder = _absolute(folder)
-    if not folder.is_dir():
-        return None
-    try:
-        children = [p for p in folder.iterdir() if not p.name.startswith(".")]
-    except OSError:
+    children = _visible_children(folder)
+    if children is None:
         return None
     calibration_dir = _child_folder(children, _CALIBRATION_FOLDERS)
     places = [folder] + ([calibration_dir] if calibration_dir is not None else [])
@@ -448,6 +442,16 @@ def _source_label(source: ImageSource) -> Path:
         return _absolute(source)
     files = [_absolute(p) for p in source]
     return files[0].parent if files else Path(".")
+
+
+def _visible_children(folder: Path) -> list[Path] | None:
+    """The folder's entries that are not hidden; None when it is no readable folder."""
+    if not folder.is_dir():
+        return None
+    try:
+        return [p for p in folder.iterdir() if not p.name.startswith(".")]
+    except OSError:
+        return None
 
 
 def _child_folder(children: list[Path], names: Sequence[str]) -> Path | None:
