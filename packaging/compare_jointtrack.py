@@ -6,7 +6,8 @@ from JointTrack's pose (``fem.jts``, ``tib.jts``, converted by ``jointtrack_to_p
 from ``--starts`` starts perturbed by up to ``--perturb-mm`` / ``--perturb-deg`` (uniform).
 It prints, per component and frame, the difference (fluorogui - JointTrack) per degree of
 freedom in JointTrack's camera frame (x, y in the image plane, z along the beam: the weak
-direction) and the spread (SD) of the perturbed starts, then the mean and SD over frames.
+direction) and the spread (SD) of the perturbed starts, then the mean and SD over frames;
+last, the knee kinematics of JointTrack's own poses with the meshes' default anatomical frames.
 
 Usage: .venv/bin/python packaging/compare_jointtrack.py [--data DIR] [--starts 5]
            [--perturb-mm 2] [--perturb-deg 2] [--seed 0]
@@ -72,7 +73,26 @@ def main(argv=None) -> int:
         d = np.array(differences)
         print(f"{'':9}mean          " + "  ".join(f"{v:7.2f}" for v in d.mean(axis=0)))
         print(f"{'':9}SD            " + "  ".join(f"{v:7.2f}" for v in d.std(axis=0, ddof=1)))
+    print_jointtrack_kinematics(session, args.data)
     return 0
+
+
+def print_jointtrack_kinematics(session: Session, data: Path) -> None:
+    """The knee kinematics of JointTrack's own poses with the default anatomical frames of
+    the meshes (right knee): a check that those frames hold on this second design."""
+    from fluorogui.core.kinematics import KINEMATICS_COLUMNS
+    from fluorogui.workflow.exports import kinematics_of_poses
+
+    if set(POSE_FILES) - set(session.components()):
+        return
+    poses = {(frame, c): jointtrack_to_pose(row) for c, name in POSE_FILES.items()
+             for frame, row in zip(session.frames, load_jointtrack_poses(data / name))}
+    rows = kinematics_of_poses(poses, "right", session.default_anatomical_frame("femoral"),
+                               session.default_anatomical_frame("tibial"))
+    print("\nknee kinematics of JointTrack's poses (default anatomical frames, right knee):")
+    print(f"{'':9}frame " + " ".join(f"{c:>14}" for c in KINEMATICS_COLUMNS))
+    for frame, values, _ in rows:
+        print(f"{'':9}{frame:5d} " + " ".join(f"{v:14.2f}" for v in values.values()))
 
 
 if __name__ == "__main__":
