@@ -33,6 +33,7 @@ from .edges import component_outline
 from .geometry import View
 from .matching import MatchProblem, MatchResult, MatchSettings, match
 from .mesh import PreparedMesh
+from .rim import RimModel, refine_outline
 from .pose import motion_between, rotation_matrix
 from .silhouette import mesh_silhouette
 from .spline import OutlineError, OutlineSpline
@@ -58,6 +59,7 @@ class LoopSettings:
     settled_first: float = 0.25  # ... and the first pass already, when it moved less than this from its start
     search_px: int = 60  # first pass: how far the outline may sit from the prediction
     later_search_px: int = 8  # later passes start from a matched pose
+    rim: bool = False  # later passes move the outline to the boundary the metal's rim profile gives (core.rim)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -106,6 +108,23 @@ def segment_outlines(images: Sequence[np.ndarray], views: Sequence[View], mesh: 
     return out
 
 
+def refine_rims(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.ndarray | None], occluded=None,
+                models: list[RimModel | None] | None = None) -> tuple[list[np.ndarray | None], list[RimModel | None]]:
+    """Automatic outlines moved to the boundary the metal's rim profile gives at ``pose``
+    (``core.rim``), per view (None stays None), and each image's rim model (fitted
+    unless given in ``models``)."""
+    models = list(models) if models is not None else [None] * len(views)
+    refined = []
+    for k, points in enumerate(outlines):
+        if points is None:
+            refined.append(None)
+            continue
+        exclude = occluded[k] if occluded is not None and k < len(occluded) else None
+        new, models[k] = refine_outline(images[k], views[k], mesh, pose, points, models[k], exclude)
+        refined.append(new)
+    return refined, models
+
+
 def fit_splines(outlines: Sequence[np.ndarray | None]) -> list[OutlineSpline | None]:
     """Splines through outlines (None stays None); raises SegmentationError naming the view."""
     splines = []
@@ -126,7 +145,8 @@ def splines_from_images(images, views, mesh, pose, occluded=None, search_px: int
 
 def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchSettings | None = None,
                       loop: LoopSettings | None = None, splines: Sequence[OutlineSpline | None] | None = None,
-                      occluded: Sequence | None = None, progress=None, cancel=None) -> LoopOutcome:
+                      occluded: Sequence | None = None, progress=None, cancel=None,
+                      rim_models: list[RimModel | None] | None = None) -> LoopOutcome:
     """Match one component in one frame from ``start`` (mm, degrees).
 
     ``splines`` are given (reviewed) outlines, per view, None where a view has none. With
@@ -135,7 +155,13 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
     at most ``loop.max_passes`` passes) until a pass moves the model by less than
     ``loop.settled``. A segmentation failure in the first pass raises SegmentationError;
     in a later pass the previous pass's result stands. ``LoopOutcome.outlines`` holds the
-    automatic outlines (None for given views, and None overall when all were given)."""
+    automatic outlines (None for given views, and None overall when all were given).
+
+    With ``loop.rim`` the passes after the first move the automatic outlines to the
+    boundary the metal's rim profile gives (``core.rim``). Fitting an image's rim model
+    (attenuation and blur) is most of that work and they are the same for a whole
+    sequence: ``rim_models`` (a list, one entry per view) gives them, and its None
+    entries are filled in with the ones fitted here, for the next frame."""
     settings = settings or MatchSettings()
     loop = loop or LoopSettings()
     pose = np.asarray(start, dtype=float)
@@ -145,11 +171,19 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
     current = given
     total_calls, total_seconds, history = 0, 0.0, []
     result, passes = None, 0
+    if rim_models is None:
+        rim_models = [None] * len(views)
+    refined = False
     for k in range(max(1, loop.max_passes) if missing else 1):
         if missing:
             try:
                 new_outlines = segment_outlines(images, views, mesh, pose, occluded,
                                                 loop.search_px if k == 0 else loop.later_search_px, missing)
+                if loop.rim and k > 0:  # the pose is a matched one: its rim profiles are the image's
+                    new_outlines, fitted = refine_rims(images, views, mesh, pose, new_outlines, occluded,
+                                                       rim_models)
+                    rim_models[:] = fitted
+                    refined = True
                 new_splines = fit_splines(new_outlines)
             except SegmentationError:
                 if result is None:
@@ -166,9 +200,10 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
         history += result.history
         moved = max(motion_between(result.pose, pose, mesh.centroid))
         pose = result.pose
-        if result.cancelled or (passes >= loop.min_passes and moved < loop.settled):
+        rim_pending = bool(missing) and loop.rim and not refined
+        if result.cancelled or (passes >= loop.min_passes and moved < loop.settled and not rim_pending):
             break
-        if passes == 1 and moved < loop.settled_first:
+        if passes == 1 and moved < loop.settled_first and not rim_pending:
             # the start was within a fraction of a pixel: segmenting along the result would
             # pick the same edges (the search band is several pixels wide)
             break

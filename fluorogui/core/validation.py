@@ -22,7 +22,7 @@ import numpy as np
 from .geometry import View
 from .matching import MatchProblem, MatchResult, MatchSettings, match
 from .mesh import PreparedMesh, prepare_mesh
-from .pipeline import splines_from_images
+from .pipeline import fit_splines, refine_rims, segment_outlines, splines_from_images
 from .pose import angles_from_matrix, pose_error, rotvec_matrix, transform_points
 from .render import render_fluoro
 from .spline import OutlineSpline
@@ -171,7 +171,7 @@ def run_starts(problem: MatchProblem, truth, starts, settings: MatchSettings,
 
 def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings, n_starts: int = 10,
                    seed: int = 0, views: list[View] | None = None, label: str = "",
-                   render: Callable | None = None) -> CaseResult:
+                   render: Callable | None = None, rim: bool = False) -> CaseResult:
     """One row of Table 1/2: render, segment, match from perturbed starts, compare with the truth.
 
     ``render(view, [(world_vertices, faces)], rng) -> image`` makes the images; the
@@ -184,9 +184,12 @@ def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings,
     truth = flexion_pose(vertices, flexion_deg)
     world = transform_points(truth, mesh.vertices)
     images = [(render or render_fluoro)(v, [(world, mesh.faces)], rng) for v in views]
-    splines = outlines_from_images(images, views, mesh, truth)
-    problem = MatchProblem(mesh, views, splines)
     starts = perturbed_starts(truth, n_starts, rng)
+    outlines = segment_outlines(images, views, mesh, truth)
+    if rim:  # as the automatic loop does: refine for the rim at a matched pose (the first start's)
+        first = match(MatchProblem(mesh, views, fit_splines(outlines)), starts[0], settings)
+        outlines, _ = refine_rims(images, views, mesh, first.pose, outlines)
+    problem = MatchProblem(mesh, views, fit_splines(outlines))
     results, errors = run_starts(problem, truth, starts, settings)
     return CaseResult(label or f"{flexion_deg:g} deg", truth, results, errors, summarise(errors, results))
 

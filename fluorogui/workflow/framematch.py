@@ -122,6 +122,8 @@ class FrameMatcher:
         # find_near(images, component, mesh, pose or None (a search of the whole image), cancel) -> pose or None
         self.find_near = find_near
         self.live = live  # live(component, calls, objective_mm, pose) at every step of a match
+        # each component's rim models per view (core.rim): fitted in its first frame, then reused
+        self.rim_models: dict[str, list] = {}
 
     def _fields(self, images) -> list[np.ndarray]:
         """The fields of view of this frame's images (computed once per set of images)."""
@@ -141,8 +143,9 @@ class FrameMatcher:
             def step(calls, objective, pose, _c=job.component):
                 self.live(_c, calls, objective, pose)
         try:
+            rims = self.rim_models.setdefault(job.component, [None] * len(self.views))
             out = segment_and_match(images, self.views, job.mesh, start, s.match, loop, job.given, occluded,
-                                    step, cancel)
+                                    step, cancel, rims)
         except SegmentationError as exc:
             return FrameResult(0, job.component, None, FAILED, messages.segmentation_failed(job.component, exc),
                                seconds=time.perf_counter() - t0)

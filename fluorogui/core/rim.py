@@ -1,0 +1,338 @@
+"""Where the silhouette really is when the metal thins at its rim.
+
+Canny puts an edge at the steepest intensity change. Behind a metal component the image
+is ``exp(-mu L)``, with ``L`` the path length through the metal, and near the silhouette
+of a smooth surface ``L`` grows only like the square root of the distance inside it: the
+intensity falls over a few tenths of a pixel *inside* the outline, and the blurred
+edge's steepest point sits there too. On images made by an independent X-ray model
+(``fluorogui.validation.xray``) the Canny outline of a cobalt-chrome component
+(``mu`` ~1/mm) lies 0.35-0.5 px inside the true silhouette, more where the metal is thin
+or gently curved; the matcher then puts the component too far from the source and turns
+it to fit, 0.06-0.1 mm and 0.2-0.3 degrees off. A step-edged (filled) silhouette, the
+old validation images, shows no such bias, which is why it went unseen.
+
+This module moves every outline point to the boundary that explains the image around it:
+
+1. At the matched pose, the model's own path length profile ``L_i(x)`` is cast along
+   the model outline's outward normal at the point (rays from the source through the
+   mesh, ``path_lengths``): how the metal thickens with the distance ``x`` inside.
+2. The pixels around the point (exact pixel values, no interpolation) are compared
+   with ``B - C * blur_sigma[1 - exp(-mu L_i(s0 - s))]`` for candidate boundary
+   positions ``s0`` along the normal; ``B`` (background) and ``C`` (contrast) are solved
+   per point by least squares, ``s0`` by a grid and a parabola.
+3. The attenuation ``mu`` and the blur ``sigma`` are the same for a whole image: they
+   are chosen (``fit_rim_model``) as the pair whose best ``s0`` per point leaves the
+   least residual over a subset of points. A pure step (``mu`` large) is one of the
+   candidates, so a sharp edge keeps its place.
+
+The profile shape comes from the mesh at the current pose, so the refinement runs in the
+automatic outline loop's later passes (``core.pipeline``), never on reviewed outlines.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import warnings
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+from scipy.spatial import cKDTree
+
+from .geometry import View
+from .mesh import PreparedMesh
+from .pose import rotation_matrix
+from .silhouette import mesh_silhouette
+
+#: candidate attenuations (1/mm; the last one is a step) and blurs (px, Gaussian sigma
+#: including the pixel's own width)
+MU_GRID = (0.2, 0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 3.0, 5.0, 50.0)
+SIGMA_GRID = (0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3, 1.4, 1.5)
+_FINE = 0.05  # px: the grid the profiles are computed and blurred on
+_X = np.arange(-8.0, 12.0, _FINE) + _FINE / 2  # inward distance from the boundary (px), off 0 by half a step
+# where path lengths are cast (px inside the model boundary): finely near it, where
+# the metal thickens fastest, coarsely beyond the pixels a fit uses
+_L_OFFSETS = np.r_[0.0, 0.005, 0.01, 0.02, 0.035, 0.05, 0.075, np.arange(0.1, 1.0, 0.1), np.arange(1.0, 7.0 + 1e-9, 0.25)]
+# linear interpolation of a path length profile at _X (beyond the last offset: constant)
+_LI0 = np.clip(np.searchsorted(_L_OFFSETS, np.clip(_X, 0, None), side="right") - 1, 0, len(_L_OFFSETS) - 2)
+_LFRAC = np.clip((np.clip(_X, 0, None) - _L_OFFSETS[_LI0]) / np.diff(_L_OFFSETS)[_LI0], 0.0, 1.0)
+_REACH, _LATERAL = 4.0, 1.0  # pixels used per point: along the normal and across it
+_SEARCH = np.arange(-1.0, 2.5 + 1e-9, 0.05)  # candidate boundary positions about the point (px)
+
+
+@dataclass
+class RimModel:
+    """An image's attenuation (1/mm) and blur (px) as the boundary fit sees them."""
+
+    mu: float
+    sigma: float
+
+
+# -- path lengths through the mesh ------------------------------------------------------------
+def path_lengths(mesh: PreparedMesh, pose, view: View, uv: np.ndarray, cell_px: float = 2.0) -> np.ndarray:
+    """Length (mm) of the ray from the source through each pixel position ``uv`` (K, 2)
+    inside the closed mesh at ``pose``: the sum over the triangles it crosses of the
+    distance from the source, + where it leaves and - where it enters."""
+    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+    pose = np.asarray(pose, dtype=float)
+    world = mesh.vertices @ rotation_matrix(*pose[3:]).T + pose[:3]
+    tri2 = view.project(world)[mesh.faces]  # (M, 3, 2)
+    lo, hi = tri2.min(1), tri2.max(1)
+    # keep the triangles whose box meets the queries' box, then bin them in cells
+    qlo, qhi = uv.min(0) - cell_px, uv.max(0) + cell_px
+    near = np.all(hi >= qlo, axis=1) & np.all(lo <= qhi, axis=1)
+    ncols = int(np.floor((qhi[0] - qlo[0]) / cell_px)) + 1
+    nrows = int(np.floor((qhi[1] - qlo[1]) / cell_px)) + 1
+    qcu = np.floor((uv[:, 0] - qlo[0]) / cell_px).astype(int)
+    qcv = np.floor((uv[:, 1] - qlo[1]) / cell_px).astype(int)
+    # only triangles whose box covers a cell with a query (the outline's band) matter:
+    # count the occupied cells in each box with a summed-area table
+    occupied = np.zeros((nrows + 1, ncols + 1))
+    occupied[qcv + 1, qcu + 1] = 1.0
+    table = occupied.cumsum(0).cumsum(1)
+    b0 = np.clip(np.floor((lo - qlo) / cell_px).astype(int), 0, [ncols - 1, nrows - 1])
+    b1 = np.clip(np.floor((hi - qlo) / cell_px).astype(int), 0, [ncols - 1, nrows - 1])
+    hits = (table[b1[:, 1] + 1, b1[:, 0] + 1] - table[b0[:, 1], b1[:, 0] + 1]
+            - table[b1[:, 1] + 1, b0[:, 0]] + table[b0[:, 1], b0[:, 0]])
+    faces = np.flatnonzero(near & (hits > 0))
+    c0, c1 = b0[faces], b1[faces]
+    span_u, span_v = c1[:, 0] - c0[:, 0] + 1, c1[:, 1] - c0[:, 1] + 1
+    count = span_u * span_v
+    face_rep = np.repeat(np.arange(len(faces)), count)
+    k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    cu = c0[face_rep, 0] + k % span_u[face_rep]
+    cv = c0[face_rep, 1] + k // span_u[face_rep]
+    cell_of_pair = cv * ncols + cu
+    order = np.argsort(cell_of_pair, kind="stable")
+    cell_sorted, face_sorted = cell_of_pair[order], faces[face_rep[order]]
+    qcell = qcv * ncols + qcu
+    first = np.searchsorted(cell_sorted, qcell, "left")
+    last = np.searchsorted(cell_sorted, qcell, "right")
+    n_cand = last - first
+    q_rep = np.repeat(np.arange(len(uv)), n_cand)
+    j = np.arange(n_cand.sum()) - np.repeat(np.cumsum(n_cand) - n_cand, n_cand)
+    f = face_sorted[first[q_rep] + j]
+    # 2D point in triangle (barycentric), then the 3D crossing along the ray
+    a, b, c = tri2[f, 0], tri2[f, 1], tri2[f, 2]
+    p = uv[q_rep]
+    v0, v1, v2 = b - a, c - a, p - a
+    den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
+    ok = np.abs(den) > 1e-12
+    den = np.where(ok, den, 1.0)
+    w1 = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
+    w2 = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
+    inside = ok & (w1 >= 0) & (w2 >= 0) & (w1 + w2 <= 1)
+    q_rep, f = q_rep[inside], f[inside]
+    _, directions = view.ray(uv)
+    d = directions[q_rep]
+    R = rotation_matrix(*pose[3:])
+    normals = mesh.face_normals[f] @ R.T
+    corner = world[mesh.faces[f, 0]]
+    dn = np.einsum("ij,ij->i", d, normals)
+    facing = np.abs(dn) > 1e-12
+    t = np.einsum("ij,ij->i", corner - view.source, normals) / np.where(facing, dn, 1.0)
+    signed = np.where(facing, np.sign(dn) * t, 0.0)  # + leaving (back face), - entering
+    return np.maximum(np.bincount(q_rep, weights=signed, minlength=len(uv)), 0.0)
+
+
+def outline_normals(closed: np.ndarray) -> np.ndarray:
+    """Unit outward normals of a closed polyline's vertices (either orientation)."""
+    p = np.asarray(closed, dtype=float)
+    tangent = np.roll(p, -1, axis=0) - np.roll(p, 1, axis=0)
+    normal = np.column_stack([tangent[:, 1], -tangent[:, 0]])
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+    outward = np.einsum("ij,ij->i", p - p.mean(0), normal).sum() > 0
+    return normal if outward else -normal
+
+
+# -- the boundary fit -------------------------------------------------------------------------
+@dataclass
+class _Points:
+    """Per outline point: the pixels around it (signed distance along the normal from the
+    model boundary, value, weight), the model's path lengths inwards, and where the
+    point sits along the normal."""
+
+    s: np.ndarray  # (P, W) px, + outwards, measured from the model boundary
+    value: np.ndarray  # (P, W)
+    weight: np.ndarray  # (P, W) 1 for pixels used
+    lengths: np.ndarray  # (P, len(_L_OFFSETS)) mm
+    at: np.ndarray  # (P,) the outline point's own position along the normal (px)
+    blocked: np.ndarray  # (P, W) 1 for pixels under the exclusion mask
+
+
+def _gather(image, view, mesh, pose, points, exclude=None) -> tuple[_Points, np.ndarray, np.ndarray]:
+    pose = np.asarray(pose, dtype=float)
+    model = mesh_silhouette(mesh, rotation_matrix(*pose[3:]), pose[:3], view).resample(spacing_px=0.5).points_px
+    normals_model = outline_normals(model)
+    _, nearest = cKDTree(model).query(points)
+    m, n = model[nearest], normals_model[nearest]
+    at = np.einsum("ij,ij->i", points - m, n)
+    inward = m[:, None, :] - _L_OFFSETS[None, :, None] * n[:, None, :]
+    lengths = path_lengths(mesh, pose, view, inward.reshape(-1, 2)).reshape(len(points), -1)
+    r = int(np.ceil(np.hypot(_REACH, _LATERAL))) + 1
+    du, dv = np.meshgrid(np.arange(-r, r + 1), np.arange(-r, r + 1))
+    cols = np.round(points[:, 0]).astype(int)[:, None] + du.ravel()[None, :]
+    rows = np.round(points[:, 1]).astype(int)[:, None] + dv.ravel()[None, :]
+    h, w = image.shape[:2]
+    valid = (cols >= 0) & (cols < w) & (rows >= 0) & (rows < h)
+    value = np.asarray(image, dtype=float)[np.clip(rows, 0, h - 1), np.clip(cols, 0, w - 1)]
+    rel_u, rel_v = cols - points[:, :1], rows - points[:, 1:]
+    s_point = rel_u * n[:, :1] + rel_v * n[:, 1:]  # along the normal from the outline point
+    t_point = -rel_u * n[:, 1:] + rel_v * n[:, :1]
+    used = valid & (np.abs(s_point) <= _REACH) & (np.abs(t_point) <= _LATERAL)
+    # keep only the used pixels, packed to the left (the fit's cost grows with the width)
+    order = np.argsort(~used, axis=1, kind="stable")[:, :int(used.sum(1).max())]
+    pick = lambda a: np.take_along_axis(a, order, axis=1)  # noqa: E731
+    s_used = pick(s_point) + at[:, None]
+    blocked = np.zeros(value.shape)
+    if exclude is not None:
+        blocked = np.asarray(exclude, dtype=float)[np.clip(rows, 0, h - 1), np.clip(cols, 0, w - 1)]
+    return _Points(s_used, pick(value), pick(used).astype(float), lengths, at, pick(blocked)), m, n
+
+
+def _templates(lengths: np.ndarray, mu: float, sigma: float) -> np.ndarray:
+    """Blurred deficit profiles (P, len(_X)): 0 far outside, 1 - exp(-mu L) inside."""
+    L = lengths[:, _LI0] * (1.0 - _LFRAC) + lengths[:, _LI0 + 1] * _LFRAC
+    deficit = np.where(_X[None, :] > 0, 1.0 - np.exp(-mu * L), 0.0)
+    return gaussian_filter1d(deficit, sigma / _FINE, axis=1, mode="nearest")
+
+
+def _residuals(pts: _Points, mu: float, sigma: float, search: np.ndarray = _SEARCH) -> tuple[np.ndarray, np.ndarray]:
+    """For every point and candidate boundary (relative to the point): the least-squares
+    residual of ``value ~ (B + G s)(1 - template) + O template`` (B, G, O free, O < B).
+    Returns (P, S) residuals
+    and the candidate positions along the normal (P, S)."""
+    T = _templates(pts.lengths, mu, sigma)
+    P, W = pts.s.shape
+    s0 = pts.at[:, None] + search[None, :]  # (P, S) boundary candidates from the model boundary
+    x = s0[:, :, None] - pts.s[:, None, :]  # (P, S, W) inward distance of each pixel
+    idx = (x - _X[0]) / _FINE
+    i0 = np.clip(np.floor(idx).astype(int), 0, len(_X) - 2)
+    frac = np.clip(idx - i0, 0.0, 1.0)
+    rows = np.arange(P)[:, None, None]
+    t = T[rows, i0] * (1 - frac) + T[rows, i0 + 1] * frac
+    wgt = pts.weight[:, None, :]
+    v = pts.value[:, None, :] * wgt
+    # value ~ (B + G s)(1 - t) + O t: a background with a slope across the edge, dimmed
+    # by the metal, and what comes through the metal (scatter, glare) deep inside it
+    s_rel = (pts.s - pts.at[:, None])[:, None, :]
+    a, b, c = (1 - t) * wgt, s_rel * (1 - t) * wgt, t * wgt  # the three basis functions
+    normal = np.stack([np.stack([(a * a).sum(-1), (a * b).sum(-1), (a * c).sum(-1)], -1),
+                       np.stack([(a * b).sum(-1), (b * b).sum(-1), (b * c).sum(-1)], -1),
+                       np.stack([(a * c).sum(-1), (b * c).sum(-1), (c * c).sum(-1)], -1)], -2)
+    rhs = np.stack([(a * v).sum(-1), (b * v).sum(-1), (c * v).sum(-1)], -1)
+    coef = np.linalg.solve(normal + 1e-9 * np.eye(3), rhs[..., None])[..., 0]
+    residual = (v * v).sum(-1) - (coef * rhs).sum(-1)
+    darker = coef[..., 2] < coef[..., 0]  # the metal is darker than its surround
+    residual = np.where(darker, residual, np.inf)
+    return residual, s0
+
+
+def _best_positions(residual: np.ndarray, s0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The candidate with the least residual per point, refined by a parabola; and that residual."""
+    k = np.argmin(residual, axis=1)
+    rows = np.arange(len(k))
+    best = residual[rows, k]
+    kk = np.clip(k, 1, residual.shape[1] - 2)
+    a, b, c = residual[rows, kk - 1], residual[rows, kk], residual[rows, kk + 1]
+    den = a - 2 * b + c
+    usable = np.isfinite(a) & np.isfinite(c) & (den > 0) & (k == kk)
+    shift = np.where(usable, 0.5 * (a - c) / np.where(usable, den, 1.0), 0.0)
+    return s0[rows, kk] + np.clip(shift, -1, 1) * (s0[0, 1] - s0[0, 0]), best
+
+
+def fit_rim_model(pts: _Points, max_points: int = 120, tolerance: float = 0.005) -> RimModel:
+    """The image's (mu, sigma) from the grids: the pair whose best boundaries leave the
+    least total residual over (up to ``max_points`` evenly spread) points - except that
+    of the pairs within ``tolerance`` (relative) of that least residual the sharpest
+    profile (largest mu) is kept. A little more blur and a short ramp explain a sharp
+    edge about equally well, and the ramp would move the edge outwards."""
+    sub = _subset(pts, slice(None, None, max(1, len(pts.at) // max_points)))
+    coarse = _SEARCH[::2]
+    costs = np.full((len(MU_GRID), len(SIGMA_GRID)), np.inf)
+    for i, mu in enumerate(MU_GRID):
+        for j, sigma in enumerate(SIGMA_GRID):
+            best = _best_positions(*_residuals(sub, mu, sigma, coarse))[1]
+            best = best[np.isfinite(best)]
+            if len(best):  # a few points on other edges must not decide: cap each at 10x the median
+                costs[i, j] = float(np.sum(np.minimum(best, 10.0 * np.median(best))))
+    if not np.isfinite(costs).any():
+        return RimModel(MU_GRID[-1], 0.8)
+    per_mu, sigmas = zip(*(_parabola_min(np.asarray(SIGMA_GRID), row) for row in costs))
+    per_mu = np.asarray(per_mu)
+    best = int(np.argmin(per_mu))
+    i = int(np.flatnonzero(per_mu <= per_mu[best] * (1.0 + tolerance)).max())
+    if i != best:  # a sharper profile explains the image as well
+        return RimModel(float(MU_GRID[i]), float(sigmas[i]))
+    # between the grid's values: a parabola in log(mu), and the blur where it lands
+    log_mu = _parabola_min_uneven(np.log(MU_GRID), per_mu, best)
+    mu = float(np.exp(log_mu))
+    costs_near = [_parabola_min(np.asarray(SIGMA_GRID), row) for row in costs[max(best - 1, 0):best + 2]]
+    sigma = float(np.interp(log_mu, np.log(MU_GRID)[max(best - 1, 0):best + 2], [c[1] for c in costs_near]))
+    return RimModel(mu, sigma)
+
+
+def _parabola_min_uneven(x: np.ndarray, y: np.ndarray, k: int) -> float:
+    """Where the parabola through (x, y) at k - 1, k, k + 1 has its least value (x[k]
+    at the ends or when the three do not curve upwards), kept between x[k - 1] and x[k + 1]."""
+    if not 0 < k < len(x) - 1 or not np.all(np.isfinite(y[k - 1:k + 2])):
+        return float(x[k])
+    a, b, c = np.polyfit(x[k - 1:k + 2], y[k - 1:k + 2], 2)
+    return float(np.clip(-b / (2 * a), x[k - 1], x[k + 1])) if a > 0 else float(x[k])
+
+
+def _parabola_min(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """The least value of ``y(x)`` and where it is, refined by a parabola through the
+    smallest sample and its neighbours (x evenly spaced)."""
+    k = int(np.argmin(y))
+    if not np.isfinite(y[k]):
+        return np.inf, float(x[k])
+    if 0 < k < len(y) - 1 and np.isfinite(y[k - 1]) and np.isfinite(y[k + 1]):
+        den = y[k - 1] - 2 * y[k] + y[k + 1]
+        if den > 0:
+            shift = 0.5 * (y[k - 1] - y[k + 1]) / den
+            return float(y[k] - 0.25 * (y[k - 1] - y[k + 1]) * shift), float(x[k] + shift * (x[1] - x[0]))
+    return float(y[k]), float(x[k])
+
+
+def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_px: np.ndarray,
+                   model: RimModel | None = None, exclude: np.ndarray | None = None,
+                   smooth: int = 8) -> tuple[np.ndarray, RimModel]:
+    """``outline_px`` (K, 2, ordered along a closed outline) moved along the model's
+    normal to the boundary the rim profile fit finds, and the image's rim model (fitted
+    here unless given). Each point moves by the median of the fitted moves of itself and
+    its ``smooth`` neighbours either side; a fit does not count when it fails, when it
+    would move its point by more than two pixels, or when a pixel it uses lies under
+    ``exclude`` (a boolean image: another component, whose own edge would spoil it)."""
+    points = np.asarray(outline_px, dtype=float).reshape(-1, 2)
+    if len(points) < 8:
+        return points.copy(), model or RimModel(MU_GRID[-1], 0.8)
+    image = np.asarray(image, dtype=float)
+    pts, m, n = _gather(image, view, mesh, pose, points, exclude)
+    usable = ~np.any((pts.weight > 0) & (pts.blocked > 0), axis=1)
+    if model is None:
+        model = fit_rim_model(_subset(pts, usable)) if usable.sum() >= 8 else RimModel(MU_GRID[-1], 0.8)
+    residual, s0 = _residuals(pts, model.mu, model.sigma)
+    boundary, best = _best_positions(residual, s0)
+    moved = boundary - pts.at
+    keep = usable & np.isfinite(best) & (np.abs(moved) <= 2.0)
+    return points + smooth_along(np.where(keep, moved, np.nan), smooth)[:, None] * n, model
+
+
+def smooth_along(values: np.ndarray, half_window: int) -> np.ndarray:
+    """The median of each value of a closed outline's points and its ``half_window``
+    neighbours either side, NaN left out (0 where a window holds no number). The rim's
+    bias changes slowly along an outline, the noise of a single profile fit does not:
+    the median keeps the first and drops most of the second."""
+    values = np.asarray(values, dtype=float)
+    if half_window <= 0 or len(values) <= 2 * half_window:
+        return np.nan_to_num(values)
+    padded = np.r_[values[-half_window:], values, values[:half_window]]
+    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half_window + 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # windows without a number
+        out = np.nanmedian(windows, axis=1)
+    return np.nan_to_num(out)
+
+
+def _subset(pts: _Points, rows) -> _Points:
+    return _Points(pts.s[rows], pts.value[rows], pts.weight[rows], pts.lengths[rows], pts.at[rows], pts.blocked[rows])
