@@ -30,9 +30,8 @@ automatic outline loop's later passes (``core.pipeline``), never on reviewed out
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
@@ -181,7 +180,7 @@ def _gather(image, view, mesh, pose, points, exclude=None) -> tuple[_Points, np.
     used = valid & (np.abs(s_point) <= _REACH) & (np.abs(t_point) <= _LATERAL)
     # keep only the used pixels, packed to the left (the fit's cost grows with the width)
     order = np.argsort(~used, axis=1, kind="stable")[:, :int(used.sum(1).max())]
-    pick = lambda a: np.take_along_axis(a, order, axis=1)  # noqa: E731
+    pick = lambda a: np.take_along_axis(a, order, axis=1)
     s_used = pick(s_point) + at[:, None]
     blocked = np.zeros(value.shape)
     if exclude is not None:
@@ -202,7 +201,7 @@ def _residuals(pts: _Points, mu: float, sigma: float, search: np.ndarray = _SEAR
     Returns (P, S) residuals
     and the candidate positions along the normal (P, S)."""
     T = _templates(pts.lengths, mu, sigma)
-    P, W = pts.s.shape
+    P, _W = pts.s.shape
     s0 = pts.at[:, None] + search[None, :]  # (P, S) boundary candidates from the model boundary
     x = s0[:, :, None] - pts.s[:, None, :]  # (P, S, W) inward distance of each pixel
     idx = (x - _X[0]) / _FINE
@@ -276,7 +275,7 @@ def _parabola_min_uneven(x: np.ndarray, y: np.ndarray, k: int) -> float:
     at the ends or when the three do not curve upwards), kept between x[k - 1] and x[k + 1]."""
     if not 0 < k < len(x) - 1 or not np.all(np.isfinite(y[k - 1:k + 2])):
         return float(x[k])
-    a, b, c = np.polyfit(x[k - 1:k + 2], y[k - 1:k + 2], 2)
+    a, b, _c = np.polyfit(x[k - 1:k + 2], y[k - 1:k + 2], 2)
     return float(np.clip(-b / (2 * a), x[k - 1], x[k + 1])) if a > 0 else float(x[k])
 
 
@@ -307,7 +306,7 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
     if len(points) < 8:
         return points.copy(), model or RimModel(MU_GRID[-1], 0.8)
     image = np.asarray(image, dtype=float)
-    pts, m, n = _gather(image, view, mesh, pose, points, exclude)
+    pts, _m, n = _gather(image, view, mesh, pose, points, exclude)
     usable = ~np.any((pts.weight > 0) & (pts.blocked > 0), axis=1)
     if model is None:
         model = fit_rim_model(_subset(pts, usable)) if usable.sum() >= 8 else RimModel(MU_GRID[-1], 0.8)
