@@ -509,12 +509,13 @@ def pose_covariance(problem: MatchProblem, pose, settings: MatchSettings | None 
         params = [sp.closest(g)[3] if len(g) else np.zeros(0) for sp, g in zip(problem.splines, samples)]
         ev = _FastEvaluation(problem, R, c, settings, samples, params)
     H = np.zeros((6, 6))
-    all_scores, all_keys = [], []
+    all_scores, all_keys, all_hessians = [], [], []
     for r, J, w, k, where in zip(ev.r, ev.J, ev.w, ev.view_of, ev.where):
         a = np.abs(r)
         ww = w * np.where(a <= settings.huber_px, 1.0, settings.huber_px / np.maximum(a, 1e-12))
         H += J.T @ (J * ww[:, None])
         all_scores.append(J * (ww * r)[:, None])
+        all_hessians.append(np.einsum("ni,nj->nij", J, J * ww[:, None]))
         spline = problem.splines[k]
         length = min(cluster_px, spline.period / MIN_STRETCHES)
         stretch = np.floor((spline.wrap(where) - spline.t_range[0]) / length).astype(np.int64)
@@ -526,9 +527,16 @@ def pose_covariance(problem: MatchProblem, pose, settings: MatchSettings | None 
         return np.full((6, 6), np.inf)
     S = np.zeros((n, 6))
     np.add.at(S, group.ravel(), np.vstack(all_scores))
-    B = S.T @ S * n / (n - 6)  # small-sample correction for the six fitted variables
-    Hi = np.linalg.inv(H)
-    cov = Hi @ B @ Hi
+    Hg = np.zeros((n, 6, 6))
+    np.add.at(Hg, group.ravel(), np.concatenate(all_hessians))
+    # the jackknife over stretches (CR3): each stretch's own effect on the pose, with the
+    # stretch left out of H. A plain sandwich H^-1 (sum s s^T) H^-1 is biased low when
+    # there are few stretches for six variables (a single view: about a dozen).
+    left_out = H[None] - Hg
+    if np.any(np.linalg.eigvalsh(left_out)[:, 0] <= 1e-12 * max(eig[-1], 1e-300)):
+        return np.full((6, 6), np.inf)  # one stretch alone fixes a direction of motion
+    shifts = np.linalg.solve(left_out, S[..., None])[..., 0]  # (n, 6)
+    cov = shifts.T @ shifts * (n - 1) / n
     # from the matcher's variables (centroid shift, rotation vector x radius) to the pose's
     A = np.zeros((6, 6))
     h = 1e-4

@@ -2,9 +2,11 @@
 
 The outlines are made without the matcher's code (``fluorogui.validation.outlines``: the
 convex hull of a bent ellipsoid's projected vertices, with noise correlated over a few
-pixels along it). Measured (25 realisations): biplane SD / observed spread
-0.85-1.34 for every DOF, single view 0.73-0.90; with every residual taken as independent
-the SD came out 0.3-0.4x the spread (``packaging/bench_uncertainty.py``).
+pixels along it). The SD is a jackknife over stretches of outline (``pose_covariance``).
+Measured over 100 realisations (``packaging/bench_uncertainty.py``): SD / observed spread
+1.06-1.23 in biplane, 0.91-1.18 in a single view started at the truth, 0.81-1.15 in a
+single view from perturbed starts; with every residual taken as independent the SD came
+out 0.2-0.4x the spread. 40 realisations here: their spread is itself uncertain by ~11 %.
 """
 import numpy as np
 
@@ -27,7 +29,7 @@ def _noisy_outline(view, world, noise_px, corr_px, rng):
     return noisy_hull_outline(view, world, noise_px, corr_px, rng)
 
 
-def _spread(views, start_sd: float, n: int = 20, seed: int = 1):
+def _spread(views, start_sd: float, n: int = 40, seed: int = 1):
     v, f = _egg()
     mesh = prepare_mesh(v, f)
     world = v @ rotation_matrix(*TRUTH[3:]).T + TRUTH[:3]
@@ -51,9 +53,7 @@ def test_biplane_sd_matches_the_spread_over_noise_realisations():
 def test_single_view_out_of_plane_translation_is_least_certain():
     # looking along world x: x is the out-of-plane translation
     view = View.looking_at([-1000.0, 0, 0], [0, 0, 0], [0, 0, 1], 1200.0, (1024, 1024), 315 / 1024, name="single")
-    # started at the truth: from perturbed starts the single-view spread is about twice
-    # the SD (the objective is rough along its flat out-of-plane valley; see the README)
-    observed, reported = _spread([view], start_sd=0.0)
+    observed, reported = _spread([view], start_sd=0.5)
     ratio = reported / observed
     assert np.all(ratio > 1 / 1.5) and np.all(ratio < 1.5), (ratio, observed, reported)
     assert reported[0] > 20 * max(reported[1], reported[2]) and observed[0] > 20 * max(observed[1], observed[2])
