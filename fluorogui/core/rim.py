@@ -233,8 +233,10 @@ def _best_positions(residual: np.ndarray, s0: np.ndarray) -> tuple[np.ndarray, n
     best = residual[rows, k]
     kk = np.clip(k, 1, residual.shape[1] - 2)
     a, b, c = residual[rows, kk - 1], residual[rows, kk], residual[rows, kk + 1]
+    usable = np.isfinite(a) & np.isfinite(b) & np.isfinite(c) & (k == kk)
+    a, b, c = (np.where(usable, x, 0.0) for x in (a, b, c))  # no inf - inf below
     den = a - 2 * b + c
-    usable = np.isfinite(a) & np.isfinite(c) & (den > 0) & (k == kk)
+    usable &= den > 0
     shift = np.where(usable, 0.5 * (a - c) / np.where(usable, den, 1.0), 0.0)
     return s0[rows, kk] + np.clip(shift, -1, 1) * (s0[0, 1] - s0[0, 0]), best
 
