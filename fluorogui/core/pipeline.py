@@ -161,7 +161,9 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
     boundary the metal's rim profile gives (``core.rim``). Fitting an image's rim model
     (attenuation and blur) is most of that work and they are the same for a whole
     sequence: ``rim_models`` (a list, one entry per view) gives them, and its None
-    entries are filled in with the ones fitted here, for the next frame."""
+    entries are filled in with the ones fitted here, for the next frame. The first such
+    pass also matches the plain outlines and the refined ones are kept only when they
+    fit the model better (a lower objective); otherwise the loop goes on without them."""
     settings = settings or MatchSettings()
     loop = loop or LoopSettings()
     pose = np.asarray(start, dtype=float)
@@ -173,13 +175,16 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
     result, passes = None, 0
     if rim_models is None:
         rim_models = [None] * len(views)
-    refined = False
+    use_rim, refined = loop.rim, False
     for k in range(max(1, loop.max_passes) if missing else 1):
+        trial = None  # the first rim pass: the plain outlines, to compare with
         if missing:
             try:
                 new_outlines = segment_outlines(images, views, mesh, pose, occluded,
                                                 loop.search_px if k == 0 else loop.later_search_px, missing)
-                if loop.rim and k > 0:  # the pose is a matched one: its rim profiles are the image's
+                if use_rim and k > 0:  # the pose is a matched one: its rim profiles are the image's
+                    if not refined:
+                        trial = (new_outlines, fit_splines(new_outlines))
                     new_outlines, fitted = refine_rims(images, views, mesh, pose, new_outlines, occluded,
                                                        rim_models)
                     rim_models[:] = fitted
@@ -193,14 +198,24 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
             current = [g if g is not None else n for g, n in zip(given, new_splines)]
         # later passes start from a matched pose: no need to centre the model first
         pass_settings = settings if passes == 0 or not settings.centre_first else replace(settings, centre_first=False)
+        previous = pose
         result = match(MatchProblem(mesh, views, current, occluded), pose, pass_settings, progress, cancel)
+        if trial is not None and not result.cancelled:
+            # keep the rim's outlines only where they fit the model better than Canny's own:
+            # on an image the rim model does not describe, they would only add noise
+            plain = [g if g is not None else n for g, n in zip(given, trial[1])]
+            other = match(MatchProblem(mesh, views, plain, occluded), pose, pass_settings, progress, cancel)
+            total_calls += other.calls
+            total_seconds += other.seconds
+            if other.objective_mm <= result.objective_mm:
+                result, outlines, current, use_rim = other, trial[0], plain, False
         passes += 1
         total_calls += result.calls
         total_seconds += result.seconds
         history += result.history
-        moved = max(motion_between(result.pose, pose, mesh.centroid))
+        moved = max(motion_between(result.pose, previous, mesh.centroid))
         pose = result.pose
-        rim_pending = bool(missing) and loop.rim and not refined
+        rim_pending = bool(missing) and use_rim and not refined
         if result.cancelled or (passes >= loop.min_passes and moved < loop.settled and not rim_pending):
             break
         if passes == 1 and moved < loop.settled_first and not rim_pending:

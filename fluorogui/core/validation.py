@@ -186,9 +186,12 @@ def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings,
     images = [(render or render_fluoro)(v, [(world, mesh.faces)], rng) for v in views]
     starts = perturbed_starts(truth, n_starts, rng)
     outlines = segment_outlines(images, views, mesh, truth)
-    if rim:  # as the automatic loop does: refine for the rim at a matched pose (the first start's)
-        first = match(MatchProblem(mesh, views, fit_splines(outlines)), starts[0], settings)
-        outlines, _ = refine_rims(images, views, mesh, first.pose, outlines)
+    if rim:  # as the automatic loop does: refine for the rim at a matched pose (the first start's), twice
+        plain, models = outlines, None
+        pose = match(MatchProblem(mesh, views, fit_splines(outlines)), starts[0], settings).pose
+        for _ in range(2):
+            outlines, models = refine_rims(images, views, mesh, pose, plain, models=models)
+            pose = match(MatchProblem(mesh, views, fit_splines(outlines)), pose, settings).pose
     problem = MatchProblem(mesh, views, fit_splines(outlines))
     results, errors = run_starts(problem, truth, starts, settings)
     return CaseResult(label or f"{flexion_deg:g} deg", truth, results, errors, summarise(errors, results))
