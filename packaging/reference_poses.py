@@ -23,6 +23,13 @@ mm / deg per axis. Prints fit - truth per start and the mean, SD and max per com
 Usage: .venv/bin/python packaging/reference_poses.py [--data DIR] [--poses CSV] [--frames N]
            [--components femoral tibial] [--perturb MM_DEG] [--out CSV]
        .venv/bin/python packaging/reference_poses.py --xray [--flexion 30 45 60 90] [--starts 3]
+       .venv/bin/python packaging/reference_poses.py --single-plane [--data ../shared/data/single-plane-tka]
+
+``--single-plane``: the three single-plane frames (one view: translation along the beam is
+the weak direction of every method, the region fit's too), fitted from JointTrack's own
+poses (``fem.jts``, ``tib.jts``); prints the region fit minus JointTrack and the matcher
+(``Session.match`` from JointTrack's pose) minus the region fit, in the camera frame (z
+along the beam).
 """
 from __future__ import annotations
 
@@ -42,10 +49,10 @@ from fluorogui.io.calibration import load_view  # noqa: E402
 from fluorogui.io.images import read_image  # noqa: E402
 from fluorogui.io.meshes import load_mesh  # noqa: E402
 from fluorogui.validation.region_fit import (EdgeMesh, coverage, field_of_view, fit_pose,  # noqa: E402
-                                             pose_difference, rotation)
+                                             pose_difference, rotation, rotation_angle)
 
 POSE_KEYS = ("x", "y", "z", "alpha", "beta", "gamma")
-DIFF_LABELS = ("dx", "dy", "dz", "dalpha", "dbeta", "dgamma")
+DIFF_LABELS = ("dx", "dy", "dz", "dalpha", "dbeta", "dgamma", "dangle")
 
 
 def read_poses(path: Path) -> dict:
@@ -77,9 +84,12 @@ def main(argv=None) -> int:
     ap.add_argument("--xray", action="store_true", help="the fitter's own error on X-ray model images")
     ap.add_argument("--flexion", type=float, nargs="+", default=[30.0, 45.0, 60.0, 90.0])
     ap.add_argument("--starts", type=int, default=3)
+    ap.add_argument("--single-plane", action="store_true", help="the single-plane data against JointTrack")
     args = ap.parse_args(argv)
     if args.xray:
         return xray_accuracy(args)
+    if args.single_plane:
+        return single_plane(args)
 
     data = args.data
     views = [load_view(data / f"calibration/cam{k}_mayacam2.txt") for k in (1, 2)]
@@ -105,7 +115,7 @@ def main(argv=None) -> int:
             exclude = ([other_mask(v, meshes[other], matcher[frame, other]) for v in views]
                        if (frame, other) in matcher else None)
             fit = fit_pose(views, images, meshes[comp], pose, exclude=exclude, fields=fields)
-            diff = pose_difference(pose, fit.pose)
+            diff = np.r_[pose_difference(pose, fit.pose), rotation_angle(pose, fit.pose)]
             row = {"frame": frame, "component": comp, **dict(zip(DIFF_LABELS, diff)),
                    "iou1": fit.iou[0], "iou2": fit.iou[1], "seconds": fit.seconds,
                    **{f"ref_{k}": v for k, v in zip(POSE_KEYS, fit.pose)}}
@@ -114,9 +124,9 @@ def main(argv=None) -> int:
             if args.perturb:
                 start = pose + rng.choice([-1.0, 1.0], 6) * args.perturb
                 again = fit_pose(views, images, meshes[comp], start, exclude=exclude, fields=fields)
-                spread = pose_difference(again.pose, fit.pose)
+                spread = np.r_[pose_difference(again.pose, fit.pose), rotation_angle(again.pose, fit.pose)]
                 row.update({f"restart_{k}": v for k, v in zip(DIFF_LABELS, spread)})
-                line += (f"  {np.abs(spread[:3]).max():.3f} mm {np.abs(spread[3:]).max():.3f} deg")
+                line += (f"  {np.abs(spread[:3]).max():.3f} mm {spread[6]:.3f} deg")
             print(line, flush=True)
             rows.append(row)
     if not rows:
@@ -138,8 +148,8 @@ def main(argv=None) -> int:
         if args.perturb:
             s = np.array([[r[f"restart_{k}"] for k in DIFF_LABELS] for r in sel])
             print(f"restarts from +-{args.perturb:g} mm/deg: max |reference difference| "
-                  f"{np.abs(s[:, :3]).max():.3f} mm, {np.abs(s[:, 3:]).max():.3f} deg; "
-                  f"median {np.median(np.abs(s[:, :3])):.3f} mm, {np.median(np.abs(s[:, 3:])):.3f} deg")
+                  f"{np.abs(s[:, :3]).max():.3f} mm, {s[:, 6].max():.3f} deg (rotation angle); "
+                  f"median {np.median(np.abs(s[:, :3])):.3f} mm, {np.median(s[:, 6]):.3f} deg")
     print(f"\n{len(rows)} fits in {time.perf_counter() - t_all:.0f} s")
     if args.out:
         with open(args.out, "w", newline="") as fh:
@@ -155,6 +165,38 @@ def summary(label: str, errors: np.ndarray) -> None:
     print("mean    " + " ".join(f"{x:7.3f}" for x in errors.mean(0)))
     print("SD      " + " ".join(f"{x:7.3f}" for x in errors.std(0, ddof=1 if len(errors) > 1 else 0)))
     print("max|d|  " + " ".join(f"{x:7.3f}" for x in np.abs(errors).max(0)))
+
+
+def single_plane(args) -> int:
+    """Region fits on the single-plane data against JointTrack's poses and the matcher's."""
+    from fluorogui.io.calibration import jointtrack_to_pose, load_jointtrack_poses
+    from fluorogui.io.importer import import_folder
+    from fluorogui.workflow.session import Session
+
+    data = args.data if args.data.name == "single-plane-tka" else args.data.parent / "single-plane-tka"
+    session = Session(import_folder(data))
+    views = list(session.views)
+    files = {"femoral": "fem.jts", "tibial": "tib.jts"}
+    print("single plane: z is along the beam, the weak direction")
+    print(f"{'frame':>5} {'component':9} {'':22}" + " ".join(f"{k:>7}" for k in DIFF_LABELS) + "   iou")
+    for comp in session.components():
+        entry = next(m for m in session.project.models if m.component == comp)
+        mesh = EdgeMesh.from_arrays(*load_mesh(entry.mesh_path))
+        rows = load_jointtrack_poses(data / files[comp])
+        for index, frame in enumerate(session.frames):
+            images = session.images(frame)
+            jointtrack = jointtrack_to_pose(rows[index])
+            fit = fit_pose(views, images, mesh, jointtrack, fields=[field_of_view(im) for im in images])
+            session.set_pose(comp, frame, jointtrack)
+            session.match(frame, comp)
+            matched = session.project.poses[(frame, comp)].pose
+            for label, d in (("region fit - JointTrack", np.r_[pose_difference(fit.pose, jointtrack),
+                                                               rotation_angle(fit.pose, jointtrack)]),
+                             ("matcher - region fit", np.r_[pose_difference(matched, fit.pose),
+                                                            rotation_angle(matched, fit.pose)])):
+                print(f"{frame:5d} {comp:9} {label:22}" + " ".join(f"{x:7.2f}" for x in d)
+                      + f"  {fit.iou[0]:.4f}", flush=True)
+    return 0
 
 
 def xray_accuracy(args) -> int:
@@ -178,7 +220,7 @@ def xray_accuracy(args) -> int:
             for _ in range(args.starts):
                 start = truth + rng.uniform(-perturb, perturb, 6)
                 fit = fit_pose(views, images, mesh, start)
-                err = pose_difference(fit.pose, truth)
+                err = np.r_[pose_difference(fit.pose, truth), rotation_angle(fit.pose, truth)]
                 errors.append(err)
                 print(f"{comp:9} {flexion:4.0f} " + " ".join(f"{d:7.3f}" for d in err)
                       + f" {fit.iou[0]:6.4f} {fit.iou[1]:6.4f} {fit.seconds:5.1f}", flush=True)

@@ -69,6 +69,13 @@ def pose_difference(a, b) -> np.ndarray:
     return d
 
 
+def rotation_angle(a, b) -> float:
+    """The angle (deg) of the rotation between poses a and b: free of the Euler angles'
+    coupling (near gamma = +-90 deg alpha and beta turn about nearly the same axis)."""
+    R = rotation(*np.asarray(a, dtype=float)[3:]) @ rotation(*np.asarray(b, dtype=float)[3:]).T
+    return float(np.degrees(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))))
+
+
 # -- the model's region ----------------------------------------------------------------------
 @dataclass
 class EdgeMesh:

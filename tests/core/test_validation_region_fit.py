@@ -9,7 +9,7 @@ import pytest
 
 from fluorogui.core.geometry import View
 from fluorogui.validation.region_fit import (EdgeMesh, angles, coverage, field_of_view, fit_pose,
-                                             pose_difference, project, rotation)
+                                             pose_difference, project, rotation, rotation_angle)
 from fluorogui.validation.xray import Body, XrayModel, path_length, xray_image
 
 VIEW = View.looking_at([-1000.0, 0, 0], [0, 0, 0], [0, 0, 1], 1200.0, (128, 128), 0.5)
@@ -32,6 +32,9 @@ def test_rotation_is_the_design_convention_and_angles_come_back():
     np.testing.assert_allclose(angles(R), [20.0, -35.0, 50.0], atol=1e-10)
     np.testing.assert_allclose(pose_difference([0, 0, 0, 179, -179, 10], [0, 0, 0, -179, 179, 350]),
                                [0, 0, 0, -2, 2, 20], atol=1e-12)
+    # near gamma = 90 deg a 1 deg turn shows as much larger, opposite alpha and beta changes
+    turned = np.r_[0, 0, 0, angles(rotation(10.0, 20.0, 88.0) @ rotation(0.0, 1.0, 0.0).T @ rotation(0.0, 0.0, 0.0))]
+    assert rotation_angle(turned, [0, 0, 0, 10.0, 20.0, 88.0]) == pytest.approx(1.0, abs=1e-9)
     np.testing.assert_allclose(project(VIEW, [[0.0, 0.0, 0.0]]), [VIEW.principal_point], atol=1e-9)
 
 
