@@ -4,20 +4,22 @@ The matcher (``fluorogui.core``: exact mesh silhouette, sub-pixel Canny edges, o
 splines, point-to-curve residuals, Levenberg-Marquardt) fits outlines. This module fits
 *regions* instead, so that the two can check each other on real images:
 
-* the image side: the implant is the darkest thing near itself. In a window around the
-  component the metal level (a low percentile inside an Otsu threshold) and a local
-  background (a normalised convolution of the pixels outside the dilated metal) turn
-  the image into a soft metal fraction ``clip((background - I) / (background - metal),
-  0, 1)``. Blurring preserves an edge's area, so this fraction places a blurred edge
-  where the step was, without any edge detector.
-* the model side: every triangle of the mesh that faces the source is projected and
-  rasterised here (edge functions on a supersampled grid); their union is the projected
-  region of the closed mesh, averaged to a coverage fraction per pixel;
-* the objective: the sum of squared differences of the two maps, both blurred by the same
-  Gaussian (coarse, then fine), over the window's pixels inside the field of view and not
-  masked out (the other component), summed over the views; minimised over the six pose
-  variables by ``scipy.optimize.least_squares`` with finite differences (steps larger
-  than the rasteriser's quantisation), about the model's centroid.
+* the image side: the implant is the darkest thing near itself. Around the start pose's
+  region, local metal and background levels (normalised Gaussian averages inside it and
+  in a ring outside it) turn the image into a soft metal fraction
+  ``clip((background - I) / (background - metal), 0, 1)``, kept within 3 px of the edge
+  of the region where it exceeds 1/2 (1 inside, 0 outside). Blurring preserves an
+  edge's area, so this places a blurred edge where the step was, without an edge
+  detector. The evidence is sampled again around the pose after the coarse stage.
+* the model side: the triangles of the mesh that face the source are projected here and
+  their union (the projected region of the closed mesh) is filled by the winding number
+  of their edges on an s x s supersampled grid, smooth along the grid's rows, averaged
+  to a coverage fraction per pixel;
+* the objective: the squared differences of the two maps, both blurred by the same
+  Gaussian (3 px, then 1 px), over the window's pixels inside the field of view and not
+  masked out (the other component), over all views; minimised over the six pose
+  variables (centroid shift, rotation vector about the centroid) by
+  ``scipy.optimize.least_squares`` with finite differences of 0.4, then 0.2 mm / deg.
 
 Shared with the matcher: only the conventions (DESIGN.md: the pose ``X = R m + t``,
 ``R = Ry(beta) Rz(gamma) Rx(alpha)``, and the view's numbers: source, plane normal,

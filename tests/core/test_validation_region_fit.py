@@ -107,8 +107,10 @@ def test_one_real_frame_from_a_moved_start(shared_data):
     fields = [field_of_view(im) for im in images]
     fit = fit_pose(views, images, mesh, matcher + np.array([1.0, -1.0, 1.0, 1.0, -1.0, 1.0]), fields=fields)
     diff = pose_difference(matcher, fit.pose)
-    # measured: the fit lands 0.0x mm / 0.x deg from the matcher's pose, IoU 0.986 / 0.987
-    assert np.abs(diff[:3]).max() < 0.3 and np.abs(diff[3:]).max() < 0.6, diff
+    # measured: 0.044 mm and a 0.074 deg turn from the matcher's pose (the fit from the
+    # matcher's pose itself: 0.013 mm, 0.03 deg), IoU 0.986 / 0.988
+    assert np.abs(diff[:3]).max() < 0.1, diff
+    assert rotation_angle(matcher, fit.pose) < 0.2, diff
     assert min(fit.iou) > 0.98
 
 
