@@ -10,7 +10,8 @@ offset of that size per axis, to show the fit does not simply stay where it star
 The other component's region at the matcher's pose, dilated by 3 px, is left out of the
 evidence (only so that its pixels are not taken for this component's). Prints per frame
 and component the matcher minus the reference (dx dy dz mm, dalpha dbeta dgamma deg), the
-region overlap (IoU) per view at the reference, and the mean, SD and max of |difference|;
+region overlap (IoU) per view at the reference and at the matcher's pose (the same
+evidence), and the mean, SD and max of |difference|;
 ``--out`` writes the rows as CSV.
 
 ``--xray`` measures the reference fitter's own error instead, on images of the
@@ -103,7 +104,7 @@ def main(argv=None) -> int:
     rng = np.random.default_rng(args.seed)
     rows, t_all = [], time.perf_counter()
     print(f"{'frame':>5} {'component':9} " + " ".join(f"{k:>7}" for k in DIFF_LABELS)
-          + "   iou1   iou2  secs" + ("  start-spread" if args.perturb else ""))
+          + "   iou1   iou2 (matcher's) secs" + ("  start-spread" if args.perturb else ""))
     for frame in frames:
         images = [read_image(data / p) for p in pairs[frame]]
         fields = [field_of_view(im) for im in images]
@@ -118,9 +119,11 @@ def main(argv=None) -> int:
             diff = np.r_[pose_difference(pose, fit.pose), rotation_angle(pose, fit.pose)]
             row = {"frame": frame, "component": comp, **dict(zip(DIFF_LABELS, diff)),
                    "iou1": fit.iou[0], "iou2": fit.iou[1], "seconds": fit.seconds,
+                   **dict(zip(("matcher_iou1", "matcher_iou2"), fit.iou_at(meshes[comp], pose))),
                    **{f"ref_{k}": v for k, v in zip(POSE_KEYS, fit.pose)}}
             line = (f"{frame:5d} {comp:9} " + " ".join(f"{d:7.3f}" for d in diff)
-                    + f" {fit.iou[0]:6.4f} {fit.iou[1]:6.4f} {fit.seconds:5.1f}")
+                    + f" {fit.iou[0]:6.4f} {fit.iou[1]:6.4f} {row['matcher_iou1']:6.4f} {row['matcher_iou2']:6.4f}"
+                    + f" {fit.seconds:5.1f}")
             if args.perturb:
                 start = pose + rng.choice([-1.0, 1.0], 6) * args.perturb
                 again = fit_pose(views, images, meshes[comp], start, exclude=exclude, fields=fields)
@@ -145,6 +148,9 @@ def main(argv=None) -> int:
         print("SD      " + " ".join(f"{x:7.3f}" for x in d.std(0, ddof=1 if len(d) > 1 else 0)))
         print("max|d|  " + " ".join(f"{x:7.3f}" for x in np.abs(d).max(0)))
         print(f"IoU at the reference: median {np.median(ious):.4f}, min {ious.min():.4f}")
+        at_matcher = np.array([[r["matcher_iou1"], r["matcher_iou2"]] for r in sel])
+        print(f"IoU at the matcher's pose (same evidence): median {np.median(at_matcher):.4f}, "
+              f"min {at_matcher.min():.4f}; reference - matcher: median {np.median(ious - at_matcher):.4f}")
         if args.perturb:
             s = np.array([[r[f"restart_{k}"] for k in DIFF_LABELS] for r in sel])
             print(f"restarts from +-{args.perturb:g} mm/deg: max |reference difference| "

@@ -243,6 +243,13 @@ class RegionFit:
     success: bool
     message: str = ""
     stages: list = field(default_factory=list)
+    evidence: list = field(default_factory=list, repr=False)  # the final stage's ViewData
+
+    def iou_at(self, mesh: "EdgeMesh", pose, s: int = STAGES[-1][1]) -> list[float]:
+        """The overlap per view of another pose's region with this fit's evidence."""
+        pose = np.asarray(pose, dtype=float)
+        world = mesh.vertices @ rotation(*pose[3:]).T + pose[:3]
+        return [iou(d, coverage(d.view, world, mesh, d.box, s)) for d in self.evidence]
 
 
 def window_box(view, world_vertices: np.ndarray, pad: int) -> tuple[int, int, int, int]:
@@ -328,4 +335,4 @@ def fit_pose(views, images, mesh: EdgeMesh, start, *, exclude=None, fields=None,
     t = (c0 + p[:3]) - R @ centroid
     covers = [coverage(d.view, world, mesh, d.box, stages[-1][1]) for d in data]
     return RegionFit(np.r_[t, angles(R)], [iou(d, c) for d, c in zip(data, covers)], history[-1][2],
-                     evaluations, time.perf_counter() - t0, success, message, history)
+                     evaluations, time.perf_counter() - t0, success, message, history, data)
