@@ -57,6 +57,8 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--correction", action="append", metavar="CORR.json",
                    help="distortion correction per camera (fluorogui calibrate distortion)")
     _add_match_options(m)
+    m.add_argument("--rim", action="store_true",
+                   help="automatic outlines: move them to the boundary the metal's rim profile gives (core.rim)")
     m.add_argument("--json", action="store_true", help="print one JSON object")
     m.set_defaults(func=cmd_match)
 
@@ -280,7 +282,7 @@ def _case_row(model, method, case):
 # -- commands ---------------------------------------------------------------------------------
 def cmd_match(args) -> int:
     from fluorogui.core.matching import MatchProblem, match
-    from fluorogui.core.pipeline import SegmentationError, segment_and_match
+    from fluorogui.core.pipeline import LoopSettings, SegmentationError, segment_and_match
     from fluorogui.io.errors import InputError
 
     views = _with_corrections(_load_views(args.camera), args.correction)
@@ -299,7 +301,7 @@ def cmd_match(args) -> int:
     else:
         # the one segment -> match -> re-segment loop of the app and of tracking
         try:
-            outcome = segment_and_match(images, views, mesh, start, settings)
+            outcome = segment_and_match(images, views, mesh, start, settings, LoopSettings(rim=args.rim))
         except SegmentationError as exc:
             raise InputError(args.image[exc.view],
                              f"no outline of the component found near the start pose ({exc.reason})") from None
