@@ -34,7 +34,7 @@ def add_parsers(sub) -> None:
     vi.add_argument("--renderer", choices=["xray", "silhouette"], default="xray",
                     help="xray: the independent image model (default); silhouette: the old filled silhouette")
     vi.add_argument("--variant", nargs="+", default=[""], metavar="V",
-                    help="mesh variants: none, mirrored, scaled+15, scaled-15")
+                    help="mesh variants: none, mirrored, scaled+15, scaled-15, ps-box (femoral), symmetric, symmetric-ap (tray)")
     vi.add_argument("--angle", type=finite_float, default=90.0, help="degrees between the two views")
     vi.add_argument("--tilt", type=finite_float, default=0.0, help="degrees the views are tilted out of a common plane")
     vi.add_argument("--offset", nargs=2, type=finite_float, default=[0.0, 0.0], metavar=("DU", "DV"),

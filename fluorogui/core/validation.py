@@ -62,9 +62,19 @@ def two_views(angle_deg: float = 90.0, tilt_deg: float = 0.0, offset_px=(0.0, 0.
     return views
 
 
+#: the names ``mesh_variant`` knows
+VARIANTS = ("mirrored", "scaled+15", "scaled-15", "ps-box", "symmetric", "symmetric-ap")
+
+
 def mesh_variant(vertices, faces, variant: str) -> tuple[np.ndarray, np.ndarray]:
     """A variant of a mesh: ``mirrored`` (left knee from right: x -> -x, faces turned),
-    ``scaled+15`` / ``scaled-15`` (about its centroid), or ``""`` as it is."""
+    ``scaled+15`` / ``scaled-15`` (about its centroid), ``ps-box`` (a femoral component
+    made posterior-stabilised: a closed intercondylar box), ``symmetric`` (the medial,
+    +x, half mirrored onto the lateral), ``symmetric-ap`` (the anterior half mirrored onto
+    the posterior: a tray that looks the same turned 180 deg about its axis), or ``""``
+    as it is (``core.implant_variants``)."""
+    from .implant_variants import mirrored_half, ps_box
+
     v, f = np.asarray(vertices, dtype=float), np.asarray(faces)
     if not variant:
         return v, f
@@ -74,7 +84,11 @@ def mesh_variant(vertices, faces, variant: str) -> tuple[np.ndarray, np.ndarray]
         factor = 1.0 + float(variant[len("scaled"):]) / 100.0
         c = v.mean(0)
         return c + (v - c) * factor, f
-    raise ValueError(f"unknown mesh variant {variant!r} (mirrored, scaled+15, scaled-15)")
+    if variant == "ps-box":
+        return ps_box(v, f)
+    if variant in ("symmetric", "symmetric-ap"):
+        return mirrored_half(v, f, axis=0 if variant == "symmetric" else 1)
+    raise ValueError(f"unknown mesh variant {variant!r} ({', '.join(VARIANTS)})")
 
 
 def perturbed_starts(truth, n: int, rng: np.random.Generator, range_mm: float = 20.0,
