@@ -148,6 +148,7 @@ def cmd_validate_idealized(args) -> int:
     from fluorogui.core.validation import idealized_case, mesh_variant, two_views
 
     check_output_folder(args.out)
+    _check_settings(args)
     if not 64 <= args.image_size <= 4096:
         raise UsageError(f"fluorogui: --image-size {args.image_size}: give 64 to 4096 pixels")
     views = two_views(args.angle, args.tilt, tuple(args.offset), tuple(args.source_distance),
@@ -198,6 +199,15 @@ def cmd_validate_idealized(args) -> int:
     if args.json:
         print(json.dumps(payload))
     return 0
+
+
+def _check_settings(args) -> None:
+    """Refuse match settings no match can use (e.g. --outline-points 1) before any work."""
+    for method in args.method:
+        try:
+            _settings(args, method, multistart=False).validate()
+        except ValueError as exc:
+            raise UsageError(f"fluorogui: {exc}") from None
 
 
 def _other_component(args):
@@ -256,6 +266,7 @@ def cmd_validate_spheres(args) -> int:
     from fluorogui.core.validation import SPHERE_DIAMETER, spheres_case
 
     check_output_folder(args.out)
+    _check_settings(args)
 
     vertices, faces = sphere_mesh(SPHERE_DIAMETER)
     payload, rows = {"protocol": "spheres", "methods": {}}, []
@@ -283,6 +294,7 @@ def cmd_validate_repeatability(args) -> int:
     from fluorogui.core.validation import repeatability_case
 
     check_output_folder(args.out)
+    _check_settings(args)
 
     views = _load_views(args.camera)
     mesh = _load_model(args.model)
