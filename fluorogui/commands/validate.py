@@ -50,6 +50,8 @@ def add_parsers(sub) -> None:
                     "the case's flexion and imaged in the same images (masked as the knee workflow does)")
     vi.add_argument("--other-is", choices=["tibial", "femoral"], default=None,
                     help="which component --other is (default: from its file name)")
+    vi.add_argument("--start-sd", type=finite_float, default=20.0 / 3.0, metavar="SD",
+                    help="the starts' Gaussian SD (mm and deg) within +/-20 (default 20/3: the range is 3 SD)")
     vi.add_argument("--single-view", action="store_true", help="match in the first view only (single-plane)")
     vi.add_argument("--basin", nargs=2, type=finite_float, default=[WRONG_MM, WRONG_DEG], metavar=("MM", "DEG"),
                     help="a start ending farther than this from the truth is in a wrong basin (default 0.05 0.05)")
@@ -163,7 +165,8 @@ def cmd_validate_idealized(args) -> int:
           f"offset {args.offset[0]:g}/{args.offset[1]:g} px, sources {args.source_distance[0]:g}/"
           f"{args.source_distance[1]:g} mm" + (f", {args.bits}-bit, metal {args.mu or 1.0:g}/mm, distortion k1 {args.distortion:g} (corrected)"
                                                   if render else "") + (f"; with {Path(args.other).name} overlapping" if other else "")
-          + f"; {args.starts} starts per case; wrong basin beyond {args.basin[0]:g} mm / {args.basin[1]:g} deg"
+          + f"; {args.starts} starts per case (SD {args.start_sd:.3g} within ±20 mm / ±20 deg)"
+          + f"; wrong basin beyond {args.basin[0]:g} mm / {args.basin[1]:g} deg"
           + (f" ({SINGLE_VIEW_DEPTH_MM:g} mm along the beam)" if beam is not None else "") + "\n")
     payload, rows = {"protocol": "idealized", "renderer": args.renderer, "cases": []}, []
     for model_path in args.model:
@@ -185,7 +188,7 @@ def cmd_validate_idealized(args) -> int:
                         label = f"{flexion:g} deg" + (f", {density} pts" if density else "")
                         case = idealized_case(vertices, faces, flexion, settings, args.starts, args.seed,
                                               views=views, label=label, render=render, other=other,
-                                              other_is_tibial=other_is_tibial)
+                                              other_is_tibial=other_is_tibial, start_sd_fraction=args.start_sd / 20.0)
                         if "occluded" in case.extra:
                             case.label = label = label + " (hid " + "/".join(
                                 f"{100 * o:.0f}" for o in case.extra["occluded"]) + " %)"

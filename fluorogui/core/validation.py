@@ -227,7 +227,8 @@ def occlusion_masks(views, mesh: PreparedMesh, R, t, margin_px: int = 3) -> list
 
 def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings, n_starts: int = 10,
                    seed: int = 0, views: list[View] | None = None, label: str = "",
-                   render: Callable | None = None, other=None, other_is_tibial: bool = True) -> CaseResult:
+                   render: Callable | None = None, other=None, other_is_tibial: bool = True,
+                   start_sd_fraction: float = 1.0 / 3.0) -> CaseResult:
     """One row of Table 1/2: render, segment, match from perturbed starts, compare with the truth.
 
     ``render(view, [(world_vertices, faces)], rng) -> image`` makes the images; the
@@ -239,7 +240,8 @@ def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings,
     the tray below a matched femoral component, else the femoral component above a matched
     tray), placed by ``other_component_pose`` and imaged in the same images; its
     projection is masked out of segmentation and matching as the knee workflow does, and
-    ``extra["occluded"]`` gives the share of the matched outline it hides per view."""
+    ``extra["occluded"]`` gives the share of the matched outline it hides per view.
+    ``start_sd_fraction``: the starts' Gaussian SD as a fraction of +/-20 mm / 20 deg."""
     rng = np.random.default_rng(seed)
     views = views or dual_orthogonal_views()
     mesh = prepare_mesh(vertices, faces)
@@ -257,7 +259,7 @@ def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings,
     images = [(render or render_fluoro)(v, bodies, rng) for v in views]
     splines = splines_from_images(images, views, mesh, truth, occluded)
     problem = MatchProblem(mesh, views, splines, occluded)
-    starts = perturbed_starts(truth, n_starts, rng)
+    starts = perturbed_starts(truth, n_starts, rng, sd_fraction=start_sd_fraction)
     results, errors = run_starts(problem, truth, starts, settings)
     return CaseResult(label or f"{flexion_deg:g} deg", truth, results, errors, summarise(errors, results), extra)
 
