@@ -17,14 +17,16 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable
 
+import cv2
 import numpy as np
 
 from .geometry import View
-from .matching import MatchProblem, MatchResult, MatchSettings, match
+from .matching import MatchProblem, MatchResult, MatchSettings, mask_at, match
 from .mesh import PreparedMesh, prepare_mesh
 from .pipeline import fit_splines, refine_rims, segment_outlines, splines_from_images
-from .pose import angles_from_matrix, pose_error, rotvec_matrix, transform_points
+from .pose import angles_from_matrix, pose_error, rotation_matrix, rotvec_matrix, transform_points
 from .render import render_fluoro
+from .silhouette import mesh_silhouette
 from .spline import OutlineSpline
 
 DOF_LABELS = ("dx", "dy", "dz", "dalpha", "dbeta", "dgamma")
@@ -62,9 +64,19 @@ def two_views(angle_deg: float = 90.0, tilt_deg: float = 0.0, offset_px=(0.0, 0.
     return views
 
 
+#: the names ``mesh_variant`` knows
+VARIANTS = ("mirrored", "scaled+15", "scaled-15", "ps-box", "symmetric", "symmetric-ap")
+
+
 def mesh_variant(vertices, faces, variant: str) -> tuple[np.ndarray, np.ndarray]:
     """A variant of a mesh: ``mirrored`` (left knee from right: x -> -x, faces turned),
-    ``scaled+15`` / ``scaled-15`` (about its centroid), or ``""`` as it is."""
+    ``scaled+15`` / ``scaled-15`` (about its centroid), ``ps-box`` (a femoral component
+    made posterior-stabilised: a closed intercondylar box), ``symmetric`` (the medial,
+    +x, half mirrored onto the lateral), ``symmetric-ap`` (the anterior half mirrored onto
+    the posterior: a tray that looks the same turned 180 deg about its axis), or ``""``
+    as it is (``core.implant_variants``)."""
+    from .implant_variants import mirrored_half, ps_box
+
     v, f = np.asarray(vertices, dtype=float), np.asarray(faces)
     if not variant:
         return v, f
@@ -74,7 +86,11 @@ def mesh_variant(vertices, faces, variant: str) -> tuple[np.ndarray, np.ndarray]
         factor = 1.0 + float(variant[len("scaled"):]) / 100.0
         c = v.mean(0)
         return c + (v - c) * factor, f
-    raise ValueError(f"unknown mesh variant {variant!r} (mirrored, scaled+15, scaled-15)")
+    if variant == "ps-box":
+        return ps_box(v, f)
+    if variant in ("symmetric", "symmetric-ap"):
+        return mirrored_half(v, f, axis=0 if variant == "symmetric" else 1)
+    raise ValueError(f"unknown mesh variant {variant!r} ({', '.join(VARIANTS)})")
 
 
 def perturbed_starts(truth, n: int, rng: np.random.Generator, range_mm: float = 20.0,
@@ -169,32 +185,89 @@ def run_starts(problem: MatchProblem, truth, starts, settings: MatchSettings,
     return results, np.array(errors)
 
 
+#: the polyethylene insert between the femoral condyles and the tibial tray (mm)
+INSERT_GAP_MM = 8.0
+
+
+def other_component_pose(matched_vertices, matched_pose, other_vertices, other_is_tibial: bool,
+                         flexion_deg: float, gap_mm: float = INSERT_GAP_MM) -> tuple[np.ndarray, np.ndarray]:
+    """(R, t) of the other component of the knee, world from its model frame, for a matched
+    component at ``matched_pose``: the femoral component flexed ``flexion_deg`` about the
+    tibial tray's mediolateral (x) axis, centred over the tray, its lowest point
+    ``gap_mm`` (the insert) above the tray's top. Both meshes in the component frame (x
+    mediolateral, y anterior, z proximal)."""
+    femur, tibia = (matched_vertices, other_vertices) if other_is_tibial else (other_vertices, matched_vertices)
+    femur, tibia = np.asarray(femur, dtype=float), np.asarray(tibia, dtype=float)
+    R_ft = rotvec_matrix(np.radians(flexion_deg) * np.array([1.0, 0.0, 0.0]))  # femur in the tibial frame
+    flexed = femur @ R_ft.T
+    tray_lo, tray_hi = tibia.min(0), tibia.max(0)
+    t_ft = np.r_[(tray_lo[:2] + tray_hi[:2]) / 2.0 - (flexed.min(0)[:2] + flexed.max(0)[:2]) / 2.0,
+                 tray_hi[2] + gap_mm - flexed[:, 2].min()]
+    R_m, t_m = rotation_matrix(*np.asarray(matched_pose, dtype=float)[3:]), np.asarray(matched_pose, dtype=float)[:3]
+    if other_is_tibial:  # tibia = matched femur's frame composed with the inverse of femur-in-tibia
+        R = R_m @ R_ft.T
+        return R, t_m - R @ t_ft
+    return R_m @ R_ft, R_m @ t_ft + t_m
+
+
+def occlusion_masks(views, mesh: PreparedMesh, R, t, margin_px: int = 3) -> list[np.ndarray]:
+    """Per view, where a mesh at (R, t) projects, grown by ``margin_px`` (as the knee
+    workflow masks the other component at its matched pose)."""
+    masks = []
+    for view in views:
+        w, h = view.image_size
+        mask = np.zeros((h, w), np.uint8)
+        sil = mesh_silhouette(mesh, R, t, view, spacing_px=1.0).points_px
+        cv2.fillPoly(mask, [np.round(sil * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
+        if margin_px > 0:
+            mask = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin_px + 1,) * 2))
+        masks.append(mask > 0)
+    return masks
+
+
 def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings, n_starts: int = 10,
                    seed: int = 0, views: list[View] | None = None, label: str = "",
-                   render: Callable | None = None, rim: bool = False) -> CaseResult:
+                   render: Callable | None = None, other=None, other_is_tibial: bool = True,
+                   start_sd_fraction: float = 1.0 / 3.0, rim: bool = False) -> CaseResult:
     """One row of Table 1/2: render, segment, match from perturbed starts, compare with the truth.
 
     ``render(view, [(world_vertices, faces)], rng) -> image`` makes the images; the
     default is ``core.render.render_fluoro`` (a filled silhouette: the matcher's own model
     of the image, so a bias of that model cancels out); the command line passes the
-    independent ``fluorogui.validation.xray`` model."""
+    independent ``fluorogui.validation.xray`` model.
+
+    ``other`` (vertices, faces) is the knee's other component (``other_is_tibial``: it is
+    the tray below a matched femoral component, else the femoral component above a matched
+    tray), placed by ``other_component_pose`` and imaged in the same images; its
+    projection is masked out of segmentation and matching as the knee workflow does, and
+    ``extra["occluded"]`` gives the share of the matched outline it hides per view.
+    ``start_sd_fraction``: the starts' Gaussian SD as a fraction of +/-20 mm / 20 deg."""
     rng = np.random.default_rng(seed)
     views = views or dual_orthogonal_views()
     mesh = prepare_mesh(vertices, faces)
     truth = flexion_pose(vertices, flexion_deg)
     world = transform_points(truth, mesh.vertices)
-    images = [(render or render_fluoro)(v, [(world, mesh.faces)], rng) for v in views]
-    starts = perturbed_starts(truth, n_starts, rng)
-    outlines = segment_outlines(images, views, mesh, truth)
+    bodies, occluded, extra = [(world, mesh.faces)], None, {}
+    if other is not None:
+        other_mesh = prepare_mesh(*other)
+        R, t = other_component_pose(mesh.vertices, truth, other_mesh.vertices, other_is_tibial, flexion_deg)
+        bodies.append((other_mesh.vertices @ R.T + t, other_mesh.faces))
+        occluded = occlusion_masks(views, other_mesh, R, t)
+        R_m = rotation_matrix(*truth[3:])
+        extra["occluded"] = [float(np.mean(mask_at(m, mesh_silhouette(mesh, R_m, truth[:3], v).points_px)))
+                             for m, v in zip(occluded, views)]
+    images = [(render or render_fluoro)(v, bodies, rng) for v in views]
+    outlines = segment_outlines(images, views, mesh, truth, occluded)
+    starts = perturbed_starts(truth, n_starts, rng, sd_fraction=start_sd_fraction)
     if rim:  # as the automatic loop does: refine for the rim at a matched pose (the first start's), twice
         plain, models = outlines, None
-        pose = match(MatchProblem(mesh, views, fit_splines(outlines)), starts[0], settings).pose
+        pose = match(MatchProblem(mesh, views, fit_splines(outlines), occluded), starts[0], settings).pose
         for _ in range(2):
-            outlines, models = refine_rims(images, views, mesh, pose, plain, models=models)
-            pose = match(MatchProblem(mesh, views, fit_splines(outlines)), pose, settings).pose
-    problem = MatchProblem(mesh, views, fit_splines(outlines))
+            outlines, models = refine_rims(images, views, mesh, pose, plain, occluded, models)
+            pose = match(MatchProblem(mesh, views, fit_splines(outlines), occluded), pose, settings).pose
+    problem = MatchProblem(mesh, views, fit_splines(outlines), occluded)
     results, errors = run_starts(problem, truth, starts, settings)
-    return CaseResult(label or f"{flexion_deg:g} deg", truth, results, errors, summarise(errors, results))
+    return CaseResult(label or f"{flexion_deg:g} deg", truth, results, errors, summarise(errors, results), extra)
 
 
 def sphere_centres(n: int = 8, diameter: float = SPHERE_DIAMETER) -> np.ndarray:
