@@ -382,14 +382,14 @@ def _initial_translation(problem: MatchProblem, R, c, image_samples, iterations:
     for _ in range(iterations):
         A, b = [], []
         for view, g in zip(problem.views, image_samples):
-            sil = mesh_silhouette(mesh, R, c - R @ mesh.centroid, view, spacing_px=2.0)
+            sil = mesh_silhouette(mesh, R, c - R @ mesh.centroid, view, scale=1.0, spacing_px=2.0)  # a centroid: coarse is enough
             shift = _polygon_centroid(g) - _polygon_centroid(sil.points_px)
             _, Jc = view.project_jacobian(c[None, :])
             A.append(Jc[0])
             b.append(shift)
         delta = np.linalg.lstsq(np.vstack(A), np.concatenate(b), rcond=None)[0]
         c = c + delta
-        if np.linalg.norm(delta) < 0.05:
+        if np.linalg.norm(delta) < 0.5:  # the optimiser does the rest
             break
     return c
 

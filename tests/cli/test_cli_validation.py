@@ -25,7 +25,8 @@ def _run(tray, out_dir, capsys, *extra):
                  "--image-size", "512", "--out", str(out_dir), *extra])
     out = capsys.readouterr().out
     assert code == 0
-    rows = list(csv.DictReader(open(out_dir / "results.csv")))
+    with open(out_dir / "results.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
     return out, rows, json.loads((out_dir / "results.json").read_text())
 
 
