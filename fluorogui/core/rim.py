@@ -6,7 +6,7 @@ of a smooth surface ``L`` grows only like the square root of the distance inside
 intensity falls over a few tenths of a pixel *inside* the outline, and the blurred
 edge's steepest point sits there too. On images made by an independent X-ray model
 (``fluorogui.validation.xray``) the Canny outline of a cobalt-chrome component
-(``mu`` ~1/mm) lies 0.17-0.5 px inside the true silhouette, more where the metal is thin
+(``mu`` ~1/mm) lies 0.05-0.5 px inside the true silhouette, more where the metal is thin
 or gently curved; the matcher then puts the component too far from the source and turns
 it to fit, 0.06-0.1 mm and 0.2-0.3 degrees off. A step-edged (filled) silhouette, the
 old validation images, shows no such bias, which is why it went unseen.
@@ -72,6 +72,10 @@ class RimModel:
 
     mu: float
     sigma: float
+
+
+#: what a refinement without enough points to fit assumes: a sharp edge (it moves nothing)
+STEP = RimModel(MU_GRID[-1], 0.8)
 
 
 # -- path lengths through the mesh ------------------------------------------------------------
@@ -166,7 +170,9 @@ class _Points:
     blocked: np.ndarray  # (P, W) 1 for pixels under the exclusion mask
 
 
-def _gather(image, view, mesh, pose, points, exclude=None) -> tuple[_Points, np.ndarray, np.ndarray]:
+def _gather(image, view, mesh, pose, points, exclude=None) -> tuple[_Points, np.ndarray]:
+    """What the fit needs of each outline point, and the model's outward normal (P, 2)
+    along which it moves."""
     pose = np.asarray(pose, dtype=float)
     model = mesh_silhouette(mesh, rotation_matrix(*pose[3:]), pose[:3], view).resample(spacing_px=0.5).points_px
     normals_model = outline_normals(model)
@@ -193,7 +199,7 @@ def _gather(image, view, mesh, pose, points, exclude=None) -> tuple[_Points, np.
     blocked = np.zeros(value.shape)
     if exclude is not None:
         blocked = np.asarray(exclude, dtype=float)[np.clip(rows, 0, h - 1), np.clip(cols, 0, w - 1)]
-    return _Points(s_used, pick(value), pick(used).astype(float), lengths, at, pick(blocked)), m, n
+    return _Points(s_used, pick(value), pick(used).astype(float), lengths, at, pick(blocked)), n
 
 
 def _templates(lengths: np.ndarray, mu: float, sigma: float) -> np.ndarray:
@@ -265,42 +271,34 @@ def fit_rim_model(pts: _Points, max_points: int = 120, tolerance: float = 0.005)
             if len(best):  # a few points on other edges must not decide: cap each at 10x the median
                 costs[i, j] = float(np.sum(np.minimum(best, 10.0 * np.median(best))))
     if not np.isfinite(costs).any():
-        return RimModel(MU_GRID[-1], 0.8)
-    per_mu, sigmas = zip(*(_parabola_min(np.asarray(SIGMA_GRID), row) for row in costs))
+        return STEP
+    sigmas, per_mu = zip(*(_parabola_vertex(SIGMA_GRID, row) for row in costs))
     per_mu = np.asarray(per_mu)
     best = int(np.argmin(per_mu))
     i = int(np.flatnonzero(per_mu <= per_mu[best] * (1.0 + tolerance)).max())
     if i != best:  # a sharper profile explains the image as well
         return RimModel(float(MU_GRID[i]), float(sigmas[i]))
     # between the grid's values: a parabola in log(mu), and the blur where it lands
-    log_mu = _parabola_min_uneven(np.log(MU_GRID), per_mu, best)
-    mu = float(np.exp(log_mu))
-    costs_near = [_parabola_min(np.asarray(SIGMA_GRID), row) for row in costs[max(best - 1, 0):best + 2]]
-    sigma = float(np.interp(log_mu, np.log(MU_GRID)[max(best - 1, 0):best + 2], [c[1] for c in costs_near]))
-    return RimModel(mu, sigma)
+    log_mu = _parabola_vertex(np.log(MU_GRID), per_mu, best)[0]
+    near = slice(max(best - 1, 0), best + 2)
+    sigma = float(np.interp(log_mu, np.log(MU_GRID)[near], sigmas[near]))
+    return RimModel(float(np.exp(log_mu)), sigma)
 
 
-def _parabola_min_uneven(x: np.ndarray, y: np.ndarray, k: int) -> float:
-    """Where the parabola through (x, y) at k - 1, k, k + 1 has its least value (x[k]
-    at the ends or when the three do not curve upwards), kept between x[k - 1] and x[k + 1]."""
+def _parabola_vertex(x: np.ndarray, y: np.ndarray, k: int | None = None) -> tuple[float, float]:
+    """Where the parabola through the samples k - 1, k, k + 1 (k: the least sample unless
+    given) is lowest, kept between x[k - 1] and x[k + 1], and its value there; the sample
+    itself at the ends, next to a value that is not finite, or when the three do not
+    curve upwards."""
+    y = np.asarray(y, dtype=float)
+    k = int(np.argmin(y)) if k is None else k
     if not 0 < k < len(x) - 1 or not np.all(np.isfinite(y[k - 1:k + 2])):
-        return float(x[k])
-    a, b, _c = np.polyfit(x[k - 1:k + 2], y[k - 1:k + 2], 2)
-    return float(np.clip(-b / (2 * a), x[k - 1], x[k + 1])) if a > 0 else float(x[k])
-
-
-def _parabola_min(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
-    """The least value of ``y(x)`` and where it is, refined by a parabola through the
-    smallest sample and its neighbours (x evenly spaced)."""
-    k = int(np.argmin(y))
-    if not np.isfinite(y[k]):
-        return np.inf, float(x[k])
-    if 0 < k < len(y) - 1 and np.isfinite(y[k - 1]) and np.isfinite(y[k + 1]):
-        den = y[k - 1] - 2 * y[k] + y[k + 1]
-        if den > 0:
-            shift = 0.5 * (y[k - 1] - y[k + 1]) / den
-            return float(y[k] - 0.25 * (y[k - 1] - y[k + 1]) * shift), float(x[k] + shift * (x[1] - x[0]))
-    return float(y[k]), float(x[k])
+        return float(x[k]), float(y[k])
+    coef = np.polyfit(x[k - 1:k + 2], y[k - 1:k + 2], 2)
+    if coef[0] <= 0:
+        return float(x[k]), float(y[k])
+    vertex = float(np.clip(-coef[1] / (2 * coef[0]), x[k - 1], x[k + 1]))
+    return vertex, float(np.polyval(coef, vertex))
 
 
 def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_px: np.ndarray,
@@ -314,12 +312,12 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
     ``exclude`` (a boolean image: another component, whose own edge would spoil it)."""
     points = np.asarray(outline_px, dtype=float).reshape(-1, 2)
     if len(points) < 8:
-        return points.copy(), model or RimModel(MU_GRID[-1], 0.8)
+        return points.copy(), model or STEP
     image = np.asarray(image, dtype=float)
-    pts, _m, n = _gather(image, view, mesh, pose, points, exclude)
+    pts, n = _gather(image, view, mesh, pose, points, exclude)
     usable = ~np.any((pts.weight > 0) & (pts.blocked > 0), axis=1)
     if model is None:
-        model = fit_rim_model(_subset(pts, usable)) if usable.sum() >= 8 else RimModel(MU_GRID[-1], 0.8)
+        model = fit_rim_model(_subset(pts, usable)) if usable.sum() >= 8 else STEP
     residual, s0 = _residuals(pts, model.mu, model.sigma)
     boundary, best = _best_positions(residual, s0)
     moved = boundary - pts.at
