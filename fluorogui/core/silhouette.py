@@ -145,6 +145,23 @@ def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View
     return Silhouette(p_exact, model_pts, segs)
 
 
+def projected_region(view: View, placed, margin_px: int = 3) -> np.ndarray:
+    """Boolean image of where meshes placed at ``(mesh, R, t)`` project in ``view`` (their
+    filled outer silhouettes), grown by ``margin_px``: another component's area, which
+    segmentation and matching leave out. A mesh partly behind the source is left out."""
+    w, h = view.image_size
+    mask = np.zeros((h, w), np.uint8)
+    for mesh, R, t in placed:
+        try:
+            outline = mesh_silhouette(mesh, R, t, view, spacing_px=1.0).points_px
+        except ValueError:
+            continue
+        cv2.fillPoly(mask, [np.round(outline * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
+    if margin_px > 0 and mask.any():
+        mask = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin_px + 1,) * 2))
+    return mask > 0
+
+
 def _fractions(n_sub: np.ndarray) -> np.ndarray:
     """Concatenated linspace(0, 1, k + 1) for every k in n_sub, vectorised."""
     total = n_sub + 1

@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable
 
-import cv2
 import numpy as np
 
 from .geometry import View
@@ -26,7 +25,7 @@ from .mesh import PreparedMesh, prepare_mesh
 from .pipeline import fit_splines, refine_rims, segment_outlines, splines_from_images
 from .pose import angles_from_matrix, pose_error, rotation_matrix, rotvec_matrix, transform_points
 from .render import render_fluoro
-from .silhouette import mesh_silhouette
+from .silhouette import mesh_silhouette, projected_region
 from .spline import OutlineSpline
 
 DOF_LABELS = ("dx", "dy", "dz", "dalpha", "dbeta", "dgamma")
@@ -213,16 +212,7 @@ def other_component_pose(matched_vertices, matched_pose, other_vertices, other_i
 def occlusion_masks(views, mesh: PreparedMesh, R, t, margin_px: int = 3) -> list[np.ndarray]:
     """Per view, where a mesh at (R, t) projects, grown by ``margin_px`` (as the knee
     workflow masks the other component at its matched pose)."""
-    masks = []
-    for view in views:
-        w, h = view.image_size
-        mask = np.zeros((h, w), np.uint8)
-        sil = mesh_silhouette(mesh, R, t, view, spacing_px=1.0).points_px
-        cv2.fillPoly(mask, [np.round(sil * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
-        if margin_px > 0:
-            mask = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin_px + 1,) * 2))
-        masks.append(mask > 0)
-    return masks
+    return [projected_region(view, [(mesh, R, t)], margin_px) for view in views]
 
 
 def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings, n_starts: int = 10,

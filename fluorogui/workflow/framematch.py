@@ -21,7 +21,6 @@ import time
 from dataclasses import dataclass, replace
 from typing import Callable, Sequence
 
-import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -31,7 +30,7 @@ from fluorogui.core.pipeline import SegmentationError, segment_and_match
 from fluorogui.core.pose import angles_from_matrix, motion_between, rotation_matrix
 from fluorogui.core.quality import FAILED, MATCHED, NEEDS_REVIEW, assess, judge
 from fluorogui.core.shape_search import image_field
-from fluorogui.core.silhouette import mesh_silhouette
+from fluorogui.core.silhouette import projected_region
 from fluorogui.core.spline import OutlineSpline
 from fluorogui.workflow import messages
 from fluorogui.workflow.results import FrameResult
@@ -65,34 +64,22 @@ def occlusion_masks(views: Sequence[View], others: Sequence[tuple[PreparedMesh, 
     """Per view, where the other components (mesh, pose) project, grown by ``margin_px``;
     None for a view where they do not come near this component's projection at ``near``
     (and None overall when no view needs a mask)."""
+    placed = [(other_mesh, rotation_matrix(*np.asarray(pose, dtype=float)[3:]), np.asarray(pose, dtype=float)[:3])
+              for other_mesh, pose in others]
     out: list[np.ndarray | None] = []
     for view in views:
-        w, h = view.image_size
-        mask = np.zeros((h, w), np.uint8)
-        for other_mesh, pose in others:
-            try:
-                sil = _outline_px(other_mesh, pose, view)
-            except ValueError:
-                continue
-            cv2.fillPoly(mask, [np.round(sil * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
+        mask = projected_region(view, placed, margin_px)
         if not mask.any():
             out.append(None)
             continue
-        if margin_px > 0:
-            mask = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin_px + 1,) * 2))
         if near is not None and mesh is not None:
             lo, hi = _projected_box(mesh, near, view)
             box = mask[max(lo[1] - 20, 0):max(hi[1] + 20, 0), max(lo[0] - 20, 0):max(hi[0] + 20, 0)]
             if not box.any():
                 out.append(None)
                 continue
-        out.append(mask > 0)
+        out.append(mask)
     return out if any(m is not None for m in out) else None
-
-
-def _outline_px(mesh: PreparedMesh, pose, view: View) -> np.ndarray:
-    pose = np.asarray(pose, dtype=float)
-    return mesh_silhouette(mesh, rotation_matrix(*pose[3:]), pose[:3], view, spacing_px=1.0).points_px
 
 
 def _projected_box(mesh: PreparedMesh, pose, view: View) -> tuple[np.ndarray, np.ndarray]:
