@@ -309,7 +309,8 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
     here unless given). Each point moves by the median of the fitted moves of itself and
     its ``smooth`` neighbours either side; a fit does not count when it fails, when it
     would move its point by more than two pixels, or when a pixel it uses lies under
-    ``exclude`` (a boolean image: another component, whose own edge would spoil it)."""
+    ``exclude`` (a boolean image: another component, whose own edge would spoil it).
+    Points that land far from the rest (``_strays``) are left out of the result."""
     points = np.asarray(outline_px, dtype=float).reshape(-1, 2)
     if len(points) < 8:
         return points.copy(), model or STEP
@@ -322,7 +323,37 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
     boundary, best = _best_positions(residual, s0)
     moved = boundary - pts.at
     keep = usable & np.isfinite(best) & (np.abs(moved) <= 2.0)
-    return points + smooth_along(np.where(keep, moved, np.nan), smooth)[:, None] * n, model
+    refined = points + smooth_along(np.where(keep, moved, np.nan), smooth)[:, None] * n
+    # a point that lands far from where the rest of the outline does (next to another
+    # edge: a bone's cortex) is left out, and the spline bridges a gap that the matcher
+    # does not measure; points under ``exclude`` are the matcher's to leave out
+    offsets = np.einsum("ij,ij->i", refined - points, n) + pts.at
+    drop = _strays(np.where(usable, offsets, np.nan))
+    if drop.mean() > MAX_DROPPED:  # too many to be strays: the pose is not close enough to judge
+        drop[:] = False
+    return refined[~drop], model
+
+
+#: at most this share of an outline's points is left out as strays
+MAX_DROPPED = 0.2
+#: a stray lies farther than this many robust SDs (and this many px) from the outline's
+#: median offset to the model boundary
+STRAY_SCALES, STRAY_PX = 5.0, 0.6
+
+
+def _strays(offsets: np.ndarray) -> np.ndarray:
+    """True for points whose offset (px) from the model boundary at the matched pose lies
+    far from the outline's median one: ``STRAY_SCALES`` robust SDs (1.4826 x the median
+    absolute deviation) and at least ``STRAY_PX``. Next to a bone's edge the profile fit
+    is pulled by a pixel or two along a whole stretch; elsewhere it varies by tenths."""
+    finite = np.isfinite(offsets)
+    if finite.sum() < 8:
+        return np.zeros(len(offsets), dtype=bool)
+    centre = np.median(offsets[finite])
+    scale = 1.4826 * np.median(np.abs(offsets[finite] - centre))
+    far = np.zeros(len(offsets), dtype=bool)
+    far[finite] = np.abs(offsets[finite] - centre) > max(STRAY_PX, STRAY_SCALES * scale)
+    return far
 
 
 def smooth_along(values: np.ndarray, half_window: int) -> np.ndarray:

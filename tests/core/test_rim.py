@@ -5,6 +5,7 @@ silhouette code)."""
 import cv2
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 from fluorogui.core.edges import component_outline
 from fluorogui.core.mesh import prepare_mesh
@@ -114,3 +115,45 @@ def test_the_loop_fits_rim_models_once_and_reuses_them(tray):
     assert kept[0] is given[0] and kept[1] is given[1]
     plain = segment_and_match(images, VIEWS, mesh, start, loop=LoopSettings(rim=False))
     assert not np.allclose(plain.result.pose, out.result.pose, atol=1e-4)
+
+
+def _darken_outside(image, outline, stretch, reach_px=4.0):
+    """The image with a dark ramp just outside ``outline[stretch]`` (as a bone's cortex
+    running along the component's edge gives): 30 % of the brightness at the outline,
+    recovering over ``reach_px``."""
+    h, w = image.shape
+    rows, cols = np.mgrid[0:h, 0:w]
+    pixels = np.column_stack([cols.ravel(), rows.ravel()]).astype(float)
+    gap, _ = cKDTree(outline[stretch]).query(pixels)
+    polygon = outline.astype(np.float32).reshape(-1, 1, 2)
+    outside = np.array([cv2.pointPolygonTest(polygon, (float(u), float(v)), False) < 0
+                        for u, v in pixels[gap <= reach_px]])
+    factor = np.ones(len(pixels))
+    near = np.flatnonzero(gap <= reach_px)
+    factor[near[outside]] = 0.3 + 0.7 * gap[near[outside]] / reach_px
+    return (image.astype(float) * factor.reshape(h, w)).astype(image.dtype)
+
+
+def test_a_stretch_pulled_by_another_edge_is_left_out(tray, monkeypatch):
+    mesh, pose, world = tray
+    view = VIEWS[0]
+    image = xray_image(view, [Body(world, mesh.faces, 1.0)], XrayModel(), np.random.default_rng(6))
+    canny = component_outline(image, predicted_outline(mesh, pose, view))
+    stretch = np.arange(len(canny) // 3, len(canny) // 3 + 30)
+    spoiled = _darken_outside(image, canny, stretch)
+
+    def near_stretch(points):
+        return cKDTree(canny[stretch]).query(points)[0] < 1.0
+
+    kept, _ = refine_outline(spoiled, view, mesh, pose, canny)
+    monkeypatch.setattr("fluorogui.core.rim.MAX_DROPPED", -1.0)  # leave nothing out
+    every, _ = refine_outline(spoiled, view, mesh, pose, canny)
+    pulled = signed_distance_to_truth(view, world, mesh.faces, every[near_stretch(every)])
+    print(f"stretch of {len(stretch)}: {near_stretch(kept).sum()} kept near it of {len(kept)} "
+          f"({len(canny)} in); without leaving out, it lies {pulled.mean():+.2f} px from the truth; "
+          f"the rest {signed_distance_to_truth(view, world, mesh.faces, kept).mean():+.3f}")
+    assert abs(pulled.mean()) > 0.5  # the ramp pulls the fit (measured -0.95 px on average)
+    assert near_stretch(kept).sum() <= 0.2 * len(stretch)  # the stretch is left out
+    assert len(kept) >= 0.97 * (len(canny) - len(stretch))  # and little else
+    rest = signed_distance_to_truth(view, world, mesh.faces, kept)
+    assert abs(rest.mean()) < 0.06  # measured -0.046 px
