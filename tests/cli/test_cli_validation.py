@@ -99,3 +99,28 @@ def test_single_view_case_judges_depth_apart(femur, tmp_path, capsys):
     # <= 0.05 (z 0.007 mm, rotations 0.047 deg)
     assert np.abs(err[:, :2]).max() < 0.2 and np.abs(err[:, 2]).max() < 0.02 and np.abs(err[:, 3:]).max() < 0.07, err
     assert rows[0]["right_basin"] == "3" and rows[0]["false_converged"] == "0"
+
+
+
+def test_photons_0_images_without_noise(tray, tmp_path, capsys):
+    from fluorogui.cli import build_parser
+    from fluorogui.commands.validate import _xray_renderer
+    from fluorogui.core.validation import flexion_pose, two_views
+    from fluorogui.io.meshes import load_mesh
+
+    v, f = load_mesh(tray)
+    world = v + flexion_pose(v, 45.0)[:3]
+    view = two_views(image_size=(128, 128), pitch=315.0 / 128)[0]
+    images = {}
+    for photons in ("0", "3000"):
+        args = build_parser().parse_args(["validate", "idealized", "--model", tray, "--photons", photons])
+        render = _xray_renderer(args)
+        images[photons] = [render(view, [(world, f)], np.random.default_rng(seed)) for seed in (1, 2)]
+    assert np.array_equal(*images["0"])  # no noise: the same image whatever the seed
+    assert not np.array_equal(*images["3000"])
+    assert np.abs(images["0"][0].astype(float) - images["3000"][0]).mean() > 0
+    out, rows, _ = _run(tray, tmp_path, capsys, "--starts", "2", "--photons", "0")
+    assert "no noise" in out and ">3SD" in out
+    assert int(rows[0]["false_beyond_3sd"]) <= int(rows[0]["false_converged"])
+    assert main(["validate", "idealized", "--model", tray, "--photons", "-5"]) == 2
+    assert "--photons -5" in capsys.readouterr().err
