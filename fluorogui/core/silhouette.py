@@ -55,10 +55,11 @@ def silhouette_edges(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, source: n
     """(S, 2) vertex indices of the edges on the silhouette seen from ``source``."""
     s_model = R.T @ (np.asarray(source, dtype=float) - t)
     front = mesh.face_normals @ s_model - mesh.face_offsets > 0
-    on = front[mesh.edge_faces[:, 0]] != front[mesh.edge_faces[:, 1]]
+    on = np.flatnonzero(front[mesh.edge_faces[:, 0]] != front[mesh.edge_faces[:, 1]])
+    edges = np.take(mesh.edges, on, axis=0)  # np.take: several times faster than a boolean mask here
     if len(mesh.open_edges):
-        return np.vstack([mesh.edges[on], mesh.open_edges])
-    return mesh.edges[on]
+        return np.vstack([edges, mesh.open_edges])
+    return edges
 
 
 def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View, scale: float = 2.0,
@@ -76,18 +77,14 @@ def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View
     used = np.zeros(len(mesh.vertices), dtype=bool)
     used[edges.ravel()] = True
     ends = np.flatnonzero(used)  # the vertices on silhouette edges, sorted (np.unique without a sort)
-    X = mesh.vertices[ends] @ R.T + t
-    d = X - view.source
-    depth_all = d @ view.normal
+    uv_all, depth_all = view.project_with_depth(mesh.vertices[ends] @ R.T + t)
     if np.any(depth_all <= 1e-6):
         raise ValueError("part of the model lies behind the X-ray source")
-    uv_all = view.project(X)
     remap = np.empty(mesh.vertices.shape[0], dtype=np.int64)
     remap[ends] = np.arange(len(ends))
     e = remap[edges]
-    P0, P1 = uv_all[e[:, 0]], uv_all[e[:, 1]]
-    w0, w1 = depth_all[e[:, 0]], depth_all[e[:, 1]]
-    segs = np.stack([P0, P1], axis=1)
+    segs = uv_all[e]  # (S, 2, 2): both ends of every projected edge
+    P0, P1 = segs[:, 0], segs[:, 1]
 
     # draw the projected silhouette edges and trace the outside of the drawing
     origin = uv_all.min(0) - 3.0
@@ -102,47 +99,81 @@ def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View
     if spacing_px:
         pts = pts[:: max(1, int(round(spacing_px * scale)))]
 
-    # snap each contour point onto the nearest projected silhouette edge
-    seg_len = np.linalg.norm(P1 - P0, axis=1)
-    n_sub = np.clip(np.ceil(seg_len / 2.0).astype(int), 1, 400)
-    seg_id = np.repeat(np.arange(len(segs)), n_sub + 1)
-    frac = _fractions(n_sub)
-    samples = P0[seg_id] + frac[:, None] * (P1 - P0)[seg_id]
-    # only edges running along the outer contour can be snapped to: keep the samples within
-    # a band around it (no silhouette edge crosses the outer contour, so an edge on it has
-    # samples every 2 px along it inside the band); most edges are inner ones
+    # snap each contour point onto the nearest projected silhouette edge. Only edges running
+    # along the outer contour can be snapped to: keep the samples (every 2 px along each edge)
+    # within a band around it (no silhouette edge crosses the outer contour, so an edge on it
+    # has samples inside the band); most edges are inner ones
     band = np.zeros_like(canvas)
     band[outer_px[:, 0, 1], outer_px[:, 0, 0]] = 1
     band = cv2.dilate(band, _BAND_KERNEL)
-    cell = np.round((samples - origin) * scale).astype(np.int64)
-    on_canvas = (cell[:, 0] >= 0) & (cell[:, 0] < band.shape[1]) & (cell[:, 1] >= 0) & (cell[:, 1] < band.shape[0])
-    near = np.zeros(len(samples), dtype=bool)
-    near[on_canvas] = band[cell[on_canvas, 1], cell[on_canvas, 0]] > 0
-    if near.sum() >= 8:
-        samples, seg_id = samples[near], seg_id[near]
-    _, nearest = cKDTree(samples).query(pts, k=min(8, len(samples)))
-    nearest = np.atleast_2d(nearest)
-    cand = seg_id[nearest]  # (K, k)
-    a, b = P0[cand], P1[cand]
-    ab = b - a
-    lam = np.einsum("ijk,ijk->ij", pts[:, None, :] - a, ab) / np.maximum(np.einsum("ijk,ijk->ij", ab, ab), 1e-12)
-    lam = np.clip(lam, 0.0, 1.0)
-    proj = a + lam[..., None] * ab
-    dist = np.linalg.norm(proj - pts[:, None, :], axis=2)
-    best = np.argmin(dist, axis=1)
-    rows = np.arange(len(pts))
-    sid, lam_b, p_exact = cand[rows, best], lam[rows, best], proj[rows, best]
+    seg_len = np.sqrt(((P1 - P0) ** 2).sum(1))
+    n_sub = np.clip(np.ceil(seg_len / 2.0).astype(int), 1, 400)
+    samples, seg_id = _band_samples(P0, P1, n_sub, band, origin, scale, _segments_near_band(segs, band, origin, scale))
+    if samples is None:  # (almost) nothing in the band: snap to any edge
+        samples, seg_id = _edge_samples(P0, P1, n_sub, np.arange(len(segs)))
+    sid, lam_b, p_exact = _snap(pts, samples, seg_id, P0, P1)
 
     # keep the order, drop repeats of the same exact point
     keep = np.r_[True, np.any(np.abs(np.diff(p_exact, axis=0)) > 1e-9, axis=1)]
     sid, lam_b, p_exact = sid[keep], lam_b[keep], p_exact[keep]
 
     # 2D edge parameter -> 3D edge parameter (perspective)
-    wa, wb = w0[sid], w1[sid]
+    wa, wb = depth_all[e[sid, 0]], depth_all[e[sid, 1]]
     s3 = lam_b * wa / np.maximum(wb - lam_b * (wb - wa), 1e-12)
     va, vb = mesh.vertices[edges[sid, 0]], mesh.vertices[edges[sid, 1]]
     model_pts = va + s3[:, None] * (vb - va)
     return Silhouette(p_exact, model_pts, segs)
+
+
+def _segments_near_band(segs: np.ndarray, band: np.ndarray, origin: np.ndarray, scale: float) -> np.ndarray:
+    """Indices (sorted) of the segments whose bounding box, in drawing cells, holds a band
+    cell: the only ones that can have a sample in the band (a superset, never fewer)."""
+    a, b = (segs[:, 0] - origin) * scale, (segs[:, 1] - origin) * scale
+    lo = np.floor(np.minimum(a, b)).astype(np.int64)  # round() of any point on the segment lies within [lo, hi]
+    hi = np.ceil(np.maximum(a, b)).astype(np.int64)
+    h, w = band.shape
+    c0, r0 = np.clip(lo[:, 0], 0, w), np.clip(lo[:, 1], 0, h)
+    c1, r1 = np.clip(hi[:, 0] + 1, 0, w), np.clip(hi[:, 1] + 1, 0, h)
+    integral = cv2.integral(band)  # (h + 1, w + 1) sums of band[:r, :c]
+    count = integral[r1, c1] - integral[r0, c1] - integral[r1, c0] + integral[r0, c0]
+    return np.flatnonzero(count > 0)
+
+
+def _edge_samples(P0, P1, n_sub, which):
+    """Points every <= 2 px along the segments ``which`` (ends included), with their segment."""
+    seg_id = np.repeat(which, n_sub[which] + 1)
+    frac = _fractions(n_sub[which])
+    return P0[seg_id] + frac[:, None] * (P1 - P0)[seg_id], seg_id
+
+
+def _band_samples(P0, P1, n_sub, band, origin, scale, which):
+    """The samples of the segments ``which`` that fall in the band (None if fewer than 8)."""
+    samples, seg_id = _edge_samples(P0, P1, n_sub, which)
+    cell = np.round((samples - origin) * scale).astype(np.int64)
+    on_canvas = (cell[:, 0] >= 0) & (cell[:, 0] < band.shape[1]) & (cell[:, 1] >= 0) & (cell[:, 1] < band.shape[0])
+    near = np.zeros(len(samples), dtype=bool)
+    near[on_canvas] = band[cell[on_canvas, 1], cell[on_canvas, 0]] > 0
+    if near.sum() < 8:
+        return None, None
+    return samples[near], seg_id[near]
+
+
+def _snap(pts, samples, seg_id, P0, P1):
+    """For every point the nearest point on the segments of its 8 nearest samples: (segment,
+    parameter along it, the point)."""
+    _, nearest = cKDTree(samples).query(pts, k=min(8, len(samples)))
+    nearest = np.atleast_2d(nearest)
+    cand = seg_id[nearest]  # (K, k)
+    ax, ay = P0[cand, 0], P0[cand, 1]
+    abx, aby = P1[cand, 0] - ax, P1[cand, 1] - ay
+    px, py = pts[:, 0:1], pts[:, 1:2]
+    lam = ((px - ax) * abx + (py - ay) * aby) / np.maximum(abx * abx + aby * aby, 1e-12)
+    np.clip(lam, 0.0, 1.0, out=lam)
+    qx, qy = ax + lam * abx, ay + lam * aby
+    dx, dy = qx - px, qy - py
+    best = np.argmin(np.sqrt(dx * dx + dy * dy), axis=1)
+    rows = np.arange(len(pts))
+    return cand[rows, best], lam[rows, best], np.column_stack([qx[rows, best], qy[rows, best]])
 
 
 def projected_region(view: View, placed, margin_px: int = 3) -> np.ndarray:
