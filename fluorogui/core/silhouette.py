@@ -54,12 +54,64 @@ class Silhouette:
 def silhouette_edges(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, source: np.ndarray) -> np.ndarray:
     """(S, 2) vertex indices of the edges on the silhouette seen from ``source``."""
     s_model = R.T @ (np.asarray(source, dtype=float) - t)
-    front = mesh.face_normals @ s_model - mesh.face_offsets > 0
-    on = np.flatnonzero(front[mesh.edge_faces[:, 0]] != front[mesh.edge_faces[:, 1]])
+    on = _silhouette_edge_indices(mesh, s_model)
     edges = np.take(mesh.edges, on, axis=0)  # np.take: several times faster than a boolean mask here
     if len(mesh.open_edges):
         return np.vstack([edges, mesh.open_edges])
     return edges
+
+
+#: a facing reference is made with the faces whose plane passes within this distance (mm)
+#: of the source re-tested, and serves sources up to half of it away
+FACING_MARGIN_MM = 40.0
+#: facing references kept per mesh (the most recently made first)
+FACING_REFERENCES = 8
+
+
+@dataclass(frozen=True)
+class _FacingReference:
+    """Which faces can change between facing towards and away from sources near ``source``
+    (model frame): only those whose plane passes within the margin of it. A face facing
+    the source at ``source`` keeps doing so while the source moves less than the distance
+    of its plane, so the edges between two faces beyond the margin keep their state."""
+
+    source: np.ndarray  # (3,)
+    normals: np.ndarray  # (F, 3) of the faces within the margin
+    offsets: np.ndarray  # (F,)
+    edges: np.ndarray  # (E,) sorted indices of the edges with a face within the margin
+    ends: np.ndarray  # (E, 2) each such edge's faces: index into the facing of those faces, then True, False
+    fixed: np.ndarray  # sorted indices of the silhouette edges at ``source`` among the others
+
+
+def _silhouette_edge_indices(mesh: PreparedMesh, s_model: np.ndarray) -> np.ndarray:
+    """Sorted indices into ``mesh.edges`` of the silhouette edges seen from ``s_model``: the
+    faces facing it (``n . s > offset``) and the edges between a facing and a turned-away
+    face. Sources near one seen before re-test only the faces near grazing there."""
+    references = mesh.cache.get("facing", ())
+    for ref in references:
+        d = s_model - ref.source
+        if d @ d <= (0.5 * FACING_MARGIN_MM) ** 2:
+            facing = np.empty(len(ref.offsets) + 2, dtype=bool)
+            facing[:-2] = ref.normals @ s_model - ref.offsets > 0
+            facing[-2:] = True, False
+            turning = ref.edges[facing[ref.ends[:, 0]] != facing[ref.ends[:, 1]]]
+            return np.sort(np.concatenate([ref.fixed, turning]))  # two disjoint sets
+    ef0, ef1 = mesh.edge_faces[:, 0], mesh.edge_faces[:, 1]
+    height = mesh.face_normals @ s_model - mesh.face_offsets  # the source's height above each face's plane
+    front = height > 0
+    on = front[ef0] != front[ef1]
+    near = np.abs(height) <= FACING_MARGIN_MM
+    faces = np.flatnonzero(near)
+    touched = near[ef0] | near[ef1]
+    edges = np.flatnonzero(touched)
+    ends = []
+    for side in (ef0[edges], ef1[edges]):
+        constant = len(faces) + (~front[side]).astype(np.int64)  # True -> len(faces), False -> len(faces) + 1
+        ends.append(np.where(near[side], np.searchsorted(faces, side), constant))
+    ref = _FacingReference(s_model.copy(), mesh.face_normals[faces], mesh.face_offsets[faces], edges,
+                           np.column_stack(ends), np.flatnonzero(on & ~touched))
+    mesh.cache["facing"] = (ref,) + tuple(references[: FACING_REFERENCES - 1])  # one assignment: thread-safe
+    return np.flatnonzero(on)
 
 
 def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View, scale: float = 2.0,
@@ -87,8 +139,9 @@ def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View
     P0, P1 = segs[:, 0], segs[:, 1]
 
     # draw the projected silhouette edges and trace the outside of the drawing
-    origin = uv_all.min(0) - 3.0
-    size = np.ceil((uv_all.max(0) - origin + 3.0) * scale).astype(int) + 1
+    u, v = uv_all[:, 0], uv_all[:, 1]  # (per column: much faster than min(0) on an (N, 2) array)
+    origin = np.array([u.min(), v.min()]) - 3.0
+    size = np.ceil((np.array([u.max(), v.max()]) - origin + 3.0) * scale).astype(int) + 1
     canvas = np.zeros((size[1], size[0]), np.uint8)
     fixed = np.round((segs - origin) * scale * (1 << _SHIFT)).astype(np.int32)
     cv2.polylines(canvas, fixed, False, 255, 1, cv2.LINE_8, _SHIFT)
@@ -106,7 +159,8 @@ def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View
     band = np.zeros_like(canvas)
     band[outer_px[:, 0, 1], outer_px[:, 0, 0]] = 1
     band = cv2.dilate(band, _BAND_KERNEL)
-    seg_len = np.sqrt(((P1 - P0) ** 2).sum(1))
+    du, dv = P1[:, 0] - P0[:, 0], P1[:, 1] - P0[:, 1]
+    seg_len = np.sqrt(du * du + dv * dv)
     n_sub = np.clip(np.ceil(seg_len / 2.0).astype(int), 1, 400)
     samples, seg_id = _band_samples(P0, P1, n_sub, band, origin, scale, _segments_near_band(segs, band, origin, scale))
     if samples is None:  # (almost) nothing in the band: snap to any edge

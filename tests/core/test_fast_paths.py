@@ -62,3 +62,29 @@ def test_times_skew_is_the_row_times_the_cross_product_matrix():
     skew -= skew.transpose(0, 2, 1)
     assert np.allclose(_times_skew(a, v), np.einsum("ik,ikl->il", a, skew), rtol=0, atol=1e-14)
     assert np.allclose(_times_skew(a, v), np.cross(a, v), rtol=0, atol=1e-14)
+
+
+def test_facing_references_give_the_silhouette_edges_of_a_fresh_computation():
+    import dataclasses
+
+    from fluorogui.core.mesh import prepare_mesh
+    from fluorogui.core.phantoms import femoral_component_mesh
+    from fluorogui.core.pose import rotation_matrix
+    from fluorogui.core.silhouette import FACING_REFERENCES, silhouette_edges
+
+    mesh = prepare_mesh(*femoral_component_mesh())
+    rng = np.random.default_rng(2)
+    source = np.array([0.0, -1000.0, 0.0])
+    pose = np.array([0.0, 0.0, 0.0, 20.0, -30.0, 10.0])
+    made = []  # every facing reference made (kept alive, so identity is meaningful)
+    for k in range(150):
+        step = 10 ** rng.uniform(-3, 1.5)  # 0.001 to 30 mm / a third of that in degrees
+        pose = pose + np.r_[rng.normal(0, step, 3), rng.normal(0, step / 3, 3)]
+        R = rotation_matrix(*pose[3:])
+        cached = silhouette_edges(mesh, R, pose[:3], source)
+        if not any(ref is mesh.cache["facing"][0] for ref in made):
+            made.append(mesh.cache["facing"][0])
+        fresh = silhouette_edges(dataclasses.replace(mesh), R, pose[:3], source)  # a copy starts without references
+        assert np.array_equal(cached, fresh), k
+    assert len(mesh.cache["facing"]) <= FACING_REFERENCES
+    assert 10 < len(made) < 120  # most small moves reuse a reference, large ones make new ones
