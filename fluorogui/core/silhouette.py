@@ -109,6 +109,8 @@ def _silhouette_edge_indices(mesh: PreparedMesh, s_model: np.ndarray) -> np.ndar
     on = front[ef0] != front[ef1]
     near = np.abs(height) <= FACING_MARGIN_MM
     faces = np.flatnonzero(near)
+    if len(faces) > len(height) // 4:  # a source this close to the mesh: a reference would save little
+        return np.flatnonzero(on)
     touched = near[ef0] | near[ef1]
     edges = np.flatnonzero(touched)
     ends = []

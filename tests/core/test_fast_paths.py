@@ -88,3 +88,18 @@ def test_facing_references_give_the_silhouette_edges_of_a_fresh_computation():
         assert np.array_equal(cached, fresh), k
     assert len(mesh.cache["facing"]) <= FACING_REFERENCES
     assert 10 < len(made) < 120  # most small moves reuse a reference, large ones make new ones
+
+
+def test_no_facing_reference_for_a_source_close_to_the_mesh():
+    from fluorogui.core.mesh import prepare_mesh
+    from fluorogui.core.phantoms import sphere_mesh
+    from fluorogui.core.silhouette import silhouette_edges
+
+    mesh = prepare_mesh(*sphere_mesh(40.0, subdivisions=3))
+    near_source = np.array([0.0, -45.0, 0.0])  # 25 mm off a 20 mm sphere: most planes pass within the margin
+    edges = silhouette_edges(mesh, np.eye(3), np.zeros(3), near_source)
+    assert "facing" not in mesh.cache
+    silhouette_edges(mesh, np.eye(3), np.zeros(3), np.array([0.0, -1000.0, 0.0]))
+    assert len(mesh.cache["facing"]) == 1
+    # the edges seen from close by are a silhouette loop: every vertex on it has two of them
+    assert len(edges) > 10 and np.all(np.bincount(edges.ravel())[np.unique(edges)] == 2)
