@@ -97,6 +97,10 @@ class View:
     # -- projection ------------------------------------------------------------------------
     def project(self, points: np.ndarray) -> np.ndarray:
         """World points (N, 3) to pixels (N, 2) through Eq. (3)."""
+        return self.project_with_depth(points)[0]
+
+    def project_with_depth(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pixels (N, 2) as ``project`` and each point's depth along the normal (N,)."""
         d = np.asarray(points, dtype=float) - self.source
         w = d @ self.normal
         fx, fy = self.focal_px
@@ -104,7 +108,7 @@ class View:
         out = np.empty((d.shape[0], 2))
         out[:, 0] = cx + fx * (d @ self.e_u) / w
         out[:, 1] = cy + fy * (d @ self.e_v) / w
-        return out
+        return out, w
 
     def project_plane(self, points: np.ndarray) -> np.ndarray:
         """World points to 3D points on the intensifier plane (Eq. 3 literally)."""

@@ -257,16 +257,19 @@ def _match_paper(problem, start, settings, progress, cancel) -> MatchResult:
 
 
 # -- the fast method ----------------------------------------------------------------------------
-def _skew_rows(v: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) matrices [v]x for every row of v."""
-    z = np.zeros(len(v))
-    return np.stack([np.stack([z, -v[:, 2], v[:, 1]], 1),
-                     np.stack([v[:, 2], z, -v[:, 0]], 1),
-                     np.stack([-v[:, 1], v[:, 0], z], 1)], 1)
+def _times_skew(a: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rows a_i^T [v_i]x (N, 3), i.e. a_i x v_i, written out (no (N, 3, 3) matrices)."""
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * v[:, 2] - a[:, 2] * v[:, 1]
+    out[:, 1] = a[:, 2] * v[:, 0] - a[:, 0] * v[:, 2]
+    out[:, 2] = a[:, 0] * v[:, 1] - a[:, 1] * v[:, 0]
+    return out
 
 
-def _polyline_normals(points: np.ndarray) -> np.ndarray:
-    t = np.roll(points, -1, axis=0) - np.roll(points, 1, axis=0)
+def _polyline_normals(points: np.ndarray, at: np.ndarray | None = None) -> np.ndarray:
+    """Unit normals of a closed polyline from its central differences (at the indices ``at``)."""
+    at = np.arange(len(points)) if at is None else np.asarray(at)
+    t = points[(at + 1) % len(points)] - points[at - 1]
     n = np.column_stack([t[:, 1], -t[:, 0]])
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
 
@@ -341,7 +344,7 @@ class _FastEvaluation:
             if settings.symmetric:
                 # image outline samples to the model outline (the dense silhouette polyline)
                 _, idx = cKDTree(sil.points_px).query(g)
-                n_model = _polyline_normals(sil.points_px)[idx]
+                n_model = _polyline_normals(sil.points_px, idx)
                 Xm = sil.model_points[idx] @ R.T + t
                 uvm, Jm = view.project_jacobian(Xm)
                 self._add(np.einsum("ij,ij->i", n_model, uvm - g), np.einsum("ij,ijk->ik", n_model, Jm), Xm, c, rho)
@@ -351,7 +354,7 @@ class _FastEvaluation:
 
     def _add(self, r: np.ndarray, nJ: np.ndarray, X: np.ndarray, c: np.ndarray, rho: float) -> None:
         """Residual rows with d/d(delta_c [mm], omega*rho [mm]) for X' = exp(w)(X - c) + c + delta."""
-        dw = -np.einsum("ik,ikl->il", nJ, _skew_rows(X - c)) / rho
+        dw = -_times_skew(nJ, X - c) / rho
         self.r.append(r)
         self.J.append(np.hstack([nJ, dw]))
         self.w.append(np.full(len(r), 1.0 / len(r)))

@@ -8,7 +8,7 @@ from the source).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -29,6 +29,9 @@ class PreparedMesh:
     centroid: np.ndarray  # (3,) area-weighted surface centroid
     radius: float  # RMS distance of the surface from the centroid
     area: float
+    #: derived data kept between calls (``core.silhouette``'s facing references); not part
+    #: of the mesh's identity, and a copy (``dataclasses.replace``) starts without it
+    cache: dict = field(default_factory=dict, init=False, compare=False, repr=False)
 
 
 def validate_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
