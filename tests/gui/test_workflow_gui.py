@@ -83,8 +83,12 @@ def test_track_both_from_a_matched_frame_keeps_it_and_lands_on_the_truth(window,
             err = pose_error(record.pose, truth(s, frame, name))
             assert np.abs(err[:3]).max() < TOL and np.abs(err[3:]).max() < TOL, (frame, name, err)
     assert window.timeline.states == [FrameState.REVIEWED] + [FrameState.MATCHED] * 3
-    assert shown[-3:] == [1, 2, 3] and c.frame == 3  # the view followed every tracked frame
-    assert all(values for values in plotted[-3:])  # with that frame's objective in the plot
+    # the view followed the tracked frames, in order, to the last; it shows at most one per
+    # event-loop pass, so a frame finished within the same pass as the next may be skipped
+    followed = [k for k, frame in enumerate(shown) if frame in (1, 2, 3)]
+    assert followed and shown[followed[-1]] == 3 and c.frame == 3
+    assert [shown[k] for k in followed] == sorted(shown[k] for k in followed)
+    assert all(plotted[k] for k in followed)  # with that frame's objective in the plot
     assert bars[0].startswith("1 / 3 frames") and "left" in bars[0]
     summary = window.matcher.summary.text()
     assert "3 matched, 0 need review, 0 failed" in summary and "(1–3)" in summary
