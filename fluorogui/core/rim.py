@@ -25,9 +25,12 @@ This module moves every outline point to the boundary that explains the image ar
    are chosen (``fit_rim_model``) as the pair whose best ``s0`` per point leaves the
    least residual over a subset of points, except that of pairs within 0.5 % of it the
    sharpest is kept (a pure step is one of the candidates): blur and a short ramp trade
-   off against each other, and a sharp edge must keep its place.
+   off against each other, and a sharp edge must keep its place. The fit is made again
+   over more points without the strays of point 5.
 4. The moves are smoothed along the outline (a median): the bias changes slowly along
    it, the noise of a single fit does not.
+5. Points that land far from the rest (another edge beside the component's, such as a
+   bone's cortex, pulls whole stretches by a pixel or two) are left out of the outline.
 
 The profile shape comes from the mesh at the current pose, so the refinement runs in the
 automatic outline loop's later passes (``core.pipeline``, where the refined outline is
@@ -317,18 +320,19 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
     image = np.asarray(image, dtype=float)
     pts, n = _gather(image, view, mesh, pose, points, exclude)
     usable = ~np.any((pts.weight > 0) & (pts.blocked > 0), axis=1)
-    if model is None:
+    fitted_here = model is None
+    if fitted_here:
         model = fit_rim_model(_subset(pts, usable)) if usable.sum() >= 8 else STEP
-    residual, s0 = _residuals(pts, model.mu, model.sigma)
-    boundary, best = _best_positions(residual, s0)
-    moved = boundary - pts.at
-    keep = usable & np.isfinite(best) & (np.abs(moved) <= 2.0)
-    refined = points + smooth_along(np.where(keep, moved, np.nan), smooth)[:, None] * n
-    # a point that lands far from where the rest of the outline does (next to another
-    # edge: a bone's cortex) is left out, and the spline bridges a gap that the matcher
-    # does not measure; points under ``exclude`` are the matcher's to leave out
-    offsets = np.einsum("ij,ij->i", refined - points, n) + pts.at
-    drop = _strays(np.where(usable, offsets, np.nan))
+    moves, offsets = _moves(pts, model, usable, smooth)
+    drop = _strays(offsets)
+    if fitted_here and model is not STEP and (usable & ~drop).sum() >= 8:
+        # strays must not decide the image's model either: fit it again without them,
+        # over more points (the attenuation of a first fit over 120 points varies by
+        # several per cent from one noise draw to the next, and moves the outline with it)
+        model = fit_rim_model(_subset(pts, usable & ~drop), max_points=REFIT_POINTS)
+        moves, offsets = _moves(pts, model, usable, smooth)
+        drop = _strays(offsets)
+    refined = points + moves[:, None] * n
     if drop.mean() > MAX_DROPPED:  # too many to be strays: the pose is not close enough to judge
         drop[:] = False
     return refined[~drop], model
@@ -339,6 +343,21 @@ MAX_DROPPED = 0.2
 #: a stray lies farther than this many robust SDs (and this many px) from the outline's
 #: median offset to the model boundary
 STRAY_SCALES, STRAY_PX = 5.0, 0.6
+
+
+#: points (evenly spread) the second fit of a rim model uses
+REFIT_POINTS = 300
+
+
+def _moves(pts: _Points, model: RimModel, usable: np.ndarray, smooth: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each point's smoothed move along the normal (px) under ``model``, and where it
+    lands from the model boundary (NaN for points that are not ``usable``)."""
+    residual, s0 = _residuals(pts, model.mu, model.sigma)
+    boundary, best = _best_positions(residual, s0)
+    moved = boundary - pts.at
+    keep = usable & np.isfinite(best) & (np.abs(moved) <= 2.0)
+    moves = smooth_along(np.where(keep, moved, np.nan), smooth)
+    return moves, np.where(usable, pts.at + moves, np.nan)
 
 
 def _strays(offsets: np.ndarray) -> np.ndarray:
