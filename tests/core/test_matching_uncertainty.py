@@ -6,7 +6,9 @@ pixels along it). The SD is a jackknife over stretches of outline (``pose_covari
 Measured over 100 realisations (``packaging/bench_uncertainty.py``): SD / observed spread
 1.06-1.23 in biplane, 0.91-1.18 in a single view started at the truth, 0.81-1.15 in a
 single view from perturbed starts; with every residual taken as independent the SD came
-out 0.2-0.4x the spread. 40 realisations here: their spread is itself uncertain by ~11 %.
+out 0.2-0.4x the spread. 80 realisations here (their spread is itself uncertain by ~8 %;
+with 40 the single view's beta came out 0.672, at the 1/1.5 bound): measured 1.07-1.26
+in biplane, 0.74-1.13 in a single view.
 """
 import numpy as np
 
@@ -29,7 +31,7 @@ def _noisy_outline(view, world, noise_px, corr_px, rng):
     return noisy_hull_outline(view, world, noise_px, corr_px, rng)
 
 
-def _spread(views, start_sd: float, n: int = 40, seed: int = 1):
+def _spread(views, start_sd: float, n: int = 80, seed: int = 1):
     v, f = _egg()
     mesh = prepare_mesh(v, f)
     world = v @ rotation_matrix(*TRUTH[3:]).T + TRUTH[:3]
