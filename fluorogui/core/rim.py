@@ -343,8 +343,6 @@ MAX_DROPPED = 0.2
 #: a stray lies farther than this many robust SDs (and this many px) from the outline's
 #: median offset to the model boundary
 STRAY_SCALES, STRAY_PX = 5.0, 0.6
-
-
 #: points (evenly spread) the second fit of a rim model uses
 REFIT_POINTS = 300
 
