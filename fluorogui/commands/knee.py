@@ -19,6 +19,9 @@ def add_parsers(sub) -> None:
     e.add_argument("--tra", metavar="OUT.tra", help="Autoscoper: femoral then tibial 4x4, row by row, per frame")
     e.add_argument("--jts", metavar="DIR", help="JointTrack femoral.jts and tibial.jts (needs --view)")
     e.add_argument("--view", type=int, metavar="K", help="the view (1 = first) whose camera frame --jts uses")
+    e.add_argument("--include-unreviewed", action="store_true",
+                   help="--tra/--jts: also write poses the matcher flagged for review (those files carry no status; "
+                        "by default such poses are left out as NaN)")
     e.add_argument("--plot", metavar="OUT.png|svg|pdf", help="the kinematics figure")
     e.add_argument("--against", choices=("frame", "flexion"), default="frame", help="x axis of --plot")
     e.add_argument("--side", choices=("right", "left"), help="the knee's side, if the project does not say")
@@ -73,9 +76,16 @@ def run_export(args) -> int:
     if args.kinematics:
         written.append(exports.export_kinematics_csv(session, args.kinematics, rows))
     if args.tra:
-        written.append(exports.export_tra(session, args.tra))
+        written.append(exports.export_tra(session, args.tra, args.include_unreviewed))
     if args.jts:
-        written += exports.export_jts(session, args.jts, args.view - 1)
+        written += exports.export_jts(session, args.jts, args.view - 1, args.include_unreviewed)
+    flagged = exports.unreviewed_matches(session) if (args.tra or args.jts) else []
+    if flagged:
+        frames = sorted({frame for frame, _, _ in flagged})
+        what = ("written although flagged for review" if args.include_unreviewed else
+                "flagged for review and left out of --tra/--jts as NaN (accept them in the app, or --include-unreviewed)")
+        warn(f"{len(flagged)} pose{'s' if len(flagged) > 1 else ''} {what}: frame{'s' if len(frames) > 1 else ''} "
+             f"{_frame_list(frames)}")
     if args.plot:
         written.append(exports.export_plot(session, args.plot, args.against, rows))
     review = [r.frame for r in rows if r.status == "needs_review"]

@@ -21,7 +21,7 @@ from fluorogui.core.kinematics import (
     knee_kinematics,
 )
 from fluorogui.core.pose import matrix_to_pose, pose_to_matrix
-from fluorogui.core.session import PLACED, PoseRecord
+from fluorogui.core.session import FAILED, NEEDS_REVIEW, PLACED, PoseRecord
 from fluorogui.io.errors import InputError, check_output_file, check_output_folder
 from fluorogui.io.pose_files import (
     POSE_KEYS,
@@ -113,22 +113,41 @@ def export_kinematics_csv(session, path, rows: list[KneeRow] | None = None) -> P
     return path
 
 
-def export_tra(session, path) -> Path:
-    """Autoscoper: one row per frame, femoral then tibial, 16 numbers each (row by row)."""
+def unreviewed_matches(session) -> list[tuple[int, str, str]]:
+    """(frame, component, reason) of every knee pose the matcher flagged for review that
+    nobody has accepted since. ``.tra`` and ``.jts`` carry no status, so their exports
+    leave these out (NaN) unless asked to include them."""
+    return [(frame, c, record.reason) for frame in session.frames for c in KNEE_COMPONENTS
+            if (record := session.project.poses.get((frame, c))) is not None
+            and record.status == NEEDS_REVIEW and not record.reviewed]
+
+
+def _exported(record: PoseRecord | None, include_unreviewed: bool) -> bool:
+    """Whether a pose goes into a file without a status column (.tra, .jts)."""
+    if record is None or record.status == FAILED:
+        return False
+    return include_unreviewed or record.status != NEEDS_REVIEW or record.reviewed
+
+
+def export_tra(session, path, include_unreviewed: bool = False) -> Path:
+    """Autoscoper: one row per frame, femoral then tibial, 16 numbers each (row by row);
+    NaN where a pose is missing, failed or flagged for review and not accepted (unless
+    ``include_unreviewed``: see ``unreviewed_matches``)."""
     path = check_output_file(path)
     matrices = []
     for frame in session.frames:
         row = []
         for c in KNEE_COMPONENTS:
             record = session.project.poses.get((frame, c))
-            row.append(None if record is None or record.status == "failed" else pose_to_matrix(record.pose))
+            row.append(pose_to_matrix(record.pose) if _exported(record, include_unreviewed) else None)
         matrices.append(row)
     write_tra(path, matrices)
     return path
 
 
-def export_jts(session, folder, view: int) -> list[Path]:
-    """JointTrack: ``femoral.jts`` and ``tibial.jts`` in ``view``'s (0-based) camera frame."""
+def export_jts(session, folder, view: int, include_unreviewed: bool = False) -> list[Path]:
+    """JointTrack: ``femoral.jts`` and ``tibial.jts`` in ``view``'s (0-based) camera frame;
+    the poses that ``export_tra`` leaves out are left out here too."""
     if not 0 <= view < session.n_views:
         raise InputError(folder, f"view {view + 1} does not exist (the session has {session.n_views})")
     folder = check_output_folder(folder)
@@ -140,7 +159,7 @@ def export_jts(session, folder, view: int) -> list[Path]:
         rows = []
         for frame in session.frames:
             record = session.project.poses.get((frame, c))
-            rows.append(None if record is None or record.status == "failed" else pose_to_jointtrack(record.pose, camera))
+            rows.append(pose_to_jointtrack(record.pose, camera) if _exported(record, include_unreviewed) else None)
         write_jts(folder / f"{c}.jts", rows)
         written.append(folder / f"{c}.jts")
     return written

@@ -74,6 +74,13 @@ def test_export_dialog_writes_the_chosen_files(window, demo, tmp_path, monkeypat
     names = sorted(p.name for p in (tmp_path / "out").iterdir())
     assert names == ["demo.tra", "demo_kinematics.csv", "demo_kinematics.png", "demo_poses.csv"]
     assert "Exported 4 files" in window.statusBar().currentMessage()
+    assert "flagged for review" not in window.statusBar().currentMessage()
+    # a pose the matcher flagged and nobody accepted stays out of the .tra, and the user is told
+    record = window.session.project.poses[(1, "tibial")]
+    window.session.project.poses[(1, "tibial")] = PoseRecord(record.pose, status="needs_review", reason="test")
+    window.export_results()
+    assert "1 pose flagged for review left out of .tra/.jts" in window.statusBar().currentMessage()
+    assert (tmp_path / "out" / "demo.tra").read_text().splitlines()[1].split(",")[16] == "NaN"
 
 
 def test_export_to_a_missing_folder_gives_one_dialog(window, demo, tmp_path, monkeypatch, dialogs):

@@ -156,6 +156,49 @@ def test_kinematics_cli_refuses_frames_that_are_not_rotations(tmp_path, matrix, 
     assert not (tmp_path / "out.csv").exists()
 
 
+def test_tra_and_jts_leave_out_poses_flagged_for_review_unless_asked(demo, truth, tmp_path):
+    # .tra and .jts carry no status: a pose the matcher flagged must not pass as matched there
+    from fluorogui.workflow.exports import unreviewed_matches
+
+    session = Session.open(demo)
+    put_truth(session, truth, frames=[0, 1, 2])
+    flagged_pose = np.asarray(truth(session)[1]["femoral"], dtype=float) + [2.0, 0, 0, 0, 0, 0]
+    session.project.poses[(1, "femoral")] = PoseRecord(flagged_pose, status=NEEDS_REVIEW, reason="residual too high")
+    assert unreviewed_matches(session) == [(1, "femoral", "residual too high")]
+
+    def tra_rows(**kwargs):
+        export_tra(session, tmp_path / "p.tra", **kwargs)
+        return read_tra_file(tmp_path / "p.tra")
+
+    def jts_rows(**kwargs):
+        from fluorogui.io.pose_files import read_jts
+
+        export_jts(session, tmp_path / "jts", view=0, **kwargs)
+        return [row is not None for row in read_jts(tmp_path / "jts" / "femoral.jts")]
+
+    rows = tra_rows()
+    assert rows[1][0] is None and rows[1][1] is not None and rows[0][0] is not None  # only that pose left out
+    assert jts_rows()[:3] == [True, False, True]  # JointTrack's NOT_OPTIMIZED row
+    rows = tra_rows(include_unreviewed=True)
+    assert np.allclose(matrix_to_pose(rows[1][0]), flagged_pose) and jts_rows(include_unreviewed=True)[1]
+    session.set_reviewed("femoral", 1)  # accepted: written like any other
+    assert unreviewed_matches(session) == [] and tra_rows()[1][0] is not None
+    session.set_reviewed("femoral", 1, False)
+    session.save()
+    out = tmp_path / "cli.tra"
+    run = subprocess.run([sys.executable, "-m", "fluorogui", "export", str(demo), "--tra", str(out)],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert "1 pose flagged for review and left out" in run.stderr and "frame 1" in run.stderr
+    assert out.read_text().splitlines()[1].split(",")[0] == "NaN"
+
+
+def read_tra_file(path):
+    from fluorogui.io.pose_files import read_tra
+
+    return read_tra(path, 2)
+
+
 def test_export_refuses_an_unwritable_path_before_work(demo, tmp_path):
     run = subprocess.run([sys.executable, "-m", "fluorogui", "export", str(demo), "--poses", str(tmp_path / "p.csv"),
                           "--kinematics", str(tmp_path / "missing" / "k.csv")], capture_output=True, text=True)
