@@ -122,6 +122,7 @@ class SessionView:
                 if view < len(self.panels):
                     self.panels[view].placeholder = f"No image for frame {frame}:\n{exc}"
         for view, panel in enumerate(self.panels):
+            panel.setVisible(view < s.n_views)  # a single-plane session: one panel, the whole width
             panel.set_image(images[view] if view < len(images) else None, key=(frame, view))
             for name in s.components():
                 key = c.outline_key(view, name)
