@@ -185,6 +185,13 @@ class Scene3DWidget(QWidget):
         if not self._closed:
             self._timer.start()
 
+    def set_views(self, views) -> None:
+        """The session's views into the scene; a camera button only for a view it has."""
+        self.scene.set_views(views)
+        for key, button in self.buttons.items():
+            if key.startswith("view"):
+                button.setVisible(int(key[4:]) <= len(views))
+
     def camera_preset(self, name: str) -> None:
         if name.startswith("view") and int(name[4:]) > len(self.scene.views):
             return

@@ -51,7 +51,7 @@ class SessionView:
         missing = []
         if self.scene_widget is not None:
             scene = self.scene_widget.scene
-            scene.set_views(s.views)
+            self.scene_widget.set_views(s.views)
             for name in scene.components:
                 if name not in names:
                     scene.remove_model(name)  # the previous project's component

@@ -410,3 +410,12 @@ def test_widget_interactive_mode_on_xcb(qtbot):
     widget.camera_preset("view1")
     assert widget.grab_image().std() > 1
     widget.close()
+
+
+def test_widget_offers_a_camera_button_only_for_views_the_session_has(fallback_widget):
+    widget = fallback_widget
+    widget.set_views(synthetic_views()[:1])  # single-plane
+    assert widget.buttons["view1"].isVisibleTo(widget) and not widget.buttons["view2"].isVisibleTo(widget)
+    assert len(widget.scene.views) == 1
+    widget.set_views(synthetic_views())
+    assert widget.buttons["view2"].isVisibleTo(widget) and len(widget.scene.views) == 2
