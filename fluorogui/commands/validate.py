@@ -251,21 +251,15 @@ def _basin_counts(case, wrong_mm: float = WRONG_MM, wrong_deg: float = WRONG_DEG
         along = signed @ np.asarray(beam, dtype=float)
         across = np.abs(signed - np.outer(along, beam)).max(1)
         right = (across <= wrong_mm) & (np.abs(along) <= SINGLE_VIEW_DEPTH_MM) & (err[:, 3:].max(1) <= wrong_deg)
+    from fluorogui.core.pose import pose_difference
+
     conv = np.array([r.converged for r in case.results], dtype=bool)
     # how far each start's pose parameters lie from the truth in its own reported SDs
-    z = np.array([np.max(np.abs(_pose_difference(r.pose, case.truth)) / np.maximum(r.sd, 1e-12))
+    z = np.array([np.max(np.abs(pose_difference(r.pose, case.truth)) / np.maximum(r.sd, 1e-12))
                   if r.sd is not None else np.inf for r in case.results])
     return {"right_basin": int(right.sum()), "converged": int(conv.sum()), "false_converged": int((conv & ~right).sum()),
             "false_beyond_3sd": int((conv & ~right & (z > 3.0)).sum()),
             "worst_mm": round(float(err[:, :3].max()), 4), "worst_deg": round(float(err[:, 3:].max()), 4)}
-
-
-def _pose_difference(pose, truth) -> np.ndarray:
-    """Pose parameters minus the truth's (mm, deg; angles wrapped to +/-180): the
-    variables the reported SD is given in."""
-    d = np.asarray(pose, dtype=float) - np.asarray(truth, dtype=float)
-    d[3:] = (d[3:] + 180.0) % 360.0 - 180.0
-    return d
 
 
 def _print_idealized_table(title, table, basin=(WRONG_MM, WRONG_DEG), beam=None):
