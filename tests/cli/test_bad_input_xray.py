@@ -14,14 +14,13 @@ from fluorogui.core.pipeline import splines_from_images
 from fluorogui.core.pose import pose_error, transform_points
 from fluorogui.core.validation import flexion_pose, two_views
 from fluorogui.io.calibration import save_view_json
+from fluorogui.io.demo import write_stl
 from fluorogui.io.images import write_image
 from fluorogui.validation.xray import Body, XrayModel, xray_image
 
 
 @pytest.fixture(scope="module")
 def scene(tmp_path_factory):
-    import pyvista as pv
-
     d = tmp_path_factory.mktemp("xray_scene")
     v, f = tibial_component_mesh()
     mesh = prepare_mesh(v, f)
@@ -36,7 +35,7 @@ def scene(tmp_path_factory):
         images.append(xray_image(view, [Body(world, mesh.faces)], model, rng))
         write_image(d / f"img{k}.png", images[-1], bits=16)
         write_image(d / f"blank{k}.png", xray_image(view, [], model, rng), bits=16)  # leg and bone only
-    pv.PolyData(v, np.column_stack([np.full(len(f), 3), f]).ravel()).save(str(d / "tray.stl"))
+    write_stl(d / "tray.stl", v, f)
     return {"dir": d, "mesh": mesh, "truth": truth, "views": views, "images": images}
 
 

@@ -11,13 +11,12 @@ from fluorogui.core.pose import transform_points
 from fluorogui.core.render import render_fluoro
 from fluorogui.core.validation import dual_orthogonal_views, flexion_pose
 from fluorogui.io.calibration import save_view_json
+from fluorogui.io.demo import write_stl
 from fluorogui.io.images import write_image
 
 
 @pytest.fixture(scope="module")
 def scene(tmp_path_factory):
-    import pyvista as pv
-
     d = tmp_path_factory.mktemp("scene")
     v, f = tibial_component_mesh()
     mesh = prepare_mesh(v, f)
@@ -37,7 +36,7 @@ def scene(tmp_path_factory):
         write_image(d / f"img{k}.png", image, bits=16)
         images.append(str(d / f"img{k}.png"))
     model = d / "tibia.stl"
-    pv.PolyData(v, np.column_stack([np.full(len(f), 3), f]).ravel()).save(str(model))
+    write_stl(model, v, f)
     return {"args": args, "images": images, "model": str(model), "truth": truth, "blank": str(d / "blank.png")}
 
 

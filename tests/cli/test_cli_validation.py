@@ -8,15 +8,14 @@ import pytest
 
 from fluorogui.cli import main
 from fluorogui.core.phantoms import tibial_component_mesh
+from fluorogui.io.demo import write_stl
 
 
 @pytest.fixture(scope="module")
 def tray(tmp_path_factory):
-    import pyvista as pv
-
     v, f = tibial_component_mesh()
     model = tmp_path_factory.mktemp("mesh") / "tray.stl"
-    pv.PolyData(v, np.column_stack([np.full(len(f), 3), f]).ravel()).save(str(model))
+    write_stl(model, v, f)
     return str(model)
 
 
@@ -67,13 +66,11 @@ def test_small_idealized_case_on_silhouette_images_lands_every_start(tray, tmp_p
 
 @pytest.fixture(scope="module")
 def femur(tmp_path_factory):
-    import pyvista as pv
-
     from fluorogui.core.phantoms import femoral_component_mesh
 
     v, f = femoral_component_mesh()
     model = tmp_path_factory.mktemp("mesh") / "femur.stl"
-    pv.PolyData(v, np.column_stack([np.full(len(f), 3), f]).ravel()).save(str(model))
+    write_stl(model, v, f)
     return str(model)
 
 

@@ -13,6 +13,7 @@ from fluorogui.core.kinematics import knee_kinematics, relative_pose_from_kinema
 from fluorogui.core.pose import matrix_to_pose, pose_to_matrix
 from fluorogui.core.session import NEEDS_REVIEW, PoseRecord
 from fluorogui.io.errors import InputError
+from fluorogui.io.pose_files import read_jts, read_tra
 from fluorogui.workflow import Session
 from fluorogui.workflow.exports import (
     export_jts,
@@ -168,11 +169,9 @@ def test_tra_and_jts_leave_out_poses_flagged_for_review_unless_asked(demo, truth
 
     def tra_rows(**kwargs):
         export_tra(session, tmp_path / "p.tra", **kwargs)
-        return read_tra_file(tmp_path / "p.tra")
+        return read_tra(tmp_path / "p.tra", 2)
 
     def jts_rows(**kwargs):
-        from fluorogui.io.pose_files import read_jts
-
         export_jts(session, tmp_path / "jts", view=0, **kwargs)
         return [row is not None for row in read_jts(tmp_path / "jts" / "femoral.jts")]
 
@@ -191,12 +190,6 @@ def test_tra_and_jts_leave_out_poses_flagged_for_review_unless_asked(demo, truth
     assert run.returncode == 0, run.stderr
     assert "1 pose flagged for review and left out" in run.stderr and "frame 1" in run.stderr
     assert out.read_text().splitlines()[1].split(",")[0] == "NaN"
-
-
-def read_tra_file(path):
-    from fluorogui.io.pose_files import read_tra
-
-    return read_tra(path, 2)
 
 
 def test_export_refuses_an_unwritable_path_before_work(demo, tmp_path):
