@@ -48,6 +48,9 @@ class SessionView:
             action.triggered.connect(lambda _=False, n=name: c.set_component(n))
             self.component_actions.addAction(action)
             self.component_menu.addAction(action)
+        for view, panel in enumerate(self.panels):
+            # a single-plane session: one panel across the width (no session: both, with the hint)
+            panel.setVisible(view < s.n_views or s.n_views == 0)
         missing = []
         if self.scene_widget is not None:
             scene = self.scene_widget.scene
@@ -122,7 +125,6 @@ class SessionView:
                 if view < len(self.panels):
                     self.panels[view].placeholder = f"No image for frame {frame}:\n{exc}"
         for view, panel in enumerate(self.panels):
-            panel.setVisible(view < s.n_views)  # a single-plane session: one panel, the whole width
             panel.set_image(images[view] if view < len(images) else None, key=(frame, view))
             for name in s.components():
                 key = c.outline_key(view, name)
