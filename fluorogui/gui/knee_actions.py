@@ -163,7 +163,7 @@ class KneeActions:
             return
         flagged = exports.unreviewed_matches(session) if {"tra", "jts"} & set(targets) else []
         left_out = (f"; {len(flagged)} pose{'s' if len(flagged) != 1 else ''} flagged for review left out of "
-                    ".tra/.jts (accept them to include them)") if flagged else ""
+                    ".tra/.jts (accept a pose, Ctrl+Return, to include it)") if flagged else ""
         self.statusBar().showMessage(f"Exported {len(written)} file{'s' if len(written) != 1 else ''} "
                                      f"to {Path(dialog.folder.text())}{left_out}", 8000)
         self.last_export = written
