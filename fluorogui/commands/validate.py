@@ -45,6 +45,9 @@ def add_parsers(sub) -> None:
     vi.add_argument("--mu", type=finite_float, default=None, help="xray: the metal's attenuation (1/mm; default CoCr, 1.0)")
     vi.add_argument("--photons", type=finite_float, default=3000.0, metavar="N",
                     help="xray: quanta per pixel without an object (quantum noise; 0: none, to see bias alone)")
+    vi.add_argument("--background", choices=["knee", "none"], default="knee",
+                    help="xray: knee: the leg's soft tissue and a bone shaft behind the component; "
+                         "none: air, so that a bias from the bone's edges shows apart from the method's own")
     vi.add_argument("--image-size", type=int, default=1024, help="image width and height (px; same field of view)")
     vi.add_argument("--distortion", type=finite_float, default=0.0, metavar="K1",
                     help="xray: radial distortion applied to the images, then corrected before matching")
@@ -139,6 +142,8 @@ def _xray_renderer(args):
     if args.photons < 0:
         raise UsageError(f"fluorogui: --photons {args.photons:g}: give 0 (no noise) or more")
     model = XrayModel(bits=args.bits, distortion_k1=args.distortion, photons=args.photons or None)
+    if args.background == "none":
+        model.background = []
     mu = args.mu or MU_METAL
 
     def render(view, meshes, rng):
@@ -171,6 +176,7 @@ def cmd_validate_idealized(args) -> int:
           f"offset {args.offset[0]:g}/{args.offset[1]:g} px, sources {args.source_distance[0]:g}/"
           f"{args.source_distance[1]:g} mm" + (", rim refinement" if args.rim else "") + (f", {args.bits}-bit, metal {args.mu or 1.0:g}/mm, distortion k1 {args.distortion:g} (corrected), "
                                                   + (f"{args.photons:g} quanta/px" if args.photons else "no noise")
+                                                  + ("" if args.background == "knee" else ", no background")
                                                   if render else "") + (f"; with {Path(args.other).name} overlapping" if other else "")
           + f"; {args.starts} starts per case (SD {args.start_sd:.3g} within ±20 mm / ±20 deg)"
           + f"; wrong basin beyond {args.basin[0]:g} mm / {args.basin[1]:g} deg"

@@ -121,3 +121,23 @@ def test_photons_0_images_without_noise(tray, tmp_path, capsys):
     assert int(rows[0]["false_beyond_3sd"]) <= int(rows[0]["false_converged"])
     assert main(["validate", "idealized", "--model", tray, "--photons", "-5"]) == 2
     assert "--photons -5" in capsys.readouterr().err
+
+
+def test_background_none_images_the_component_in_air(tray):
+    from fluorogui.cli import build_parser
+    from fluorogui.commands.validate import _xray_renderer
+    from fluorogui.core.validation import flexion_pose, two_views
+    from fluorogui.io.meshes import load_mesh
+
+    v, f = load_mesh(tray)
+    world = v + flexion_pose(v, 45.0)[:3]
+    view = two_views(image_size=(128, 128), pitch=315.0 / 128)[0]
+    images = {}
+    for background in ("knee", "none"):
+        args = build_parser().parse_args(["validate", "idealized", "--model", tray, "--photons", "0",
+                                          "--background", background])
+        images[background] = _xray_renderer(args)(view, [(world, f)], np.random.default_rng(1)).astype(float)
+    # off the metal, air is one brightness; behind the leg and the bone the same pixels are darker
+    air = images["none"] == images["none"].max()
+    assert 0.5 < air.mean() < 1.0
+    assert images["knee"][air].min() < 0.9 * images["none"].max()
