@@ -212,6 +212,8 @@ def cmd_validate_idealized(args) -> int:
                         rows.append(_case_row(name, method, case) | _basin_counts(case, *args.basin, beam))
                 _print_idealized_table(f"{name} — method {method}: error mean±SD [RMSE] of converged starts", table,
                                        args.basin, beam)
+    if len(rows) > 1:
+        print(_totals_line(rows))
     _write_outputs(args.out, payload, rows)
     if args.json:
         print(json.dumps(payload))
@@ -266,6 +268,25 @@ def _basin_counts(case, wrong_mm: float = WRONG_MM, wrong_deg: float = WRONG_DEG
     return {"right_basin": int(right.sum()), "converged": int(conv.sum()), "false_converged": int((conv & ~right).sum()),
             "false_beyond_3sd": int((conv & ~right & (z > 3.0)).sum()),
             "worst_mm": round(float(err[:, :3].max()), 4), "worst_deg": round(float(err[:, 3:].max()), 4)}
+
+
+def _totals_line(rows: list[dict]) -> str:
+    """One line over all the cases of a run: starts in the right basin, converged ones
+    outside it, the worst case's mean error (and the mean over cases of each case's
+    largest mean error) and the worst start."""
+    from fluorogui.core.validation import DOF_LABELS
+
+    means = np.array([[abs(r[f"{d}_mean"]) for d in DOF_LABELS] for r in rows], dtype=float)
+    means = means[np.all(np.isfinite(means), axis=1)]  # a case without a converged start has no mean
+    total = sum(r["n_runs"] for r in rows)
+    line = (f"all {len(rows)} cases: {sum(r['right_basin'] for r in rows)}/{total} starts in the right basin, "
+            f"{sum(r['false_converged'] for r in rows)} converged outside it "
+            f"({sum(r['false_beyond_3sd'] for r in rows)} beyond 3 SD); ")
+    if len(means):
+        mm, deg = means[:, :3].max(axis=1), means[:, 3:].max(axis=1)
+        line += (f"worst mean error {mm.max():.3f} mm / {deg.max():.3f} deg (mean over cases {mm.mean():.3f} mm / "
+                 f"{deg.mean():.3f} deg); ")
+    return line + f"worst start {max(r['worst_mm'] for r in rows):.3f} mm / {max(r['worst_deg'] for r in rows):.3f} deg\n"
 
 
 def _print_idealized_table(title, table, basin=(WRONG_MM, WRONG_DEG), beam=None):

@@ -40,6 +40,13 @@ def test_small_idealized_case_on_xray_images(tray, tmp_path, capsys):
         assert column in out
     assert payload["renderer"] == "xray" and len(rows) == 2 and all(int(r["n_runs"]) == 3 for r in rows)
     assert all(len(run["sd"]) == 6 for case in payload["cases"] for run in case["runs"])
+    # one line sums the cases up
+    right, false = (sum(int(r[k]) for r in rows) for k in ("right_basin", "false_converged"))
+    assert f"all 2 cases: {right}/6 starts in the right basin, {false} converged outside it" in out
+    worst = max(float(r["worst_mm"]) for r in rows), max(float(r["worst_deg"]) for r in rows)
+    assert f"worst start {worst[0]:.3f} mm / {worst[1]:.3f} deg" in out
+    mean_deg = max(abs(float(r[f"{d}_mean"])) for r in rows for d in ("dalpha", "dbeta", "dgamma"))
+    assert f"/ {mean_deg:.3f} deg (mean over cases" in out
     # the edges of real (blurred, thin-rimmed) metal sit inside its silhouette, which plain
     # Canny outlines do not model: measured worst 0.17 mm / 0.31 deg at 512 px (see README)
     err = _errors(payload)
