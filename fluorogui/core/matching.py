@@ -62,10 +62,8 @@ class MatchSettings:
     xtol: float = 0.0005  # mm and degrees: stop when every variable changes less
     fd_step: float = 0.1  # paper: finite-difference step (mm, deg); the paper does not give one
     spacing_px: float = 2.0  # fast: spacing of image outline points when outline_points is None
-    # fast: spacing of model outline points when outline_points is None. Which points of
-    # the model's silhouette are kept shifts from pose to pose; 2 px apart, that made the
-    # cost ripple by about 2 % of its curvature over 0.1 mm / 0.1 deg and stopped a start
-    # in a ripple up to 0.04 deg beside the minimum; 1 px apart, a sixth of that
+    # fast: spacing of model outline points (outline_points None); 2 px apart, the points kept
+    # shift enough from pose to pose to make the cost ripple (tests/core/test_cost_smoothness.py)
     model_spacing_px: float = 1.0
     huber_px: float = 2.0  # fast: Huber threshold of the robust loss
     symmetric: bool = True  # fast: add image-to-model residuals
