@@ -56,29 +56,26 @@ def scene(name, views, start_sd, args, mesh, world):
 
 
 def xray_scene(flexion, args):
-    from fluorogui.core.pipeline import fit_splines, refine_rims, segment_outlines
-    from fluorogui.core.validation import flexion_pose
+    from fluorogui.core.pipeline import fit_splines, segment_outlines
+    from fluorogui.core.pose import transform_points
+    from fluorogui.core.validation import flexion_pose, rim_refined_outlines
     from fluorogui.io.meshes import load_mesh
-    from fluorogui.validation.xray import Body, XrayModel, xray_image
+    from fluorogui.validation.xray import MU_METAL, Body, XrayModel, xray_image
 
     mesh = prepare_mesh(*load_mesh(args.xray))
     truth = flexion_pose(mesh.vertices, flexion)
-    world = mesh.vertices @ rotation_matrix(*truth[3:]).T + truth[:3]
+    world = transform_points(truth, mesh.vertices)
     views = dual_orthogonal_views()
     model = XrayModel(background=[]) if args.background == "none" else XrayModel()
     rng = np.random.default_rng(args.seed)
     errors, reported = [], []
     t0 = time.perf_counter()
     for _ in range(args.realisations):
-        images = [xray_image(v, [Body(world, mesh.faces, 1.0)], model, rng) for v in views]
+        images = [xray_image(v, [Body(world, mesh.faces, MU_METAL)], model, rng) for v in views]
         outlines = segment_outlines(images, views, mesh, truth)
         start = truth + rng.normal(0, 0.5, 6)
-        if args.rim:  # as validate idealized --rim: refine at a matched pose, twice
-            plain, rims = outlines, None
-            pose = match(MatchProblem(mesh, views, fit_splines(plain)), start).pose
-            for _ in range(2):
-                outlines, rims = refine_rims(images, views, mesh, pose, plain, None, rims)
-                pose = match(MatchProblem(mesh, views, fit_splines(outlines)), pose).pose
+        if args.rim:  # as validate idealized --rim
+            outlines = rim_refined_outlines(images, views, mesh, outlines, start)
         result = match(MatchProblem(mesh, views, fit_splines(outlines)), start)
         errors.append(pose_difference(result.pose, truth))
         reported.append(result.sd)

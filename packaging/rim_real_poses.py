@@ -29,9 +29,8 @@ from fluorogui.core.pipeline import LoopSettings, segment_and_match  # noqa: E40
 from fluorogui.io.calibration import load_view  # noqa: E402
 from fluorogui.io.images import read_image  # noqa: E402
 from fluorogui.io.meshes import load_mesh  # noqa: E402
+from fluorogui.io.pose_files import POSE_KEYS  # noqa: E402
 from fluorogui.workflow.framematch import occlusion_masks  # noqa: E402
-
-POSE_KEYS = ("x", "y", "z", "alpha", "beta", "gamma")
 
 
 def main(argv=None) -> int:

@@ -215,6 +215,19 @@ def occlusion_masks(views, mesh: PreparedMesh, R, t, margin_px: int = 3) -> list
     return [projected_region(view, [(mesh, R, t)], margin_px) for view in views]
 
 
+def rim_refined_outlines(images, views, mesh: PreparedMesh, plain, start, settings: MatchSettings | None = None,
+                         occluded=None) -> list:
+    """``plain`` outlines refined for the metal's rim as the automatic loop does: at the pose
+    matched from ``start``, twice (the second time at the pose the first refinement gives),
+    the image's rim models fitted once and kept."""
+    models = None
+    pose = match(MatchProblem(mesh, views, fit_splines(plain), occluded), start, settings).pose
+    for _ in range(2):
+        outlines, models = refine_rims(images, views, mesh, pose, plain, occluded, models)
+        pose = match(MatchProblem(mesh, views, fit_splines(outlines), occluded), pose, settings).pose
+    return outlines
+
+
 def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings, n_starts: int = 10,
                    seed: int = 0, views: list[View] | None = None, label: str = "",
                    render: Callable | None = None, other=None, other_is_tibial: bool = True,
@@ -249,12 +262,8 @@ def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings,
     images = [(render or render_fluoro)(v, bodies, rng) for v in views]
     outlines = segment_outlines(images, views, mesh, truth, occluded)
     starts = perturbed_starts(truth, n_starts, rng, sd_fraction=start_sd_fraction)
-    if rim:  # as the automatic loop does: refine for the rim at a matched pose (the first start's), twice
-        plain, models = outlines, None
-        pose = match(MatchProblem(mesh, views, fit_splines(outlines), occluded), starts[0], settings).pose
-        for _ in range(2):
-            outlines, models = refine_rims(images, views, mesh, pose, plain, occluded, models)
-            pose = match(MatchProblem(mesh, views, fit_splines(outlines), occluded), pose, settings).pose
+    if rim:
+        outlines = rim_refined_outlines(images, views, mesh, outlines, starts[0], settings, occluded)
     problem = MatchProblem(mesh, views, fit_splines(outlines), occluded)
     results, errors = run_starts(problem, truth, starts, settings)
     return CaseResult(label or f"{flexion_deg:g} deg", truth, results, errors, summarise(errors, results), extra)
