@@ -17,6 +17,7 @@ import numpy as np
 from fluorogui import __version__
 from fluorogui.commands.common import (
     UsageError,
+    add_rim_options,
     finite_float,
     int_in,
     native_stderr_to_log,
@@ -56,8 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--correction", action="append", metavar="CORR.json",
                    help="distortion correction per camera (fluorogui calibrate distortion)")
     _add_match_options(m)
-    m.add_argument("--rim", action="store_true",
-                   help="automatic outlines: move them to the boundary the metal's rim profile gives (core.rim)")
+    add_rim_options(m)
     m.add_argument("--json", action="store_true", help="print one JSON object")
     m.set_defaults(func=cmd_match)
 

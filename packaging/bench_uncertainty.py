@@ -75,7 +75,7 @@ def xray_scene(flexion, args):
         outlines = segment_outlines(images, views, mesh, truth)
         start = truth + rng.normal(0, 0.5, 6)
         if args.rim:  # as validate idealized --rim
-            outlines = rim_refined_outlines(images, views, mesh, outlines, start)
+            outlines, _ = rim_refined_outlines(images, views, mesh, outlines, start)
         result = match(MatchProblem(mesh, views, fit_splines(outlines)), start)
         errors.append(pose_difference(result.pose, truth))
         reported.append(result.sd)

@@ -97,6 +97,17 @@ def _fileno(stream) -> int | None:
         return None
 
 
+def add_rim_options(parser, what: str = "match") -> None:
+    """``--rim`` / ``--no-rim`` (dest ``rim``: "on", "off", default "auto"), as the automatic
+    outline loop's ``LoopSettings.rim``."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--rim", dest="rim", action="store_const", const="on", default="auto",
+                       help="automatic outlines: always move them to the boundary the metal's rim profile gives "
+                            f"(core.rim; default for this {what}: only in views whose edge is soft)")
+    group.add_argument("--no-rim", dest="rim", action="store_const", const="off",
+                       help="automatic outlines: never refine them for the metal's rim (Canny's edges as found)")
+
+
 def parse_frames(spec: str | None, frames: list[int]) -> list[int]:
     """``workflow.tracking.select_frames`` with its mistakes as usage errors."""
     from fluorogui.workflow.tracking import select_frames

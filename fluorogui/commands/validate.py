@@ -20,7 +20,7 @@ from fluorogui.cli import (  # the loaders and match settings `fluorogui match` 
     _splines,
     _start_pose,
 )
-from fluorogui.commands.common import UsageError, check_output_folder, finite_float, int_in
+from fluorogui.commands.common import UsageError, add_rim_options, check_output_folder, finite_float, int_in
 
 
 def add_parsers(sub) -> None:
@@ -60,8 +60,7 @@ def add_parsers(sub) -> None:
     vi.add_argument("--single-view", action="store_true", help="match in the first view only (single-plane)")
     vi.add_argument("--basin", nargs=2, type=finite_float, default=[WRONG_MM, WRONG_DEG], metavar=("MM", "DEG"),
                     help="a start ending farther than this from the truth is in a wrong basin (default 0.05 0.05)")
-    vi.add_argument("--rim", action="store_true",
-                    help="refine the outlines for the metal's rim profile (core.rim), as fluorogui match --rim")
+    add_rim_options(vi, "validation")
     _add_validation_options(vi)
     vi.set_defaults(func=cmd_validate_idealized)
     vp = vs.add_parser("spheres", help="Table 3: eight stacked 12.70 mm spheres")
@@ -174,7 +173,7 @@ def cmd_validate_idealized(args) -> int:
     print(f"idealized: {args.renderer} images, " + ("one view (single-plane) of " if args.single_view else "")
           + f"views {args.angle:g} deg apart, tilt {args.tilt:g} deg, "
           f"offset {args.offset[0]:g}/{args.offset[1]:g} px, sources {args.source_distance[0]:g}/"
-          f"{args.source_distance[1]:g} mm" + (", rim refinement" if args.rim else "") + (f", {args.bits}-bit, metal {args.mu or 1.0:g}/mm, distortion k1 {args.distortion:g} (corrected), "
+          f"{args.source_distance[1]:g} mm" + {"on": ", rim refinement", "off": ", no rim refinement", "auto": ", rim refinement where the edge is soft"}[args.rim] + (f", {args.bits}-bit, metal {args.mu or 1.0:g}/mm, distortion k1 {args.distortion:g} (corrected), "
                                                   + (f"{args.photons:g} quanta/px" if args.photons else "no noise")
                                                   + ("" if args.background == "knee" else ", no background")
                                                   if render else "") + (f"; with {Path(args.other).name} overlapping" if other else "")
@@ -206,6 +205,9 @@ def cmd_validate_idealized(args) -> int:
                         if "occluded" in case.extra:
                             case.label = label = label + " (hid " + "/".join(
                                 f"{100 * o:.0f}" for o in case.extra["occluded"]) + " %)"
+                        if args.rim == "auto" and case.extra["rim_refined"]:  # the views found soft
+                            case.label = label = label + " [rim " + "+".join(
+                                str(k + 1) for k in case.extra["rim_refined"]) + "]"
                         table.append((label, case))
                         payload["cases"].append({"model": model_path, "variant": variant, "method": method,
                                                  **case.to_dict()})

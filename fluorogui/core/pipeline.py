@@ -33,7 +33,7 @@ from .edges import component_outline
 from .geometry import View
 from .matching import MatchProblem, MatchResult, MatchSettings, match
 from .mesh import PreparedMesh
-from .rim import RimModel, refine_outline
+from .rim import RimModel, edge_model, is_soft, refine_outline
 from .pose import motion_between, rotation_matrix
 from .silhouette import mesh_silhouette
 from .spline import OutlineError, OutlineSpline
@@ -59,7 +59,15 @@ class LoopSettings:
     settled_first: float = 0.25  # ... and the first pass already, when it moved less than this from its start
     search_px: int = 60  # first pass: how far the outline may sit from the prediction
     later_search_px: int = 8  # later passes start from a matched pose
-    rim: bool = False  # later passes move the outline to the boundary the metal's rim profile gives (core.rim)
+    # later passes move the outline to the boundary the metal's rim profile gives (core.rim):
+    # "on", "off", or "auto": in the views whose edge is soft (core.rim.is_soft), judged once
+    rim: str = "auto"
+
+    def __post_init__(self):
+        if isinstance(self.rim, bool):  # the switch of older code: True is "on", False "off"
+            self.rim = "on" if self.rim else "off"
+        if self.rim not in RIM_MODES:
+            raise ValueError(f"rim must be one of {', '.join(RIM_MODES)}, not {self.rim!r}")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -68,7 +76,12 @@ class LoopSettings:
     def from_dict(cls, d: dict | None) -> "LoopSettings":
         d = d or {}
         known = {k: d[k] for k in cls.__dataclass_fields__ if k in d}
+        if known.get("rim") is False:  # projects saved before "auto" stored the default, False
+            known["rim"] = "auto"
         return cls(**known)
+
+
+RIM_MODES = ("auto", "on", "off")
 
 
 @dataclass
@@ -109,20 +122,41 @@ def segment_outlines(images: Sequence[np.ndarray], views: Sequence[View], mesh: 
 
 
 def refine_rims(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.ndarray | None], occluded=None,
-                models: list[RimModel | None] | None = None) -> tuple[list[np.ndarray | None], list[RimModel | None]]:
+                models: list[RimModel | None] | None = None,
+                only: Sequence[int] | None = None) -> tuple[list[np.ndarray | None], list[RimModel | None]]:
     """Automatic outlines moved to the boundary the metal's rim profile gives at ``pose``
-    (``core.rim``), per view (None stays None), and each image's rim model (fitted
-    unless given in ``models``)."""
+    (``core.rim``), per view (None stays None; views not in ``only`` stay as they are),
+    and each image's rim model (fitted unless given in ``models``)."""
     models = list(models) if models is not None else [None] * len(views)
     refined = []
     for k, points in enumerate(outlines):
-        if points is None:
-            refined.append(None)
+        if points is None or (only is not None and k not in only):
+            refined.append(points)
             continue
         exclude = occluded[k] if occluded is not None and k < len(occluded) else None
         new, models[k] = refine_outline(images[k], views[k], mesh, pose, points, models[k], exclude)
         refined.append(new)
     return refined, models
+
+
+def soft_edge_views(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.ndarray | None],
+                    occluded=None, models: list[RimModel | None] | None = None) -> tuple[list[int], list]:
+    """The views (with an outline) whose edge is a soft rim (``core.rim.is_soft``), judged
+    at ``pose`` by each image's rim model: the one in ``models`` or, where that is None,
+    ``core.rim.edge_model`` (a quick fit where that finds a step, else the full one the
+    refinement uses). Returns the views and the models."""
+    models = list(models) if models is not None else [None] * len(views)
+    soft = []
+    for k, points in enumerate(outlines):
+        if points is None:
+            continue
+        model = models[k]
+        if model is None:
+            exclude = occluded[k] if occluded is not None and k < len(occluded) else None
+            model = models[k] = edge_model(images[k], views[k], mesh, pose, points, exclude)
+        if is_soft(model):
+            soft.append(k)
+    return soft, models
 
 
 def fit_splines(outlines: Sequence[np.ndarray | None]) -> list[OutlineSpline | None]:
@@ -157,13 +191,18 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
     in a later pass the previous pass's result stands. ``LoopOutcome.outlines`` holds the
     automatic outlines (None for given views, and None overall when all were given).
 
-    With ``loop.rim`` the passes after the first move the automatic outlines to the
-    boundary the metal's rim profile gives (``core.rim``). Fitting an image's rim model
-    (attenuation and blur) is most of that work and they are the same for a whole
-    sequence: ``rim_models`` (a list, one entry per view) gives them, and its None
-    entries are filled in with the ones fitted here, for the next frame. The first such
-    pass also matches the plain outlines and the refined ones are kept only when they
-    fit the model better (a lower objective); otherwise the loop goes on without them."""
+    With ``loop.rim`` "on" the passes after the first move the automatic outlines to the
+    boundary the metal's rim profile gives (``core.rim``); with "auto" (the default) only
+    in the views whose edge the second pass finds soft (``soft_edge_views``: a thin rim
+    darkening inside the silhouette, where Canny's outline lies inside it and the pose
+    would be biased; real images have shown step edges, which stay as Canny puts them).
+    Fitting an image's rim model (attenuation and blur) is most of that work and they are
+    the same for a whole sequence: ``rim_models`` (a list, one entry per view) gives them,
+    and its None entries are filled in with the ones fitted here, for the next frame. The
+    first refining pass also matches the plain outlines and the refined ones are kept only
+    when they fit the model better (a lower objective); otherwise the loop goes on without
+    them. ``result.settings["rim_refined"]`` says per view whether the result's outline
+    was refined."""
     settings = settings or MatchSettings()
     loop = loop or LoopSettings()
     pose = np.asarray(start, dtype=float)
@@ -175,7 +214,11 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
     result, passes = None, 0
     if rim_models is None:
         rim_models = [None] * len(views)
-    use_rim, refined = loop.rim, False
+    # the views whose outlines the rim refinement moves; None until judged ("auto")
+    rim_views = {"on": missing, "off": []}.get(loop.rim)
+    if rim_views is None and all(rim_models[k] is not None for k in missing):  # judged in an earlier frame
+        rim_views = [k for k in missing if is_soft(rim_models[k])]
+    use_rim, refined = loop.rim != "off", False
     for k in range(max(1, loop.max_passes) if missing else 1):
         trial = None  # the first rim pass: the plain outlines, to compare with
         if missing:
@@ -183,12 +226,17 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
                 new_outlines = segment_outlines(images, views, mesh, pose, occluded,
                                                 loop.search_px if k == 0 else loop.later_search_px, missing)
                 if use_rim and k > 0:  # the pose is a matched one: its rim profiles are the image's
-                    if not refined:
+                    if rim_views is None:
+                        rim_views, judged = soft_edge_views(images, views, mesh, pose, new_outlines, occluded,
+                                                            rim_models)
+                        rim_models[:] = judged
+                    if rim_views and not refined:
                         trial = (new_outlines, fit_splines(new_outlines))
-                    new_outlines, fitted = refine_rims(images, views, mesh, pose, new_outlines, occluded,
-                                                       rim_models)
-                    rim_models[:] = fitted
-                    refined = True
+                    if rim_views:
+                        new_outlines, fitted = refine_rims(images, views, mesh, pose, new_outlines, occluded,
+                                                           rim_models, rim_views)
+                        rim_models[:] = fitted
+                        refined = True
                 new_splines = fit_splines(new_outlines)
             except SegmentationError:
                 if result is None:
@@ -215,7 +263,8 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
         history += result.history
         moved = max(motion_between(result.pose, previous, mesh.centroid))
         pose = result.pose
-        rim_pending = bool(missing) and use_rim and not refined
+        # a later pass is still owed: to judge the edge ("auto") or to refine it for the first time
+        rim_pending = bool(missing) and use_rim and (rim_views is None or (bool(rim_views) and not refined))
         if result.cancelled or (passes >= loop.min_passes and moved < loop.settled and not rim_pending):
             break
         if passes == 1 and moved < loop.settled_first and not rim_pending:
@@ -223,7 +272,8 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
             # pick the same edges (the search band is several pixels wide)
             break
     result.calls, result.seconds, result.history = total_calls, total_seconds, history
-    result.settings = dict(result.settings, loop=loop.to_dict(), passes=passes)
+    result.settings = dict(result.settings, loop=loop.to_dict(), passes=passes,
+                           rim_refined=[k in (rim_views or []) and refined and use_rim for k in range(len(views))])
     return LoopOutcome(result, outlines, list(current), passes)
 
 

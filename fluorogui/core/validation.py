@@ -22,7 +22,7 @@ import numpy as np
 from .geometry import View
 from .matching import MatchProblem, MatchResult, MatchSettings, mask_at, match
 from .mesh import PreparedMesh, prepare_mesh
-from .pipeline import fit_splines, refine_rims, segment_outlines, splines_from_images
+from .pipeline import fit_splines, refine_rims, segment_outlines, soft_edge_views, splines_from_images
 from .pose import angles_from_matrix, pose_error, rotation_matrix, rotvec_matrix, transform_points
 from .render import render_fluoro
 from .silhouette import mesh_silhouette, projected_region
@@ -216,22 +216,30 @@ def occlusion_masks(views, mesh: PreparedMesh, R, t, margin_px: int = 3) -> list
 
 
 def rim_refined_outlines(images, views, mesh: PreparedMesh, plain, start, settings: MatchSettings | None = None,
-                         occluded=None) -> list:
+                         occluded=None, mode: str = "on") -> tuple[list, list[int]]:
     """``plain`` outlines refined for the metal's rim as the automatic loop does: at the pose
     matched from ``start``, twice (the second time at the pose the first refinement gives),
-    the image's rim models fitted once and kept."""
-    models = None
+    the image's rim models fitted once and kept; with ``mode`` "auto" only in the views
+    whose edge is soft (``pipeline.soft_edge_views``), "off" none. Returns the outlines and
+    the views refined."""
+    if mode == "off":
+        return list(plain), []
     pose = match(MatchProblem(mesh, views, fit_splines(plain), occluded), start, settings).pose
+    only, models = [k for k, p in enumerate(plain) if p is not None], None
+    if mode == "auto":
+        only, models = soft_edge_views(images, views, mesh, pose, plain, occluded)
+        if not only:
+            return list(plain), []
     for _ in range(2):
-        outlines, models = refine_rims(images, views, mesh, pose, plain, occluded, models)
+        outlines, models = refine_rims(images, views, mesh, pose, plain, occluded, models, only)
         pose = match(MatchProblem(mesh, views, fit_splines(outlines), occluded), pose, settings).pose
-    return outlines
+    return outlines, only
 
 
 def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings, n_starts: int = 10,
                    seed: int = 0, views: list[View] | None = None, label: str = "",
                    render: Callable | None = None, other=None, other_is_tibial: bool = True,
-                   start_sd_fraction: float = 1.0 / 3.0, rim: bool = False) -> CaseResult:
+                   start_sd_fraction: float = 1.0 / 3.0, rim: str = "auto") -> CaseResult:
     """One row of Table 1/2: render, segment, match from perturbed starts, compare with the truth.
 
     ``render(view, [(world_vertices, faces)], rng) -> image`` makes the images; the
@@ -244,7 +252,9 @@ def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings,
     tray), placed by ``other_component_pose`` and imaged in the same images; its
     projection is masked out of segmentation and matching as the knee workflow does, and
     ``extra["occluded"]`` gives the share of the matched outline it hides per view.
-    ``start_sd_fraction``: the starts' Gaussian SD as a fraction of +/-20 mm / 20 deg."""
+    ``start_sd_fraction``: the starts' Gaussian SD as a fraction of +/-20 mm / 20 deg.
+    ``rim``: the rim refinement as the automatic loop's ``LoopSettings.rim`` ("auto":
+    in the views with a soft edge); ``extra["rim_refined"]`` lists the views refined."""
     rng = np.random.default_rng(seed)
     views = views or dual_orthogonal_views()
     mesh = prepare_mesh(vertices, faces)
@@ -262,8 +272,8 @@ def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings,
     images = [(render or render_fluoro)(v, bodies, rng) for v in views]
     outlines = segment_outlines(images, views, mesh, truth, occluded)
     starts = perturbed_starts(truth, n_starts, rng, sd_fraction=start_sd_fraction)
-    if rim:
-        outlines = rim_refined_outlines(images, views, mesh, outlines, starts[0], settings, occluded)
+    outlines, extra["rim_refined"] = rim_refined_outlines(images, views, mesh, outlines, starts[0], settings,
+                                                          occluded, rim)
     problem = MatchProblem(mesh, views, fit_splines(outlines), occluded)
     results, errors = run_starts(problem, truth, starts, settings)
     return CaseResult(label or f"{flexion_deg:g} deg", truth, results, errors, summarise(errors, results), extra)
