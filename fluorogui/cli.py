@@ -230,7 +230,8 @@ def cmd_match(args) -> int:
         print(json.dumps({k: d[k] for k in ("pose", "objective_mm", "per_view_mean_mm", "calls", "seconds",
                                               "converged", "method")}
                          | {"sd": [v if np.isfinite(v) else None for v in sd], "status": status,
-                            "reason": result.message, "message": d["message"]}))
+                            "reason": result.message, "message": d["message"],
+                            "rim_refined": result.settings.get("rim_refined", [False] * len(views))}))
     else:
         labels = ("x", "y", "z", "alpha", "beta", "gamma")
         print("pose: " + "  ".join(f"{l}={v:.4f}" for l, v in zip(labels, result.pose)))

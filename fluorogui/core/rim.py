@@ -333,22 +333,24 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
 
 
 def rim_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_px: np.ndarray,
-              exclude: np.ndarray | None = None, smooth: int = 8) -> RimModel:
-    """The image's rim model as ``refine_outline`` fits it (without moving anything)."""
+              exclude: np.ndarray | None = None, smooth: int = 8, judging: bool = False) -> RimModel:
+    """The image's rim model as ``refine_outline`` fits it (without moving anything);
+    ``judging``: without the second fit where the first finds a step (``_fit_model``)."""
     points = np.asarray(outline_px, dtype=float).reshape(-1, 2)
     if len(points) < 8:
         return STEP
     pts, _ = _gather(np.asarray(image, dtype=float), view, mesh, pose, points, exclude)
-    return _fit_model(pts, ~np.any((pts.weight > 0) & (pts.blocked > 0), axis=1), smooth)
+    return _fit_model(pts, ~np.any((pts.weight > 0) & (pts.blocked > 0), axis=1), smooth, judging)
 
 
-def _fit_model(pts: _Points, usable: np.ndarray, smooth: int) -> RimModel:
+def _fit_model(pts: _Points, usable: np.ndarray, smooth: int, judging: bool = False) -> RimModel:
     """The image's model: a first fit over 120 points and a second one over more points
-    without the strays the first one's moves show."""
+    without the strays the first one's moves show (``judging``: only where the first is
+    softer than ``MAYBE_SOFT_BELOW_MU``; a step edge is not refined, its blur not needed)."""
     if usable.sum() < 8:
         return STEP
     model = fit_rim_model(_subset(pts, usable))
-    if model is not STEP:
+    if model is not STEP and not (judging and model.mu >= MAYBE_SOFT_BELOW_MU):
         # strays must not decide the image's model either: fit it again without them,
         # over more points (the attenuation of a first fit over 120 points varies by
         # several per cent from one noise draw to the next, and moves the outline with it)
@@ -387,7 +389,8 @@ def edge_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_
     """The image's rim model, quickly when that is enough: a quick fit over
     ``DECIDE_POINTS`` evenly spread outline points and a coarse blur grid (about 0.4 s per
     view) where it finds a step edge (attenuation ``MAYBE_SOFT_BELOW_MU`` or more), else
-    the full fit of ``rim_model`` (about 4 s per view)."""
+    the full fit of ``rim_model``: its first fit over 120 points (about 1 s more) and, where
+    that is not a step either, the second one (about 3 s more)."""
     points = np.asarray(outline_px, dtype=float).reshape(-1, 2)
     sparse = points[::max(1, len(points) // DECIDE_POINTS)]
     if len(sparse) < 8:
@@ -400,7 +403,7 @@ def edge_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_
                           sigma_grid=DECIDE_SIGMAS)
     if quick.mu >= MAYBE_SOFT_BELOW_MU:
         return quick
-    return rim_model(image, view, mesh, pose, points, exclude)
+    return rim_model(image, view, mesh, pose, points, exclude, judging=True)
 
 
 #: at most this share of an outline's points is left out as strays

@@ -92,11 +92,12 @@ def test_rim_refinement_removes_the_edge_bias_of_thinning_metal_by_default(scene
         write_image(tmp_path / f"xray{k}.png", image, bits=16)
         images.append(str(tmp_path / f"xray{k}.png"))
     start = scene["truth"] + np.array([1.0, -1.0, 1.0, 1.0, -1.0, 1.0])
-    errors = {}
+    errors, refined = {}, {}
     for name, extra in (("off", ["--no-rim"]), ("auto", []), ("on", ["--rim"])):
         assert main(_run(scene, start, images, ["--json", *extra])) == 0
-        pose = np.array(json.loads(capsys.readouterr().out)["pose"])
-        errors[name] = np.abs(pose - scene["truth"])
+        payload = json.loads(capsys.readouterr().out)
+        errors[name], refined[name] = np.abs(np.array(payload["pose"]) - scene["truth"]), payload["rim_refined"]
+    assert refined == {"off": [False, False], "auto": [True, True], "on": [True, True]}
     # measured: --no-rim 0.10 mm / 0.21 deg (Canny's edge inside the silhouette), --rim
     # 0.009 mm / 0.015 deg, and the default finds both views' edges soft and refines them
     assert errors["off"][:3].max() > 0.05 and errors["off"][3:].max() > 0.1

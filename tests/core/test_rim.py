@@ -8,24 +8,13 @@ import pytest
 from scipy.spatial import cKDTree
 
 from fluorogui.core.edges import component_outline
-from fluorogui.core.mesh import prepare_mesh
-from fluorogui.core.phantoms import tibial_component_mesh
 from fluorogui.core.pipeline import LoopSettings, predicted_outline, segment_and_match
-from fluorogui.core.pose import transform_points
 from fluorogui.core.rim import RimModel, path_lengths, refine_outline, smooth_along
-from fluorogui.core.validation import flexion_pose, two_views
+from fluorogui.core.validation import two_views
 from fluorogui.validation.xray import Body, XrayModel, path_length, xray_image
 
 VIEWS = two_views(image_size=(512, 512), pitch=315.0 / 512)
 SUPER = 8  # samples per pixel for the true silhouette
-
-
-@pytest.fixture(scope="module")
-def tray():
-    v, f = tibial_component_mesh()
-    mesh = prepare_mesh(v, f)
-    pose = flexion_pose(mesh.vertices, 45.0)
-    return mesh, pose, transform_points(pose, mesh.vertices)
 
 
 def _box(outline, pad=6):

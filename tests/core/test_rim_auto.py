@@ -4,24 +4,14 @@ where Canny puts it, judging each view once per sequence."""
 import numpy as np
 import pytest
 
-from fluorogui.core.mesh import prepare_mesh
-from fluorogui.core.phantoms import tibial_component_mesh
 from fluorogui.core.pipeline import LoopSettings, segment_and_match
-from fluorogui.core.pose import pose_difference, transform_points
+from fluorogui.core.pose import pose_difference
 from fluorogui.core.rim import is_soft
-from fluorogui.core.validation import flexion_pose, two_views
+from fluorogui.core.validation import two_views
 from fluorogui.validation.xray import Body, XrayModel, xray_image
 
 VIEWS = two_views(image_size=(512, 512), pitch=315.0 / 512)
 OFFSET = np.array([1.0, -1.0, 0.5, 1.0, -1.0, 1.0])
-
-
-@pytest.fixture(scope="module")
-def tray():
-    v, f = tibial_component_mesh()
-    mesh = prepare_mesh(v, f)
-    pose = flexion_pose(mesh.vertices, 45.0)
-    return mesh, pose, transform_points(pose, mesh.vertices)
 
 
 def _images(tray, mu):

@@ -1,0 +1,16 @@
+"""Shared fixtures of the core tests: the phantom tibial tray posed at 45 degrees."""
+import pytest
+
+from fluorogui.core.mesh import prepare_mesh
+from fluorogui.core.phantoms import tibial_component_mesh
+from fluorogui.core.pose import transform_points
+from fluorogui.core.validation import flexion_pose
+
+
+@pytest.fixture(scope="module")
+def tray():
+    """(prepared mesh, pose, world vertices) of the phantom tray at 45 degrees of flexion."""
+    v, f = tibial_component_mesh()
+    mesh = prepare_mesh(v, f)
+    pose = flexion_pose(mesh.vertices, 45.0)
+    return mesh, pose, transform_points(pose, mesh.vertices)
