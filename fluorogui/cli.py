@@ -238,6 +238,11 @@ def cmd_match(args) -> int:
         print("SD:   " + "  ".join(f"{l}={v:.4f}" for l, v in zip(labels, sd)))
         print(f"objective {result.objective_mm:.4f} mm (per view {', '.join(f'{v:.4f}' for v in result.per_view_mean_mm)}), "
               f"{result.calls} calls, {result.seconds:.3f} s, {'converged' if result.converged else 'NOT converged: ' + result.message}")
+        from fluorogui.workflow.messages import rim_note
+
+        note = rim_note(result.settings)
+        if note:
+            print(note)
     return 0 if result.converged else 3
 
 

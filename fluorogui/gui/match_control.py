@@ -16,7 +16,7 @@ from PySide6.QtCore import QTimer
 from fluorogui.gui import jobs
 from fluorogui.gui.eta import Eta, describe
 from fluorogui.io.errors import InputError
-from fluorogui.workflow.messages import view_count_note
+from fluorogui.workflow.messages import rim_note, view_count_note
 from fluorogui.workflow.results import FAILED, NEEDS_REVIEW
 
 LIVE_3D_INTERVAL_S = 0.4  # the 3D model follows a live match at most this often
@@ -278,7 +278,8 @@ class MatchControl:
                 parts.append(f"{r.component} failed: {r.reason}")
             else:
                 objective = f", objective {r.match.objective_mm:.3f} mm" if r.match is not None else ""
-                parts.append(f"{r.component} matched{took}{objective}")
+                rim = rim_note(r.match.settings) if r.match is not None else ""
+                parts.append(f"{r.component} matched{took}{objective}" + (f" ({rim})" if rim else ""))
         flagged = any(r.status != "matched" for r in results)
         advice = (" Check the outlines and match again (F5), or accept the pose as it is (Ctrl+Return)."
                   if flagged else " Ctrl+Return accepts.")

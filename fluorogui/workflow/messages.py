@@ -54,3 +54,13 @@ SINGLE_PLANE_NOTE = ("single-plane session: translation along the X-ray beam (ou
 def view_count_note(n_views: int) -> str | None:
     """What a user must know about a session's geometry (one view: the weak direction)."""
     return SINGLE_PLANE_NOTE if n_views == 1 else None
+
+
+def rim_note(settings: dict | None) -> str:
+    """Which views' automatic outlines the loop moved for the metal's rim (``rim_refined``
+    in a match's settings), in words; empty when none."""
+    refined = [k + 1 for k, r in enumerate((settings or {}).get("rim_refined") or []) if r]
+    if not refined:
+        return ""
+    views = " and ".join(str(k) for k in refined)
+    return f"outline moved for the metal's soft rim in view{'s' if len(refined) > 1 else ''} {views}"

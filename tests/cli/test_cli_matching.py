@@ -98,6 +98,8 @@ def test_rim_refinement_removes_the_edge_bias_of_thinning_metal_by_default(scene
         payload = json.loads(capsys.readouterr().out)
         errors[name], refined[name] = np.abs(np.array(payload["pose"]) - scene["truth"]), payload["rim_refined"]
     assert refined == {"off": [False, False], "auto": [True, True], "on": [True, True]}
+    assert main(_run(scene, start, images, [])) == 0  # the text output says it too
+    assert "outline moved for the metal's soft rim in views 1 and 2" in capsys.readouterr().out
     # measured: --no-rim 0.10 mm / 0.21 deg (Canny's edge inside the silhouette), --rim
     # 0.009 mm / 0.015 deg, and the default finds both views' edges soft and refines them
     assert errors["off"][:3].max() > 0.05 and errors["off"][3:].max() > 0.1

@@ -268,3 +268,18 @@ def test_a_project_another_program_holds_is_not_opened_behind_its_back(window, d
     assert window.save()  # Save goes to Save As: never over the other program's file
     assert copy.exists() and json.loads(lock_path(demo).read_text())["program"] == "fluorogui track"
     assert not window.controller.read_only and "(read-only)" not in window.windowTitle()
+
+
+def test_a_match_whose_outline_was_moved_for_the_rim_says_so(window, demo):
+    from types import SimpleNamespace
+
+    from fluorogui.workflow import MATCHED, FrameResult
+
+    window.open_project(demo)
+    refined = SimpleNamespace(objective_mm=0.031, history=[0.5, 0.031], settings={"rim_refined": [False, True]})
+    plain = SimpleNamespace(objective_mm=0.029, history=[0.4, 0.029], settings={"rim_refined": [False, False]})
+    window._show_results([FrameResult(0, "femoral", np.zeros(6), MATCHED, "", refined, seconds=1.0),
+                          FrameResult(0, "tibial", np.zeros(6), MATCHED, "", plain, seconds=1.0)])
+    summary = window.matcher.summary.text()
+    assert "femoral matched in 1.0 s, objective 0.031 mm (outline moved for the metal's soft rim in view 2)" in summary
+    assert "tibial matched in 1.0 s, objective 0.029 mm." in summary and summary.count("soft rim") == 1
