@@ -68,7 +68,12 @@ _L_OFFSETS = np.r_[0.0, 0.005, 0.01, 0.02, 0.035, 0.05, 0.075, np.arange(0.1, 1.
 _LI0 = np.clip(np.searchsorted(_L_OFFSETS, np.clip(_X, 0, None), side="right") - 1, 0, len(_L_OFFSETS) - 2)
 _LFRAC = np.clip((np.clip(_X, 0, None) - _L_OFFSETS[_LI0]) / np.diff(_L_OFFSETS)[_LI0], 0.0, 1.0)
 _REACH, _LATERAL = 4.0, 1.0  # pixels used per point: along the normal and across it
-_SEARCH = np.arange(-1.0, 2.5 + 1e-9, 0.05)  # candidate boundary positions about the point (px)
+# candidate boundary positions about the point (px), and the largest move a fit may make:
+# thin metal (0.2/mm) puts Canny's edge up to 2.8 px inside the silhouette; with the
+# old limits (2.5 and 2 px) those points were left out, the flange tips with them, and
+# the femur's pose was 0.43 deg off without noise (0.015 deg now; ad-hoc measurement)
+SEARCH_INWARD_PX, MAX_MOVE_PX = 4.0, 3.5
+_SEARCH = np.arange(-1.0, SEARCH_INWARD_PX + 1e-9, 0.05)
 
 
 @dataclass
@@ -314,7 +319,7 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
     normal to the boundary the rim profile fit finds, and the image's rim model (fitted
     here unless given). Each point moves by the median of the fitted moves of itself and
     its ``smooth`` neighbours either side; a fit does not count when it fails, when it
-    would move its point by more than two pixels, or when a pixel it uses lies under
+    would move its point by more than ``MAX_MOVE_PX``, or when a pixel it uses lies under
     ``exclude`` (a boolean image: another component, whose own edge would spoil it).
     Points that land far from the rest (``_strays``) are left out of the result."""
     points = np.asarray(outline_px, dtype=float).reshape(-1, 2)
@@ -421,7 +426,7 @@ def _moves(pts: _Points, model: RimModel, usable: np.ndarray, smooth: int) -> tu
     residual, s0 = _residuals(pts, model.mu, model.sigma)
     boundary, best = _best_positions(residual, s0)
     moved = boundary - pts.at
-    keep = usable & np.isfinite(best) & (np.abs(moved) <= 2.0)
+    keep = usable & np.isfinite(best) & (np.abs(moved) <= MAX_MOVE_PX)
     moves = smooth_along(np.where(keep, moved, np.nan), smooth)
     return moves, np.where(usable, pts.at + moves, np.nan)
 
