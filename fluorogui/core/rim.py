@@ -370,16 +370,17 @@ def _fit_model(pts: _Points, usable: np.ndarray, smooth: int, judging: bool = Fa
 #: of 50) with the full fit (``rim_model``) at the matched poses (every third frame, ad hoc)
 SOFT_BELOW_MU = 1.7
 #: the quick fit (``edge_model``) calls an edge a step above this, and the full fit decides
-#: below it: over 120 points it saw soft rims in 40 % of the real views the full fit calls
-#: steps, and in none of 16 step-edged X-ray model views
-MAYBE_SOFT_BELOW_MU = 10.0
+#: below it: it saw soft rims in 40 % of the real views the full fit calls steps, fits of
+#: 5-8/mm on the demo's blurred step edges, and 1.0-1.4/mm on cobalt-chrome
+MAYBE_SOFT_BELOW_MU = 4.0
 #: outline points the quick fit of ``edge_model`` uses, and how much more residual (relative)
 #: a sharper profile may leave and still win there: over 60 points or at 0.5 % a step
 #: edge on the X-ray model was judged soft in 1-3 of 16 views (noise draws), over 120 at
 #: 1 % in none, while all 16 of cobalt-chrome (1/mm) were judged soft
 DECIDE_POINTS, DECIDE_TOLERANCE = 120, 0.01
-#: the quick fit's blurs (px): coarse, but up to the real images' 1.5
-DECIDE_SIGMAS = (0.4, 0.7, 1.0, 1.25, 1.5)
+#: the quick fit's blurs (px): coarse, but up to the real images' 1.5 (with 1.3 at most it
+#: called half the real views soft) and fine enough near the demo's 0.85
+DECIDE_SIGMAS = (0.4, 0.6, 0.8, 1.0, 1.25, 1.5)
 
 
 def is_soft(model: RimModel) -> bool:
