@@ -34,7 +34,9 @@ def _errors(payload):
 
 
 def test_small_idealized_case_on_xray_images(tray, tmp_path, capsys):
-    out, rows, payload = _run(tray, tmp_path, capsys, "--variant", "none", "mirrored", "--angle", "70", "--tilt", "10")
+    # plain Canny outlines (--no-rim; the default's rim refinement has tests of its own)
+    out, rows, payload = _run(tray, tmp_path, capsys, "--variant", "none", "mirrored", "--angle", "70", "--tilt", "10",
+                              "--no-rim")
     assert "xray images, views 70 deg apart, tilt 10 deg" in out and "tray.stl (mirrored)" in out
     for column in ("conv", "right", "false", "worst mm/deg"):
         assert column in out
@@ -123,7 +125,7 @@ def test_photons_0_images_without_noise(tray, tmp_path, capsys):
     assert np.array_equal(*images["0"])  # no noise: the same image whatever the seed
     assert not np.array_equal(*images["3000"])
     assert np.abs(images["0"][0].astype(float) - images["3000"][0]).mean() > 0
-    out, rows, _ = _run(tray, tmp_path, capsys, "--starts", "2", "--photons", "0")
+    out, rows, _ = _run(tray, tmp_path, capsys, "--starts", "2", "--photons", "0", "--no-rim")
     assert "no noise" in out and ">3SD" in out
     assert int(rows[0]["false_beyond_3sd"]) <= int(rows[0]["false_converged"])
     assert main(["validate", "idealized", "--model", tray, "--photons", "-5"]) == 2
