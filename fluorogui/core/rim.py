@@ -366,8 +366,9 @@ def _fit_model(pts: _Points, usable: np.ndarray, smooth: int, judging: bool = Fa
 
 
 #: a fitted attenuation (1/mm) below this is a soft rim (``is_soft``). The X-ray model's
-#: cobalt-chrome (1/mm) fits 1.0-1.4, the real biplane images 2-50 (mostly the grid's step
-#: of 50) with the full fit (``rim_model``) at the matched poses (every third frame, ad hoc)
+#: cobalt-chrome (1/mm) fits 1.0-1.4; the real biplane views 2-50 (76 of 106 the grid's
+#: step of 50) but 3 of 106 at 1.0-1.4 (the full fit, ``rim_model``, at the listed poses
+#: of every frame, ad hoc): a narrow margin, see the README
 SOFT_BELOW_MU = 1.7
 #: the quick fit (``edge_model``) calls an edge a step above this, and the full fit decides
 #: below it: it saw soft rims in 40 % of the real views the full fit calls steps, fits of
