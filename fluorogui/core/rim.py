@@ -375,9 +375,9 @@ SOFT_BELOW_MU = 1.7
 #: 5-8/mm on the demo's blurred step edges, and 1.0-1.4/mm on cobalt-chrome
 MAYBE_SOFT_BELOW_MU = 4.0
 #: outline points the quick fit of ``edge_model`` uses, and how much more residual (relative)
-#: a sharper profile may leave and still win there: over 60 points or at 0.5 % a step
-#: edge on the X-ray model was judged soft in 1-3 of 16 views (noise draws), over 120 at
-#: 1 % in none, while all 16 of cobalt-chrome (1/mm) were judged soft
+#: a sharper profile may leave and still win there: at 0.5 % a step edge on the X-ray
+#: model fitted below 10/mm in 2 (60 points) or 3 (120 points) of 16 views (noise draws),
+#: at 1 % over 120 points in none, while all 16 of cobalt-chrome (1/mm) fitted below 1.5
 DECIDE_POINTS, DECIDE_TOLERANCE = 120, 0.01
 #: the quick fit's blurs (px): coarse, but up to the real images' 1.5 (with 1.3 at most it
 #: called half the real views soft) and fine enough near the demo's 0.85
