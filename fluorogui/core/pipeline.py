@@ -76,9 +76,7 @@ class LoopSettings:
     def from_dict(cls, d: dict | None) -> "LoopSettings":
         d = d or {}
         known = {k: d[k] for k in cls.__dataclass_fields__ if k in d}
-        if known.get("rim") is False:  # projects saved before "auto" stored the default, False
-            known["rim"] = "auto"
-        return cls(**known)
+        return cls(**known)  # projects of schema 4 stored rim as true / false: io.project.migrate_4_to_5
 
 
 RIM_MODES = ("auto", "on", "off")

@@ -1,8 +1,8 @@
 """Project files (``.fluoro``): one JSON document holding a ``fluorogui.core.session.Project``.
 
-Layout (schema 4, the current one)::
+Layout (schema 5, the current one)::
 
-    {"format": "fluorogui-project", "schema_version": 4, "app_version": "...",
+    {"format": "fluorogui-project", "schema_version": 5, "app_version": "...",
      "views": [View.to_dict(), ...],
      "sequences": [{"paths": ["cam1/0001.tif", ...]}, ...],      # one per view
      "frames": [0, 20, ...],
@@ -61,7 +61,7 @@ from fluorogui.logs import log_exception
 
 PROJECT_FORMAT = "fluorogui-project"
 PROJECT_SUFFIX = ".fluoro"
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 MAX_PROJECT_BYTES = 1 << 30  # 1 GiB
 
 
@@ -115,7 +115,20 @@ def migrate_3_to_4(document: dict) -> dict:
     return dict(document)
 
 
-MIGRATIONS = {1: migrate_1_to_2, 2: migrate_2_to_3, 3: migrate_3_to_4}
+def migrate_4_to_5(document: dict) -> dict:
+    """Schema 5 stores the loop's rim refinement as "auto", "on" or "off"
+    (``LoopSettings.rim``); schema 4 stored true or false, false being the default then,
+    which is "auto" now."""
+    upgraded = dict(document)
+    settings = upgraded.get("settings")
+    loop = settings.get("workflow", {}).get("loop") if isinstance(settings, dict) else None
+    if isinstance(loop, dict) and isinstance(loop.get("rim"), bool):
+        workflow = dict(settings["workflow"], loop=dict(loop, rim="on" if loop["rim"] else "auto"))
+        upgraded["settings"] = dict(settings, workflow=workflow)
+    return upgraded
+
+
+MIGRATIONS = {1: migrate_1_to_2, 2: migrate_2_to_3, 3: migrate_3_to_4, 4: migrate_4_to_5}
 
 
 def upgrade(document: dict) -> dict:
@@ -305,9 +318,14 @@ def project_from_document(document: dict, base: Path) -> Project:
             raise _Malformed(f"'{where}' holds a number too large to be finite")
     try:
         check_settings(doc.settings)
-        for section, defaults in _engine_defaults().items():
+        for section, (cls, defaults) in _engine_settings().items():
             stored = doc.settings.get("workflow", {}).get(section, {})
             check_typed_settings(stored, defaults, f"settings.workflow.{section}")
+            if hasattr(cls, "from_dict"):  # the values the settings' own rules refuse (an unknown rim mode)
+                try:
+                    cls.from_dict(stored)
+                except ValueError as exc:
+                    raise ValueError(f"field 'settings.workflow.{section}': {exc}") from None
     except ValidationError as exc:
         raise _Malformed(describe(exc, "settings")) from None
     except ValueError as exc:
@@ -366,16 +384,16 @@ def _all_finite(value) -> bool:
     return True
 
 
-def _engine_defaults() -> dict[str, dict]:
-    """The engine settings a project stores (``settings.workflow``) and their defaults, which
-    give each stored value the kind it must have."""
+def _engine_settings() -> dict[str, tuple[type, dict]]:
+    """The engine settings a project stores (``settings.workflow``): their classes and their
+    defaults, which give each stored value the kind it must have."""
     from dataclasses import fields
 
     from fluorogui.core.matching import MatchSettings
     from fluorogui.core.pipeline import LoopSettings
     from fluorogui.core.quality import QualityThresholds
 
-    return {name: {f.name: getattr(cls(), f.name) for f in fields(cls)}
+    return {name: (cls, {f.name: getattr(cls(), f.name) for f in fields(cls)})
             for name, cls in (("match", MatchSettings), ("loop", LoopSettings), ("quality", QualityThresholds))}
 
 

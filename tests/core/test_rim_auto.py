@@ -59,9 +59,8 @@ def test_auto_refines_a_soft_rim_and_leaves_a_step_edge_alone(tray, monkeypatch)
 def test_loop_settings_rim_modes_and_older_projects():
     assert LoopSettings().rim == "auto"
     assert LoopSettings(rim=True).rim == "on" and LoopSettings(rim=False).rim == "off"
-    # projects saved before "auto" existed stored the default as False
-    assert LoopSettings.from_dict({"rim": False}).rim == "auto"
-    assert LoopSettings.from_dict({"rim": True}).rim == "on"
+    # projects saved before "auto" existed (schema 4) stored the default as False:
+    # tests/io/test_project.py::test_schema_4_rim_switch_loads_as_a_rim_mode
     assert LoopSettings.from_dict(LoopSettings(rim="off").to_dict()).rim == "off"
     with pytest.raises(ValueError, match="rim must be one of"):
         LoopSettings(rim="sometimes")

@@ -255,3 +255,20 @@ def test_status_reason_and_quality_round_trip(tmp_path):
     (tmp_path / "bad.fluoro").write_text(bad)
     with pytest.raises(InputError, match="status"):
         load_project(tmp_path / "bad.fluoro")
+
+
+def test_schema_4_rim_switch_loads_as_a_rim_mode(tmp_path):
+    from fluorogui.workflow.settings import WorkflowSettings
+
+    path = tmp_path / "old.fluoro"
+    save_project(full_project(tmp_path), path)
+    document = json.loads(path.read_text())
+    for stored, mode in ((False, "auto"), (True, "on")):  # schema 4's default was False
+        document.update(schema_version=4, settings={"workflow": {"loop": {"min_passes": 3, "rim": stored}}})
+        path.write_text(json.dumps(document))
+        settings = WorkflowSettings.from_dict(load_project(path).settings["workflow"])
+        assert settings.loop.rim == mode and settings.loop.min_passes == 3
+    document.update(schema_version=SCHEMA_VERSION, settings={"workflow": {"loop": {"rim": "sometimes"}}})
+    path.write_text(json.dumps(document))
+    with pytest.raises(InputError, match="settings.workflow.loop.*rim must be one of auto, on, off"):
+        load_project(path)

@@ -12,7 +12,7 @@ import pytest
 from fluorogui.core.session import POSE_STATUSES
 from fluorogui.io import schema
 from fluorogui.io.errors import InputError
-from fluorogui.io.project import load_project, save_project
+from fluorogui.io.project import SCHEMA_VERSION, load_project, save_project
 
 FIXTURES = Path(__file__).resolve().parent / "data"
 
@@ -136,7 +136,7 @@ def test_packed_arrays_are_written_and_checked(tmp_path):
     save_project(project, path)
     document = json.loads(path.read_text())
     packed = document["records"][0]["points"]
-    assert document["schema_version"] == 4 and set(packed) == {"dtype", "shape", "base64"}
+    assert document["schema_version"] == SCHEMA_VERSION and set(packed) == {"dtype", "shape", "base64"}
     assert load_project(path) == project  # exact float64
 
     def broken(change) -> str:
