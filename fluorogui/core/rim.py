@@ -326,7 +326,7 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
     if len(points) < 8:
         return points.copy(), model or STEP
     pts, n = _gather(np.asarray(image, dtype=float), view, mesh, pose, points, exclude)
-    usable = ~np.any((pts.weight > 0) & (pts.blocked > 0), axis=1)
+    usable = _usable(pts)
     if model is None:
         model = _fit_model(pts, usable, smooth)
     moves, offsets = _moves(pts, model, usable, smooth)
@@ -345,7 +345,7 @@ def rim_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_p
     if len(points) < 8:
         return STEP
     pts, _ = _gather(np.asarray(image, dtype=float), view, mesh, pose, points, exclude)
-    return _fit_model(pts, ~np.any((pts.weight > 0) & (pts.blocked > 0), axis=1), smooth, judging)
+    return _fit_model(pts, _usable(pts), smooth, judging)
 
 
 def _fit_model(pts: _Points, usable: np.ndarray, smooth: int, judging: bool = False) -> RimModel:
@@ -403,7 +403,7 @@ def edge_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_
     if len(sparse) < 8:
         return STEP
     pts, _ = _gather(np.asarray(image, dtype=float), view, mesh, pose, sparse, exclude)
-    usable = ~np.any((pts.weight > 0) & (pts.blocked > 0), axis=1)
+    usable = _usable(pts)
     if usable.sum() < 8:
         return STEP
     quick = fit_rim_model(_subset(pts, usable), max_points=DECIDE_POINTS, tolerance=DECIDE_TOLERANCE,
@@ -462,6 +462,11 @@ def smooth_along(values: np.ndarray, half_window: int) -> np.ndarray:
         warnings.simplefilter("ignore", RuntimeWarning)  # windows without a number
         out = np.nanmedian(windows, axis=1)
     return np.nan_to_num(out)
+
+
+def _usable(pts: _Points) -> np.ndarray:
+    """The points none of whose pixels lies under the exclusion mask (another component)."""
+    return ~np.any((pts.weight > 0) & (pts.blocked > 0), axis=1)
 
 
 def _subset(pts: _Points, rows) -> _Points:
