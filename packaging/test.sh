@@ -7,7 +7,14 @@ bash "$REPO_ROOT/packaging/setup.sh"
 cd "$REPO_ROOT"
 export QT_QPA_PLATFORM="${QT_QPA_PLATFORM:-offscreen}"
 
-cmd=("$REPO_ROOT/.venv/bin/python" -m pytest -q "$@")
+# One pytest worker per core (pytest-xdist): on 2 cores the suite takes about half the
+# time. FLUOROGUI_TEST_WORKERS=0 runs in one process (needed for -s / pdb).
+workers="${FLUOROGUI_TEST_WORKERS:-auto}"
+cmd=("$REPO_ROOT/.venv/bin/python" -m pytest -q)
+if [ "$workers" != "0" ]; then
+  cmd+=(-n "$workers")
+fi
+cmd+=("$@")
 if command -v xvfb-run >/dev/null 2>&1; then
   cmd=(xvfb-run -a -s "-screen 0 1920x1080x24" "${cmd[@]}")
 else
