@@ -30,7 +30,9 @@ This module moves every outline point to the boundary that explains the image ar
 4. The moves are smoothed along the outline (a median): the bias changes slowly along
    it, the noise of a single fit does not.
 5. Points that land far from the rest (another edge beside the component's, such as a
-   bone's cortex, pulls whole stretches by a pixel or two) are left out of the outline.
+   bone's cortex, pulls whole stretches by a pixel or two) are left out of the outline,
+   and so are the points near another edge the image shows (``core.other_edges``), which
+   pulls by tenths of a pixel.
 
 The profile shape comes from the mesh at the current pose, so the refinement runs in the
 automatic outline loop's later passes (``core.pipeline``, where the refined outline is
@@ -52,6 +54,7 @@ from scipy.spatial import cKDTree
 
 from .geometry import View
 from .mesh import PreparedMesh
+from .other_edges import near_other_edges
 from .pose import rotation_matrix
 from .silhouette import mesh_silhouette
 
@@ -321,7 +324,8 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
     its ``smooth`` neighbours either side; a fit does not count when it fails, when it
     would move its point by more than ``MAX_MOVE_PX``, or when a pixel it uses lies under
     ``exclude`` (a boolean image: another component, whose own edge would spoil it).
-    Points that land far from the rest (``_strays``) are left out of the result."""
+    Points that land far from the rest (``_strays``) and points near another edge in the
+    image (``core.other_edges``: a bone's cortex) are left out of the result."""
     points = np.asarray(outline_px, dtype=float).reshape(-1, 2)
     if len(points) < 8:
         return points.copy(), model or STEP
@@ -334,6 +338,9 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
     refined = points + moves[:, None] * n
     if drop.mean() > MAX_DROPPED:  # too many to be strays: the pose is not close enough to judge
         drop[:] = False
+    near = near_other_edges(image, points, exclude)
+    if near.mean() <= MAX_NEAR_OTHER_EDGES:  # more: a busy image, keep what the matcher can use
+        drop |= near
     return refined[~drop], model
 
 
@@ -415,6 +422,9 @@ def edge_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_
 
 #: at most this share of an outline's points is left out as strays
 MAX_DROPPED = 0.2
+#: points near another edge (``core.other_edges``) are left out unless more than this
+#: share of the outline is
+MAX_NEAR_OTHER_EDGES = 0.35
 #: a stray lies farther than this many robust SDs (and this many px) from the outline's
 #: median offset to the model boundary
 STRAY_SCALES, STRAY_PX = 5.0, 0.6
