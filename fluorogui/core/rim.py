@@ -330,7 +330,8 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
     if len(points) < 8:
         return points.copy(), model or STEP
     pts, n = _gather(np.asarray(image, dtype=float), view, mesh, pose, points, exclude)
-    usable = _usable(pts)
+    clear = _clear_of_other_edges(image, points, exclude)
+    usable = _usable(pts) & clear
     if model is None:
         model = _fit_model(pts, usable, smooth)
     moves, offsets = _moves(pts, model, usable, smooth)
@@ -338,9 +339,7 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
     refined = points + moves[:, None] * n
     if drop.mean() > MAX_DROPPED:  # too many to be strays: the pose is not close enough to judge
         drop[:] = False
-    near = near_other_edges(image, points, exclude)
-    if near.mean() <= MAX_NEAR_OTHER_EDGES:  # more: a busy image, keep what the matcher can use
-        drop |= near
+    drop |= ~clear
     return refined[~drop], model
 
 
@@ -352,7 +351,7 @@ def rim_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_p
     if len(points) < 8:
         return STEP
     pts, _ = _gather(np.asarray(image, dtype=float), view, mesh, pose, points, exclude)
-    return _fit_model(pts, _usable(pts), smooth, judging)
+    return _fit_model(pts, _usable(pts) & _clear_of_other_edges(image, points, exclude), smooth, judging)
 
 
 def _fit_model(pts: _Points, usable: np.ndarray, smooth: int, judging: bool = False) -> RimModel:
@@ -406,11 +405,12 @@ def edge_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_
     the full fit of ``rim_model``: its first fit over 120 points (about 1 s more) and, where
     that is not a step either, the second one (about 3 s more)."""
     points = np.asarray(outline_px, dtype=float).reshape(-1, 2)
-    sparse = points[::max(1, len(points) // DECIDE_POINTS)]
+    every = max(1, len(points) // DECIDE_POINTS)
+    sparse = points[::every]
     if len(sparse) < 8:
         return STEP
     pts, _ = _gather(np.asarray(image, dtype=float), view, mesh, pose, sparse, exclude)
-    usable = _usable(pts)
+    usable = _usable(pts) & _clear_of_other_edges(image, points, exclude)[::every]
     if usable.sum() < 8:
         return STEP
     quick = fit_rim_model(_subset(pts, usable), max_points=DECIDE_POINTS, tolerance=DECIDE_TOLERANCE,
@@ -422,8 +422,8 @@ def edge_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_
 
 #: at most this share of an outline's points is left out as strays
 MAX_DROPPED = 0.2
-#: points near another edge (``core.other_edges``) are left out unless more than this
-#: share of the outline is
+#: points near another edge (``core.other_edges``) are left out of the rim model's fit and
+#: of the refined outline, unless more than this share of the outline is
 MAX_NEAR_OTHER_EDGES = 0.35
 #: a stray lies farther than this many robust SDs (and this many px) from the outline's
 #: median offset to the model boundary
@@ -472,6 +472,13 @@ def smooth_along(values: np.ndarray, half_window: int) -> np.ndarray:
         warnings.simplefilter("ignore", RuntimeWarning)  # windows without a number
         out = np.nanmedian(windows, axis=1)
     return np.nan_to_num(out)
+
+
+def _clear_of_other_edges(image: np.ndarray, points: np.ndarray, exclude: np.ndarray | None) -> np.ndarray:
+    """False for the outline points near another edge in the image (``core.other_edges``),
+    unless more than ``MAX_NEAR_OTHER_EDGES`` of them are (a busy image: keep them all)."""
+    near = near_other_edges(image, points, exclude)
+    return ~near if near.mean() <= MAX_NEAR_OTHER_EDGES else np.ones(len(points), dtype=bool)
 
 
 def _usable(pts: _Points) -> np.ndarray:
