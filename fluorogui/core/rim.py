@@ -405,12 +405,14 @@ def edge_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_
     the full fit of ``rim_model``: its first fit over 120 points (about 1 s more) and, where
     that is not a step either, the second one (about 3 s more)."""
     points = np.asarray(outline_px, dtype=float).reshape(-1, 2)
-    every = max(1, len(points) // DECIDE_POINTS)
-    sparse = points[::every]
+    sparse = points[::max(1, len(points) // DECIDE_POINTS)]
     if len(sparse) < 8:
         return STEP
     pts, _ = _gather(np.asarray(image, dtype=float), view, mesh, pose, sparse, exclude)
-    usable = _usable(pts) & _clear_of_other_edges(image, points, exclude)[::every]
+    # every usable point, also those near other edges: with 15 % fewer, the quick fit of a
+    # cobalt-chrome view once found a step (5/mm, against 2/mm with them; ad hoc), and it
+    # only asks whether the full fit (without them) is needed
+    usable = _usable(pts)
     if usable.sum() < 8:
         return STEP
     quick = fit_rim_model(_subset(pts, usable), max_points=DECIDE_POINTS, tolerance=DECIDE_TOLERANCE,
