@@ -30,9 +30,7 @@ This module moves every outline point to the boundary that explains the image ar
 4. The moves are smoothed along the outline (a median): the bias changes slowly along
    it, the noise of a single fit does not.
 5. Points that land far from the rest (another edge beside the component's, such as a
-   bone's cortex, pulls whole stretches by a pixel or two) are left out of the outline,
-   and so are the points near another edge the image shows (``core.other_edges``), which
-   pulls by tenths of a pixel.
+   bone's cortex, pulls whole stretches by a pixel or two) are left out of the outline.
 
 The profile shape comes from the mesh at the current pose, so the refinement runs in the
 automatic outline loop's later passes (``core.pipeline``, where the refined outline is
@@ -54,7 +52,6 @@ from scipy.spatial import cKDTree
 
 from .geometry import View
 from .mesh import PreparedMesh
-from .other_edges import near_other_edges
 from .pose import rotation_matrix
 from .silhouette import mesh_silhouette
 
@@ -324,14 +321,12 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
     its ``smooth`` neighbours either side; a fit does not count when it fails, when it
     would move its point by more than ``MAX_MOVE_PX``, or when a pixel it uses lies under
     ``exclude`` (a boolean image: another component, whose own edge would spoil it).
-    Points that land far from the rest (``_strays``) and points near another edge in the
-    image (``core.other_edges``: a bone's cortex) are left out of the result."""
+    Points that land far from the rest (``_strays``) are left out of the result."""
     points = np.asarray(outline_px, dtype=float).reshape(-1, 2)
     if len(points) < 8:
         return points.copy(), model or STEP
     pts, n = _gather(np.asarray(image, dtype=float), view, mesh, pose, points, exclude)
-    clear = _clear_of_other_edges(image, points, exclude)
-    usable = _usable(pts) & clear
+    usable = _usable(pts)
     if model is None:
         model = _fit_model(pts, usable, smooth)
     moves, offsets = _moves(pts, model, usable, smooth)
@@ -339,7 +334,6 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
     refined = points + moves[:, None] * n
     if drop.mean() > MAX_DROPPED:  # too many to be strays: the pose is not close enough to judge
         drop[:] = False
-    drop |= ~clear
     return refined[~drop], model
 
 
@@ -351,7 +345,7 @@ def rim_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_p
     if len(points) < 8:
         return STEP
     pts, _ = _gather(np.asarray(image, dtype=float), view, mesh, pose, points, exclude)
-    return _fit_model(pts, _usable(pts) & _clear_of_other_edges(image, points, exclude), smooth, judging)
+    return _fit_model(pts, _usable(pts), smooth, judging)
 
 
 def _fit_model(pts: _Points, usable: np.ndarray, smooth: int, judging: bool = False) -> RimModel:
@@ -409,9 +403,6 @@ def edge_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_
     if len(sparse) < 8:
         return STEP
     pts, _ = _gather(np.asarray(image, dtype=float), view, mesh, pose, sparse, exclude)
-    # every usable point, also those near other edges: with 15 % fewer, the quick fit of a
-    # cobalt-chrome view once found a step (5/mm, against 2/mm with them; ad hoc), and it
-    # only asks whether the full fit (without them) is needed
     usable = _usable(pts)
     if usable.sum() < 8:
         return STEP
@@ -424,9 +415,6 @@ def edge_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_
 
 #: at most this share of an outline's points is left out as strays
 MAX_DROPPED = 0.2
-#: points near another edge (``core.other_edges``) are left out of the rim model's fit and
-#: of the refined outline, unless more than this share of the outline is
-MAX_NEAR_OTHER_EDGES = 0.35
 #: a stray lies farther than this many robust SDs (and this many px) from the outline's
 #: median offset to the model boundary
 STRAY_SCALES, STRAY_PX = 5.0, 0.6
@@ -474,13 +462,6 @@ def smooth_along(values: np.ndarray, half_window: int) -> np.ndarray:
         warnings.simplefilter("ignore", RuntimeWarning)  # windows without a number
         out = np.nanmedian(windows, axis=1)
     return np.nan_to_num(out)
-
-
-def _clear_of_other_edges(image: np.ndarray, points: np.ndarray, exclude: np.ndarray | None) -> np.ndarray:
-    """False for the outline points near another edge in the image (``core.other_edges``),
-    unless more than ``MAX_NEAR_OTHER_EDGES`` of them are (a busy image: keep them all)."""
-    near = near_other_edges(image, points, exclude)
-    return ~near if near.mean() <= MAX_NEAR_OTHER_EDGES else np.ones(len(points), dtype=bool)
 
 
 def _usable(pts: _Points) -> np.ndarray:
