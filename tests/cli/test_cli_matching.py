@@ -97,8 +97,6 @@ def test_rim_refinement_removes_the_edge_bias_of_thinning_metal_by_default(scene
         assert main(_run(scene, start, images, ["--json", *extra])) == 0
         payload = json.loads(capsys.readouterr().out)
         errors[name], refined[name] = np.abs(np.array(payload["pose"]) - scene["truth"]), payload["rim_refined"]
-    with capsys.disabled():
-        print("worst errors (mm, deg):", {k: (round(e[:3].max(), 4), round(e[3:].max(), 4)) for k, e in errors.items()})
     assert refined == {"off": [False, False], "auto": [True, True]}
     # measured: --no-rim 0.10 mm / 0.21 deg (Canny's edge inside the silhouette); the
     # default finds both views' edges soft and refines them, as --rim does: 0.004 mm / 0.016 deg
