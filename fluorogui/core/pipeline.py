@@ -60,7 +60,8 @@ class LoopSettings:
     search_px: int = 60  # first pass: how far the outline may sit from the prediction
     later_search_px: int = 8  # later passes start from a matched pose
     # later passes move the outline to the boundary the metal's rim profile gives (core.rim):
-    # "on", "off", or "auto": in the views whose edge is soft (core.rim.is_soft), judged once
+    # "on", "off", or "auto": in the views whose edge is soft (core.rim.is_soft), judged in the
+    # second pass (tracking keeps a judgement for the sequence: workflow.framematch.RimJudgement)
     rim: str = "auto"
 
     def __post_init__(self):

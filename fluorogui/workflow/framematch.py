@@ -38,6 +38,12 @@ from fluorogui.workflow.settings import WorkflowSettings
 
 _RANK = {MATCHED: 0, NEEDS_REVIEW: 1, FAILED: 2}
 
+#: a component's rim judgement (``core.rim``: per view, is the edge a soft rim, and its
+#: attenuation and blur) is the same for a whole sequence; it rests on this many matched
+#: frames, each judged on its own, not on the first attempt alone (which may land at a
+#: wrong pose, and 4 of 106 real views fitted soft where their neighbours fit steps)
+RIM_JUDGE_FRAMES = 3
+
 
 class Cancelled(Exception):
     """The caller's cancel flag was set."""
@@ -109,8 +115,8 @@ class FrameMatcher:
         # find_near(images, component, mesh, pose or None (a search of the whole image), cancel) -> pose or None
         self.find_near = find_near
         self.live = live  # live(component, calls, objective_mm, pose) at every step of a match
-        # each component's rim models per view (core.rim): fitted in its first frame, then reused
-        self.rim_models: dict[str, list] = {}
+        # each component's rim models per view (core.rim): judged in its first matched frames, then reused
+        self.rim_judgements: dict[str, RimJudgement] = {}
 
     def _fields(self, images) -> list[np.ndarray]:
         """The fields of view of this frame's images (computed once per set of images)."""
@@ -130,7 +136,7 @@ class FrameMatcher:
             def step(calls, objective, pose, _c=job.component):
                 self.live(_c, calls, objective, pose)
         try:
-            rims = self.rim_models.setdefault(job.component, [None] * len(self.views))
+            rims = self.rim_judgements.setdefault(job.component, RimJudgement(len(self.views))).for_attempt()
             out = segment_and_match(images, self.views, job.mesh, start, s.match, loop, job.given, occluded,
                                     step, cancel, rims)
         except SegmentationError as exc:
@@ -150,7 +156,7 @@ class FrameMatcher:
                          max_jump_deg=s.quality.max_jump_deg * max(1, job.gap))
         status, reason = judge(quality, limits, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))])
         return FrameResult(0, job.component, result.pose, status, reason, result, quality,
-                           out.outlines, time.perf_counter() - t0)
+                           out.outlines, time.perf_counter() - t0, rim_models=rims)
 
     # -- one component, with recovery ------------------------------------------------------------
     def match_component(self, frame: int, images, job: ComponentInput, occluded=None,
@@ -176,6 +182,8 @@ class FrameMatcher:
                 break  # reviewed outlines that cannot be matched: other starts will not help
         if best.status == MATCHED and job.probe and self.settings.tracking.probe:
             best, tried = self._probe(images, job, best, occluded, cancel, tried)
+        if best.status == MATCHED:  # one vote per frame, from its best result only
+            self.rim_judgements[job.component].add(best.rim_models)
         best.frame, best.attempts, best.seconds = frame, tried, time.perf_counter() - t0
         if best.pose is None:
             best.pose = np.asarray(job.start, dtype=float).copy()  # the prediction, as a start for the user
@@ -274,6 +282,36 @@ class FrameMatcher:
             masked_with[job.component] = {name: p.copy() for name, (m, p) in known.items()
                                           if name != job.component} if occluded is not None else {}
         return self.match_component(frame, images, job, occluded, cancel)
+
+
+class RimJudgement:
+    """One component's rim models per view through a sequence. Until ``RIM_JUDGE_FRAMES``
+    matched frames have judged their edges, every attempt judges its own (a fresh list for
+    ``core.pipeline.segment_and_match`` to fill); then, per view, the model of the median
+    attenuation among theirs (of an even count the sharper one: a step edge keeps its
+    place) is settled and shared by every later attempt."""
+
+    def __init__(self, n_views: int) -> None:
+        self.n_views = n_views
+        self.votes: list[list] = []
+        self.settled: list | None = None
+
+    def for_attempt(self) -> list:
+        return self.settled if self.settled is not None else [None] * self.n_views
+
+    def add(self, models: list | None) -> None:
+        """A matched frame's models (None entries: views it did not judge)."""
+        if self.settled is not None or models is None or all(m is None for m in models):
+            return
+        self.votes.append(list(models))
+        if len(self.votes) >= RIM_JUDGE_FRAMES:
+            self.settled = [_median_model([v[k] for v in self.votes]) for k in range(self.n_views)]
+
+
+def _median_model(models: list):
+    """The model of median attenuation (the sharper of two middle ones), None if none."""
+    known = sorted((m for m in models if m is not None), key=lambda m: m.mu)
+    return known[len(known) // 2] if known else None
 
 
 def _better(a: FrameResult, b: FrameResult) -> bool:

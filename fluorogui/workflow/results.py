@@ -36,6 +36,7 @@ class FrameResult:
     kept: bool = False
     attempts: int = 0  # starts tried (1 when the prediction was right at once)
     recovered: str = ""  # how a lost frame was recovered ("last pose", "rotated start", "find near")
+    rim_models: list | None = field(default=None, repr=False)  # per view, the core.rim models it used
 
     @property
     def is_matched(self) -> bool:
