@@ -29,6 +29,7 @@ from fluorogui.core.mesh import PreparedMesh
 from fluorogui.core.pipeline import SegmentationError, segment_and_match
 from fluorogui.core.pose import angles_from_matrix, motion_between, rotation_matrix
 from fluorogui.core.quality import FAILED, MATCHED, NEEDS_REVIEW, assess, judge
+from fluorogui.core.rim import MAYBE_SOFT_BELOW_MU
 from fluorogui.core.shape_search import image_field
 from fluorogui.core.silhouette import projected_region
 from fluorogui.core.spline import OutlineSpline
@@ -39,9 +40,10 @@ from fluorogui.workflow.settings import WorkflowSettings
 _RANK = {MATCHED: 0, NEEDS_REVIEW: 1, FAILED: 2}
 
 #: a component's rim judgement (``core.rim``: per view, is the edge a soft rim, and its
-#: attenuation and blur) is the same for a whole sequence; it rests on this many matched
-#: frames, each judged on its own, not on the first attempt alone (which may land at a
-#: wrong pose, and 4 of 106 real views fitted soft where their neighbours fit steps)
+#: attenuation and blur) is the same for a whole sequence; unless its first matched frame
+#: finds a clear step it rests on this many matched frames, each judged on its own, not on
+#: the first attempt alone (which may land at a wrong pose, and 4 of 106 real views fitted
+#: soft where their neighbours fit steps)
 RIM_JUDGE_FRAMES = 3
 
 
@@ -285,33 +287,30 @@ class FrameMatcher:
 
 
 class RimJudgement:
-    """One component's rim models per view through a sequence. Until ``RIM_JUDGE_FRAMES``
-    matched frames have judged their edges, every attempt judges its own (a fresh list for
-    ``core.pipeline.segment_and_match`` to fill); then, per view, the model of the median
-    attenuation among theirs (of an even count the sharper one: a step edge keeps its
-    place) is settled and shared by every later attempt."""
+    """One component's rim models per view through a sequence, judged in its matched
+    frames. A view whose first matched frame finds a clear step (an attenuation of
+    ``core.rim.MAYBE_SOFT_BELOW_MU`` or more: not refined, and most real views) keeps that;
+    any other view is judged again in each matched frame until ``RIM_JUDGE_FRAMES`` have,
+    then keeps the model of median attenuation among theirs. ``for_attempt`` hands each
+    attempt the settled views' models and None where its own frame is to judge (the list
+    ``core.pipeline.segment_and_match`` fills)."""
 
     def __init__(self, n_views: int) -> None:
-        self.n_views = n_views
-        self.votes: list[list] = []
-        self.settled: list | None = None
+        self.votes: list[list] = [[] for _ in range(n_views)]
+        self.settled: list = [None] * n_views
 
     def for_attempt(self) -> list:
-        return self.settled if self.settled is not None else [None] * self.n_views
+        return self.settled if all(m is not None for m in self.settled) else list(self.settled)
 
     def add(self, models: list | None) -> None:
         """A matched frame's models (None entries: views it did not judge)."""
-        if self.settled is not None or models is None or all(m is None for m in models):
-            return
-        self.votes.append(list(models))
-        if len(self.votes) >= RIM_JUDGE_FRAMES:
-            self.settled = [_median_model([v[k] for v in self.votes]) for k in range(self.n_views)]
-
-
-def _median_model(models: list):
-    """The model of median attenuation (the sharper of two middle ones), None if none."""
-    known = sorted((m for m in models if m is not None), key=lambda m: m.mu)
-    return known[len(known) // 2] if known else None
+        for k, model in enumerate(models or []):
+            if model is None or self.settled[k] is not None:
+                continue
+            self.votes[k].append(model)
+            clear_step = len(self.votes[k]) == 1 and model.mu >= MAYBE_SOFT_BELOW_MU
+            if clear_step or len(self.votes[k]) >= RIM_JUDGE_FRAMES:
+                self.settled[k] = sorted(self.votes[k], key=lambda m: m.mu)[len(self.votes[k]) // 2]
 
 
 def _better(a: FrameResult, b: FrameResult) -> bool:

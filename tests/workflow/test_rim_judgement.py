@@ -1,15 +1,15 @@
-"""A sequence's rim judgement rests on several matched frames, not on its first attempt:
-one view that fits soft among steps, or a frame that fails its checks, does not decide
-whether every later frame's outline is moved."""
+"""A sequence's rim judgement rests on its matched frames, not on its first attempt: a
+clear step is kept at once, but one view that fits soft among steps, or a frame that
+fails its checks, does not decide whether every later frame's outline is moved."""
 from __future__ import annotations
 
 from types import SimpleNamespace
 
 import numpy as np
 
-from fluorogui.core.validation import two_views
 from fluorogui.core.quality import MATCHED, NEEDS_REVIEW
 from fluorogui.core.rim import STEP, RimModel, is_soft
+from fluorogui.core.validation import two_views
 from fluorogui.workflow import framematch
 from fluorogui.workflow.framematch import RIM_JUDGE_FRAMES, ComponentInput, FrameMatcher, RimJudgement
 from fluorogui.workflow.settings import WorkflowSettings
@@ -17,38 +17,32 @@ from fluorogui.workflow.settings import WorkflowSettings
 SOFT = RimModel(1.2, 1.2)
 
 
-def test_median_of_the_matched_frames_decides_and_is_then_shared():
-    judgement = RimJudgement(2)
-    first = judgement.for_attempt()
-    assert first == [None, None] and judgement.for_attempt() is not first  # each judges its own
-    judgement.add([SOFT, STEP])  # one frame fits view 1 soft ...
-    judgement.add(None)  # (a result without models does not count)
-    judgement.add([None, None])
-    judgement.add([STEP, RimModel(1.4, 1.3)])
-    assert judgement.settled is None and RIM_JUDGE_FRAMES == 3
-    judgement.add([RimModel(5.0, 1.3), RimModel(1.0, 1.4)])  # ... the other two steps
-    settled = judgement.for_attempt()
-    assert settled == [RimModel(5.0, 1.3), RimModel(1.4, 1.3)]
-    assert [is_soft(m) for m in settled] == [False, True]
-    assert judgement.for_attempt() is settled  # every later attempt shares (and fills) it
-    judgement.add([SOFT, SOFT])
-    assert judgement.for_attempt() == settled
-
-
-def test_of_two_votes_the_sharper_wins_and_unjudged_views_stay_open():
+def test_a_clear_step_settles_at_once_anything_else_on_the_median_of_three():
     judgement = RimJudgement(3)
-    judgement.add([SOFT, STEP, None])
-    judgement.add([None, None, None])  # no vote
-    judgement.add([STEP, None, None])  # view 2 given (reviewed) in this frame
-    assert judgement.settled is None
-    judgement.add([RimModel(1.3, 1.0), SOFT, None])
-    assert judgement.settled == [RimModel(1.3, 1.0), STEP, None]
+    first = judgement.for_attempt()
+    assert first == [None, None, None] and judgement.for_attempt() is not first  # each judges its own
+    judgement.add([SOFT, STEP, None])  # view 3 given (reviewed) in this frame
+    assert judgement.settled == [None, STEP, None]  # a clear step is kept at once ...
+    judgement.add(None)  # (a result without models does not count)
+    judgement.add([RimModel(2.0, 1.3), SOFT, None])  # ... and not judged again
+    assert judgement.for_attempt() == [None, STEP, None] and RIM_JUDGE_FRAMES == 3
+    judgement.add([RimModel(5.0, 1.3), None, RimModel(1.0, 1.4)])
+    settled = judgement.for_attempt()
+    assert settled == [RimModel(2.0, 1.3), STEP, None]  # one soft frame of three does not decide
+    assert not any(is_soft(m) for m in settled[:2])
+    assert judgement.for_attempt() is not settled  # view 3 still judges in each frame
+    judgement.add([SOFT, SOFT, SOFT])
+    judgement.add([SOFT, SOFT, RimModel(1.5, 1.2)])
+    settled = judgement.for_attempt()
+    assert settled == [RimModel(2.0, 1.3), STEP, SOFT] and is_soft(settled[2])  # two soft frames of three do
+    assert judgement.for_attempt() is settled  # every later attempt shares it
 
 
 def test_frame_matcher_reuses_the_models_only_after_three_matched_frames(monkeypatch):
-    """Scripted frames: the first fails its checks with a soft view, the second matches
-    soft, the next two match with steps; from the fifth on the loop is handed the
-    settled (step) model and fits nothing."""
+    """Scripted frames, two views: in view 1 the first frame fails its checks with a soft
+    fit, the second matches soft, the next two match with steps; from the fifth on the
+    loop is handed the settled (step) model and fits nothing. View 2 is a clear step
+    from the first matched frame on, and is not judged again."""
     script = {1: (SOFT, NEEDS_REVIEW), 2: (SOFT, MATCHED), 3: (STEP, MATCHED), 4: (STEP, MATCHED),
               5: (SOFT, MATCHED), 6: (SOFT, MATCHED)}
     handed: dict[int, list] = {}
@@ -59,8 +53,8 @@ def test_frame_matcher_reuses_the_models_only_after_three_matched_frames(monkeyp
         handed[frame] = list(rims)
         for k in range(len(rims)):
             if rims[k] is None:  # judged here, as segment_and_match fills the list
-                rims[k] = script[frame][0]
-        result = SimpleNamespace(cancelled=False, pose=np.zeros(6), converged=True, per_view_mean_mm=[0.05],
+                rims[k] = script[frame][0] if k == 0 else STEP
+        result = SimpleNamespace(cancelled=False, pose=np.zeros(6), converged=True, per_view_mean_mm=[0.05, 0.05],
                                  outlines_px=None)
         return SimpleNamespace(result=result, splines=[], outlines=None)
 
@@ -69,12 +63,13 @@ def test_frame_matcher_reuses_the_models_only_after_three_matched_frames(monkeyp
     monkeypatch.setattr(framematch, "judge", lambda *a, **k: (script[state["frame"]][1], ""))
     settings = WorkflowSettings()
     settings.tracking.recover = settings.tracking.probe = False
-    matcher = FrameMatcher(two_views(image_size=(512, 512), pitch=315.0 / 512)[:1], settings)
+    matcher = FrameMatcher(two_views(image_size=(512, 512), pitch=315.0 / 512), settings)
     job = ComponentInput("femoral", SimpleNamespace(), np.zeros(6))
     statuses = []
     for frame in sorted(script):
         state["frame"] = frame
-        statuses.append(matcher.match_component(frame, [np.zeros((512, 512))], job).status)
+        statuses.append(matcher.match_component(frame, [np.zeros((512, 512))] * 2, job).status)
     assert statuses == [NEEDS_REVIEW] + [MATCHED] * 5
-    assert all(handed[f] == [None] for f in (1, 2, 3, 4))  # judged in each frame itself
-    assert handed[5] == handed[6] == [STEP]  # the median of frames 2-4, not frame 1's soft fit
+    assert handed[1] == handed[2] == [None, None]  # judged in each frame itself
+    assert handed[3] == handed[4] == [None, STEP]  # view 2: frame 2's clear step
+    assert handed[5] == handed[6] == [STEP, STEP]  # view 1: the median of frames 2-4, not frame 1's soft fit
