@@ -57,6 +57,9 @@ def add_parsers(sub) -> None:
                     help="which component --other is (default: from its file name)")
     vi.add_argument("--start-sd", type=finite_float, default=20.0 / 3.0, metavar="SD",
                     help="the starts' Gaussian SD (mm and deg) within +/-20 (default 20/3: the range is 3 SD)")
+    vi.add_argument("--draws", type=int_in(1, 100), default=1, metavar="N",
+                    help="images per case, each with its own noise (seeds SEED .. SEED+N-1; --starts per image): "
+                         "one image's noise moves every start of a case alike")
     vi.add_argument("--single-view", action="store_true", help="match in the first view only (single-plane)")
     vi.add_argument("--basin", nargs=2, type=finite_float, default=[WRONG_MM, WRONG_DEG], metavar=("MM", "DEG"),
                     help="a start ending farther than this from the truth is in a wrong basin (default 0.05 0.05)")
@@ -97,10 +100,15 @@ def _write_outputs(out_dir, payload: dict, rows: list[dict]):
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "results.json", json.dumps(payload, indent=2))
-    if rows:
-        keys = list(rows[0].keys())
-        lines = [",".join(keys)] + [",".join(str(r[k]) for k in keys) for r in rows]
-        atomic_write_text(out / "results.csv", "\n".join(lines) + "\n")
+    if rows:  # the csv module quotes what needs it ("45 deg, 15000 pts", a model name with a comma)
+        import csv
+        import io
+
+        text = io.StringIO()
+        writer = csv.DictWriter(text, fieldnames=list(rows[0].keys()), lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows)
+        atomic_write_text(out / "results.csv", text.getvalue())
     print(f"wrote {out / 'results.json'} and {out / 'results.csv'}")
 
 
@@ -161,6 +169,8 @@ def cmd_validate_idealized(args) -> int:
 
     check_output_folder(args.out)
     _check_settings(args)
+    if args.seed + args.draws - 1 > SEED_RANGE[1]:
+        raise UsageError(f"fluorogui: --seed {args.seed} with --draws {args.draws}: the last seed exceeds {SEED_RANGE[1]}")
     if not 64 <= args.image_size <= 4096:
         raise UsageError(f"fluorogui: --image-size {args.image_size}: give 64 to 4096 pixels")
     views = two_views(args.angle, args.tilt, tuple(args.offset), tuple(args.source_distance),
@@ -177,7 +187,10 @@ def cmd_validate_idealized(args) -> int:
                                                   + (f"{args.photons:g} quanta/px" if args.photons else "no noise")
                                                   + ("" if args.background == "knee" else ", no background")
                                                   if render else "") + (f"; with {Path(args.other).name} overlapping" if other else "")
-          + f"; {args.starts} starts per case (SD {args.start_sd:.3g} within ±20 mm / ±20 deg)"
+          + (f"; {args.draws} noise draws per case (seeds {args.seed}-{args.seed + args.draws - 1}), each a row"
+             if args.draws > 1 else "")
+          + f"; {args.starts} starts per " + ("draw" if args.draws > 1 else "case")
+          + f" (SD {args.start_sd:.3g} within ±20 mm / ±20 deg)"
           + f"; wrong basin beyond {args.basin[0]:g} mm / {args.basin[1]:g} deg"
           + (f" ({SINGLE_VIEW_DEPTH_MM:g} mm along the beam)" if beam is not None else "") + "\n")
     payload, rows = {"protocol": "idealized", "renderer": args.renderer, "cases": []}, []
@@ -193,12 +206,13 @@ def cmd_validate_idealized(args) -> int:
                 table = []
                 densities = args.density if method == "paper" else [None]
                 for density in densities:
-                    for flexion in args.flexion:
+                    for flexion, draw in ((f, d) for f in args.flexion for d in range(args.draws)):
                         settings = _settings(args, method, multistart=False)
                         if density:
                             settings.model_points = density
-                        label = f"{flexion:g} deg" + (f", {density} pts" if density else "")
-                        case = idealized_case(vertices, faces, flexion, settings, args.starts, args.seed,
+                        label = (f"{flexion:g} deg" + (f", {density} pts" if density else "")
+                                 + (f", draw {draw + 1}" if args.draws > 1 else ""))
+                        case = idealized_case(vertices, faces, flexion, settings, args.starts, args.seed + draw,
                                               views=views, label=label, render=render, other=other,
                                               other_is_tibial=other_is_tibial, start_sd_fraction=args.start_sd / 20.0,
                                               rim=args.rim)
@@ -210,7 +224,7 @@ def cmd_validate_idealized(args) -> int:
                                 str(k + 1) for k in case.extra["rim_refined"]) + "]"
                         table.append((label, case))
                         payload["cases"].append({"model": model_path, "variant": variant, "method": method,
-                                                 **case.to_dict()})
+                                                 "seed": args.seed + draw, **case.to_dict()})
                         rows.append(_case_row(name, method, case) | _basin_counts(case, *args.basin, beam))
                 _print_idealized_table(f"{name} — method {method}: error mean±SD [RMSE] of converged starts", table,
                                        args.basin, beam)

@@ -150,3 +150,19 @@ def test_background_none_images_the_component_in_air(tray):
     air = images["none"] == images["none"].max()
     assert 0.5 < air.mean() < 1.0
     assert images["knee"][air].min() < 0.9 * images["none"].max()
+
+
+def test_draws_image_a_case_with_fresh_noise_each_a_row_of_its_own(tray, tmp_path, capsys):
+    """--draws 2: the case imaged with seeds 0 and 1, each with its own starts and row; the
+    second draw is exactly the run with --seed 1 (same image, same starts)."""
+    out, rows, payload = _run(tray, tmp_path / "draws", capsys, "--draws", "2", "--starts", "1", "--no-rim")
+    assert "2 noise draws per case (seeds 0-1), each a row" in out and "1 starts per draw" in out
+    assert [r["case"] for r in rows] == ["45 deg, draw 1", "45 deg, draw 2"]
+    assert [c["seed"] for c in payload["cases"]] == [0, 1]
+    first, second = (np.array(c["errors"]) for c in payload["cases"])
+    assert not np.allclose(first, second)  # other noise (and another start): another result
+    assert "all 2 cases: " in out
+    _, _, alone = _run(tray, tmp_path / "seed1", capsys, "--seed", "1", "--starts", "1", "--no-rim")
+    assert np.array_equal(np.array(alone["cases"][0]["errors"]), second)
+    assert main(["validate", "idealized", "--model", tray, "--seed", str(2**32 - 1), "--draws", "2"]) == 2
+    assert "--draws 2" in capsys.readouterr().err
