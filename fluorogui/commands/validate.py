@@ -94,21 +94,16 @@ def _add_validation_options(p):
 
 def _write_outputs(out_dir, payload: dict, rows: list[dict]):
     from fluorogui.io.errors import atomic_write_text
+    from fluorogui.io.pose_files import write_csv
 
     if not out_dir:
         return
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "results.json", json.dumps(payload, indent=2))
-    if rows:  # the csv module quotes what needs it ("45 deg, 15000 pts", a model name with a comma)
-        import csv
-        import io
-
-        text = io.StringIO()
-        writer = csv.DictWriter(text, fieldnames=list(rows[0].keys()), lineterminator="\n")
-        writer.writeheader()
-        writer.writerows(rows)
-        atomic_write_text(out / "results.csv", text.getvalue())
+    if rows:  # quoted where needed ("45 deg, 15000 pts", a model name with a comma)
+        keys = list(rows[0].keys())
+        write_csv(out / "results.csv", [], keys, [[r[k] for k in keys] for r in rows])
     print(f"wrote {out / 'results.json'} and {out / 'results.csv'}")
 
 
