@@ -67,6 +67,8 @@ def main() -> None:
     p.add_argument("--single-view", action="store_true", help="the first view only")
     p.add_argument("--photons", type=float, default=XrayModel().photons, help="counts per pixel of air")
     args = p.parse_args()
+    if not args.photons or args.photons <= 0:
+        p.error("--photons: give a positive count (without noise the bound is zero)")
     mesh = prepare_mesh(*load_mesh(args.xray))
     views = two_views(60.0, 10.0, (40.0, -30.0), (900.0, 1100.0)) if args.tilted else dual_orthogonal_views()
     views = views[:1] if args.single_view else views
