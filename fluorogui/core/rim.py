@@ -54,6 +54,7 @@ from .geometry import View
 from .mesh import PreparedMesh
 from .pose import rotation_matrix
 from .silhouette import mesh_silhouette
+from .spline import first_self_intersection, untangle_outline
 
 #: candidate attenuations (1/mm; the last one is a step) and blurs (px, Gaussian sigma
 #: including the pixel's own width)
@@ -321,7 +322,8 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
     its ``smooth`` neighbours either side; a fit does not count when it fails, when it
     would move its point by more than ``MAX_MOVE_PX``, or when a pixel it uses lies under
     ``exclude`` (a boolean image: another component, whose own edge would spoil it).
-    Points that land far from the rest (``_strays``) are left out of the result."""
+    Points that land far from the rest (``_strays``) are left out of the result, and a
+    result that crosses itself is mended or given up (``simple_or_plain``)."""
     points = np.asarray(outline_px, dtype=float).reshape(-1, 2)
     if len(points) < 8:
         return points.copy(), model or STEP
@@ -334,7 +336,25 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
     refined = points + moves[:, None] * n
     if drop.mean() > MAX_DROPPED:  # too many to be strays: the pose is not close enough to judge
         drop[:] = False
-    return refined[~drop], model
+    return simple_or_plain(refined[~drop], points), model
+
+
+#: at most this share of a refined outline's points may go to cut out its small loops
+MAX_UNTANGLED = 0.05
+
+
+def simple_or_plain(refined: np.ndarray, plain: np.ndarray) -> np.ndarray:
+    """``refined`` if it is a simple closed polygon; else with its small loops cut out
+    (``spline.untangle_outline``) if that costs at most ``MAX_UNTANGLED`` of its points;
+    else ``plain``. Moves along the model's normals can cross where the outline comes
+    close to itself, and a stray's gap can leave a step that folds back: a crossing
+    outline cannot be fitted, and one odd stretch must not cost the whole refinement."""
+    if first_self_intersection(refined) is None:
+        return refined
+    untangled = untangle_outline(refined)
+    if len(untangled) >= (1.0 - MAX_UNTANGLED) * len(refined) and first_self_intersection(untangled) is None:
+        return untangled
+    return np.asarray(plain, dtype=float).copy()
 
 
 def rim_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_px: np.ndarray,

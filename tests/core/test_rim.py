@@ -9,7 +9,8 @@ from scipy.spatial import cKDTree
 
 from fluorogui.core.edges import component_outline
 from fluorogui.core.pipeline import LoopSettings, predicted_outline, segment_and_match
-from fluorogui.core.rim import RimModel, path_lengths, refine_outline, smooth_along
+from fluorogui.core.rim import RimModel, path_lengths, refine_outline, simple_or_plain, smooth_along
+from fluorogui.core.spline import first_self_intersection
 from fluorogui.core.validation import two_views
 from fluorogui.validation.xray import Body, XrayModel, path_length, xray_image
 
@@ -89,6 +90,23 @@ def test_smoothing_is_a_median_along_the_closed_outline():
     # windows wrap round the closed outline; NaN is left out, an outlier is voted down
     assert out.tolist() == [1.0, 1.0, 1.5, 3.0, 52.0, 6.0, 7.0, 6.0]
     assert smooth_along(np.array([np.nan] * 5), 1).tolist() == [0.0] * 5
+
+
+def test_a_refined_outline_that_crosses_itself_is_untangled_or_given_up():
+    angle = np.linspace(0, 2 * np.pi, 200, endpoint=False)
+    plain = np.column_stack([100 + 40 * np.cos(angle), 100 + 40 * np.sin(angle)])
+    refined = plain * 1.002  # moved a little, still simple: kept as it is
+    assert simple_or_plain(refined, plain) is refined
+    looped = refined.copy()
+    looped[[50, 51]] = looped[[51, 50]]  # two neighbours swapped: a small loop
+    assert first_self_intersection(looped) is not None
+    untangled = simple_or_plain(looped, plain)
+    assert first_self_intersection(untangled) is None
+    assert len(untangled) == 198 and np.isin(untangled, refined).all()
+    # a figure eight: untangling would cost half the points, so the plain outline stands
+    eight = np.column_stack([100 + 40 * np.sin(angle), 100 + 20 * np.sin(2 * angle)])
+    assert first_self_intersection(eight) is not None
+    assert np.array_equal(simple_or_plain(eight, plain), plain)
 
 
 def test_the_loop_fits_rim_models_once_and_reuses_them(tray):
