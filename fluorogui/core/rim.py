@@ -53,6 +53,7 @@ from scipy.spatial import cKDTree
 from .geometry import View
 from .mesh import PreparedMesh
 from .pose import rotation_matrix
+from .second_edge import REACH_PX as SECOND_EDGE_REACH_PX, blurred_sqrt, second_edges
 from .silhouette import mesh_silhouette
 from .spline import first_self_intersection, untangle_outline
 
@@ -179,6 +180,7 @@ class _Points:
     lengths: np.ndarray  # (P, len(_L_OFFSETS)) mm
     at: np.ndarray  # (P,) the outline point's own position along the normal (px)
     blocked: np.ndarray  # (P, W) 1 for pixels under the exclusion mask
+    edge: np.ndarray  # (P,) px from the model boundary to a second edge outside (NaN: none near)
 
 
 def _gather(image, view, mesh, pose, points, exclude=None) -> tuple[_Points, np.ndarray]:
@@ -210,7 +212,9 @@ def _gather(image, view, mesh, pose, points, exclude=None) -> tuple[_Points, np.
     blocked = np.zeros(value.shape)
     if exclude is not None:
         blocked = np.asarray(exclude, dtype=float)[np.clip(rows, 0, h - 1), np.clip(cols, 0, w - 1)]
-    return _Points(s_used, pick(value), pick(used).astype(float), lengths, at, pick(blocked)), n
+    edge = at + second_edges(image, points, n, exclude)
+    edge[~(edge - at <= SECOND_EDGE_REACH_PX)] = np.nan
+    return _Points(s_used, pick(value), pick(used).astype(float), lengths, at, pick(blocked), edge), n
 
 
 def _templates(lengths: np.ndarray, mu: float, sigma: float) -> np.ndarray:
@@ -222,9 +226,10 @@ def _templates(lengths: np.ndarray, mu: float, sigma: float) -> np.ndarray:
 
 def _residuals(pts: _Points, mu: float, sigma: float, search: np.ndarray = _SEARCH) -> tuple[np.ndarray, np.ndarray]:
     """For every point and candidate boundary (relative to the point): the least-squares
-    residual of ``value ~ (B + G s)(1 - template) + O template`` (B, G, O free, O < B).
-    Returns (P, S) residuals
-    and the candidate positions along the normal (P, S)."""
+    residual of ``value ~ (B + G s + A bone)(1 - template) + O template`` (B, G, A, O
+    free, O < B; ``bone`` the blurred square root of a second edge, ``_Points.edge``, only
+    where one lies near). Returns (P, S) residuals and the candidate positions along the
+    normal (P, S)."""
     T = _templates(pts.lengths, mu, sigma)
     P, _W = pts.s.shape
     s0 = pts.at[:, None] + search[None, :]  # (P, S) boundary candidates from the model boundary
@@ -239,16 +244,26 @@ def _residuals(pts: _Points, mu: float, sigma: float, search: np.ndarray = _SEAR
     # value ~ (B + G s)(1 - t) + O t: a background with a slope across the edge, dimmed
     # by the metal, and what comes through the metal (scatter, glare) deep inside it
     s_rel = (pts.s - pts.at[:, None])[:, None, :]
-    a, b, c = (1 - t) * wgt, s_rel * (1 - t) * wgt, t * wgt  # the three basis functions
-    normal = np.stack([np.stack([(a * a).sum(-1), (a * b).sum(-1), (a * c).sum(-1)], -1),
-                       np.stack([(a * b).sum(-1), (b * b).sum(-1), (b * c).sum(-1)], -1),
-                       np.stack([(a * c).sum(-1), (b * c).sum(-1), (c * c).sum(-1)], -1)], -2)
-    rhs = np.stack([(a * v).sum(-1), (b * v).sum(-1), (c * v).sum(-1)], -1)
-    coef = np.linalg.solve(normal + 1e-9 * np.eye(3), rhs[..., None])[..., 0]
-    residual = (v * v).sum(-1) - (coef * rhs).sum(-1)
+    basis = [(1 - t) * wgt, s_rel * (1 - t) * wgt, t * wgt]
+    residual, coef = _least_squares(basis, v)
     darker = coef[..., 2] < coef[..., 0]  # the metal is darker than its surround
+    near = np.flatnonzero(np.isfinite(pts.edge))
+    if len(near):  # a bone's edge beside the rim: its profile is part of the background
+        bone = blurred_sqrt(pts.edge[near, None] - pts.s[near], sigma)[:, None, :]
+        sub = [b[near] for b in basis]
+        res4, coef4 = _least_squares([sub[0], sub[1], bone * sub[0], sub[2]], v[near])
+        residual[near], darker[near] = res4, coef4[..., 3] < coef4[..., 0]
     residual = np.where(darker, residual, np.inf)
     return residual, s0
+
+
+def _least_squares(basis: list[np.ndarray], v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per (point, candidate): the residual of ``v`` (P, S, W) fitted by the weighted
+    basis functions (each (P, S, W)) and their coefficients (P, S, len(basis))."""
+    normal = np.stack([np.stack([(a * b).sum(-1) for b in basis], -1) for a in basis], -2)
+    rhs = np.stack([(a * v).sum(-1) for a in basis], -1)
+    coef = np.linalg.solve(normal + 1e-9 * np.eye(len(basis)), rhs[..., None])[..., 0]
+    return (v * v).sum(-1) - (coef * rhs).sum(-1), coef
 
 
 def _best_positions(residual: np.ndarray, s0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -490,4 +505,5 @@ def _usable(pts: _Points) -> np.ndarray:
 
 
 def _subset(pts: _Points, rows) -> _Points:
-    return _Points(pts.s[rows], pts.value[rows], pts.weight[rows], pts.lengths[rows], pts.at[rows], pts.blocked[rows])
+    return _Points(pts.s[rows], pts.value[rows], pts.weight[rows], pts.lengths[rows], pts.at[rows], pts.blocked[rows],
+                   pts.edge[rows])

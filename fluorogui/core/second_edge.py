@@ -1,0 +1,111 @@
+"""A second edge just outside a component's rim: a bone's cortex beside the metal.
+
+The rim fit (``core.rim``) explains the pixels around each outline point by the metal's
+blurred profile over a background with a slope. Where a bone's edge runs within a few
+pixels outside the outline, the background is not a slope: behind a cylinder-like bone
+the path length grows like the square root of the distance inside its edge, and a fit
+without it pulls whole stretches of the outline by a tenth of a pixel or more (on the
+X-ray model, a tray stretch beside a bone band moved -0.14 to -0.19 px).
+
+``second_edges`` finds such an edge per outline point: the image's profile outwards
+along the normal (0-12 px, averaged over three lines across it and over the point's
+neighbours along the outline), the first change of more than ``JUMP`` over 2 px beyond
+``FROM_PX`` (nearer, the rim's own blur), then the place where a blurred square root
+(``blurred_sqrt``) fits the profile best. The rim fit then adds that square root, with a
+free amplitude, to the background of points whose edge lies within ``REACH_PX``.
+Farther out the square root is nearly a straight line over the fit's pixels and would
+only trade with the boundary under noise.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d, map_coordinates
+
+#: the outer profile: out to this far (px) from the point, sampled at this step
+SCAN_PX, SCAN_STEP = 12.0, 0.25
+#: an edge counts from this far out (px), where the averaged profile changes by more than
+#: this share of its level over 2 px
+FROM_PX, JUMP = 3.5, 0.10
+#: the rim fit models an edge that lies at most this far (px) outside its point
+REACH_PX = 6.0
+#: outline points either side whose profiles are averaged, and whose edges smooth one's own
+HALF_WINDOW = 8
+#: the detection's blur (px): about the images' (the rim fits find 0.8-1.2)
+DETECT_SIGMA = 1.0
+#: where the found jump's steepest point may lie from the edge (px): the square root's
+#: steepest blurred slope lies a little inside its edge
+SHIFTS = np.arange(-0.5, 1.5 + 1e-9, 0.05)
+
+_FINE = 0.05
+_SQRT_X = np.arange(-12.0, 40.0, _FINE)
+
+
+def blurred_sqrt(x: np.ndarray, sigma: float) -> np.ndarray:
+    """sqrt(max(x, 0)) blurred by a Gaussian of ``sigma`` px, at ``x`` (px inside the
+    edge): a cylinder's chord near its silhouette, as a detector sees it."""
+    table = gaussian_filter1d(np.sqrt(np.clip(_SQRT_X, 0.0, None)), max(sigma, 1e-3) / _FINE, mode="nearest")
+    return np.interp(x, _SQRT_X, table)
+
+
+def _along_mean(values: np.ndarray, half_window: int) -> np.ndarray:
+    """The mean of each row and its ``half_window`` neighbours either side (closed outline)."""
+    if half_window <= 0 or len(values) <= 2 * half_window:
+        return values
+    padded = np.concatenate([values[-half_window:], values, values[:half_window]])
+    total = np.cumsum(np.concatenate([np.zeros((1,) + values.shape[1:]), padded]), axis=0)
+    width = 2 * half_window + 1
+    return (total[width:] - total[:-width]) / width
+
+
+def second_edges(image: np.ndarray, points: np.ndarray, normals: np.ndarray,
+                 exclude: np.ndarray | None = None) -> np.ndarray:
+    """Per outline point (K, 2) with its outward unit normal (K, 2): how far out (px) a
+    second edge lies, NaN where none is found within the scan (or the scan meets
+    ``exclude``, another component)."""
+    image = np.asarray(image, dtype=float)
+    points, normals = np.asarray(points, dtype=float), np.asarray(normals, dtype=float)
+    d = np.arange(0.0, SCAN_PX + 1e-9, SCAN_STEP)
+    across = np.array([-1.0, 0.0, 1.0])
+    tangent = np.column_stack([-normals[:, 1], normals[:, 0]])
+    where = (points[:, None, None, :] + d[None, :, None, None] * normals[:, None, None, :]
+             + across[None, None, :, None] * tangent[:, None, None, :])  # (K, D, 3, 2)
+    coords = [where[..., 1].ravel(), where[..., 0].ravel()]
+    samples = map_coordinates(image, coords, order=1, mode="nearest").reshape(where.shape[:3])
+    profile = _along_mean(samples.mean(axis=2), HALF_WINDOW)  # (K, D)
+    step = int(round(2.0 / SCAN_STEP))
+    level = np.maximum(np.maximum(profile[:, :-step], profile[:, step:]), 1e-12)
+    jump = np.abs(profile[:, step:] - profile[:, :-step]) / level > JUMP
+    jump &= (d[:-step] >= FROM_PX)[None, :]
+    found = jump.any(axis=1)
+    first = np.argmax(jump, axis=1)
+    edges = np.full(len(points), np.nan)
+    rows = np.flatnonzero(found)
+    if len(rows):
+        edges[rows] = _fit_edges(profile[rows], d, first[rows], step)
+    if exclude is not None:
+        blocked = map_coordinates(np.asarray(exclude, dtype=float), coords, order=0, mode="constant").reshape(where.shape[:3])
+        edges[blocked.reshape(len(points), -1).max(axis=1) > 0] = np.nan
+    from .rim import smooth_along  # here: core.rim imports this module
+
+    smoothed = smooth_along(edges, HALF_WINDOW)
+    return np.where(np.isfinite(edges), smoothed, np.nan)
+
+
+def _fit_edges(profile: np.ndarray, d: np.ndarray, first: np.ndarray, step: int) -> np.ndarray:
+    """Where a blurred square root (plus a level and a slope) fits each profile best, its
+    edge ``SHIFTS`` from the steepest point of the jump found at ``first``."""
+    rows = np.arange(len(profile))
+    span = first[:, None] + np.arange(step + 1)[None, :]
+    slope = np.abs(np.gradient(profile, axis=1))
+    steepest = d[np.take_along_axis(span, np.argmax(slope[rows[:, None], span], axis=1)[:, None], 1)[:, 0]]
+    edge = steepest[:, None] + SHIFTS[None, :]  # (R, C) candidates
+    # fit the profile from 1 px beyond FROM_PX's rim blur to 3 px past the candidate
+    near = (d[None, None, :] >= FROM_PX - 1.0) & (d[None, None, :] <= edge[:, :, None] + 3.0)
+    w = near.astype(float)
+    basis = [w, d[None, None, :] * w, blurred_sqrt(edge[:, :, None] - d[None, None, :], DETECT_SIGMA) * w]
+    v = profile[:, None, :] * w
+    normal = np.stack([np.stack([(a * b).sum(-1) for b in basis], -1) for a in basis], -2)
+    rhs = np.stack([(a * v).sum(-1) for a in basis], -1)
+    coef = np.linalg.solve(normal + 1e-9 * np.eye(3), rhs[..., None])[..., 0]
+    residual = ((v * v).sum(-1) - (coef * rhs).sum(-1)) / np.maximum(w.sum(-1), 1.0)
+    return edge[rows, np.argmin(residual, axis=1)]
