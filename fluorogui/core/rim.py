@@ -53,7 +53,7 @@ from scipy.spatial import cKDTree
 from .geometry import View
 from .mesh import PreparedMesh
 from .pose import rotation_matrix
-from .second_edge import REACH_PX as SECOND_EDGE_REACH_PX, blurred_sqrt, second_edges
+from .second_edge import REACH_PX as SECOND_EDGE_REACH_PX, blurred_sqrt, edge_shape, second_edges
 from .silhouette import mesh_silhouette
 from .spline import first_self_intersection, untangle_outline
 
@@ -85,6 +85,9 @@ class RimModel:
     mu: float
     sigma: float
 
+
+import os  # noqa: E402  (research toggle)
+_BONE = os.environ.get("BONE", "lin")
 
 #: what a refinement without enough points to fit assumes: a sharp edge (it moves nothing)
 STEP = RimModel(MU_GRID[-1], 0.8)
@@ -181,6 +184,7 @@ class _Points:
     at: np.ndarray  # (P,) the outline point's own position along the normal (px)
     blocked: np.ndarray  # (P, W) 1 for pixels under the exclusion mask
     edge: np.ndarray  # (P,) px from the model boundary to a second edge outside (NaN: none near)
+    edge_k: np.ndarray  # (P,) how dark that edge is (``second_edge.edge_shape``)
 
 
 def _gather(image, view, mesh, pose, points, exclude=None) -> tuple[_Points, np.ndarray]:
@@ -212,9 +216,10 @@ def _gather(image, view, mesh, pose, points, exclude=None) -> tuple[_Points, np.
     blocked = np.zeros(value.shape)
     if exclude is not None:
         blocked = np.asarray(exclude, dtype=float)[np.clip(rows, 0, h - 1), np.clip(cols, 0, w - 1)]
-    edge = at + second_edges(image, points, n, exclude)
-    edge[~(edge - at <= SECOND_EDGE_REACH_PX)] = np.nan
-    return _Points(s_used, pick(value), pick(used).astype(float), lengths, at, pick(blocked), edge), n
+    found, edge_k = second_edges(image, points, n, exclude)
+    edge = at + found
+    edge[~(found <= SECOND_EDGE_REACH_PX)] = np.nan
+    return _Points(s_used, pick(value), pick(used).astype(float), lengths, at, pick(blocked), edge, edge_k), n
 
 
 def _templates(lengths: np.ndarray, mu: float, sigma: float) -> np.ndarray:
@@ -249,10 +254,19 @@ def _residuals(pts: _Points, mu: float, sigma: float, search: np.ndarray = _SEAR
     darker = coef[..., 2] < coef[..., 0]  # the metal is darker than its surround
     near = np.flatnonzero(np.isfinite(pts.edge))
     if len(near):  # a bone's edge beside the rim: its profile is part of the background
-        bone = blurred_sqrt(pts.edge[near, None] - pts.s[near], sigma)[:, None, :]
         sub = [b[near] for b in basis]
-        res4, coef4 = _least_squares([sub[0], sub[1], bone * sub[0], sub[2]], v[near])
-        residual[near], darker[near] = res4, coef4[..., 3] < coef4[..., 0]
+        if _BONE == "lin":
+            bone = blurred_sqrt(pts.edge[near, None] - pts.s[near], sigma)[:, None, :]
+            res4, coef4 = _least_squares([sub[0], sub[1], bone * sub[0], sub[2]], v[near])
+            residual[near], darker[near] = res4, coef4[..., 3] < coef4[..., 0]
+        else:
+            shape = edge_shape(pts.edge[near, None] - pts.s[near], pts.edge_k[near], sigma)[:, None, :]
+            if _BONE == "free":
+                res4, coef4 = _least_squares([sub[0], sub[1], (shape - 1) * sub[0], sub[2]], v[near])
+                residual[near], darker[near] = res4, coef4[..., 3] < coef4[..., 0]
+            else:
+                res3, coef3 = _least_squares([shape * sub[0], shape * sub[1], sub[2]], v[near])
+                residual[near], darker[near] = res3, coef3[..., 2] < coef3[..., 0]
     residual = np.where(darker, residual, np.inf)
     return residual, s0
 
@@ -506,4 +520,4 @@ def _usable(pts: _Points) -> np.ndarray:
 
 def _subset(pts: _Points, rows) -> _Points:
     return _Points(pts.s[rows], pts.value[rows], pts.weight[rows], pts.lengths[rows], pts.at[rows], pts.blocked[rows],
-                   pts.edge[rows])
+                   pts.edge[rows], pts.edge_k[rows])
