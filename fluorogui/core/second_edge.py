@@ -25,7 +25,7 @@ from scipy.ndimage import gaussian_filter1d, map_coordinates
 SCAN_PX, SCAN_STEP = 12.0, 0.25
 #: an edge counts from this far out (px), where the averaged profile changes by more than
 #: this share of its level over 2 px
-FROM_PX, JUMP = 3.5, 0.10
+FROM_PX, JUMP = 3.5, 0.06
 #: the rim fit models an edge that lies at most this far (px) outside its point
 REACH_PX = 6.0
 #: outline points either side whose profiles are averaged, and whose edges smooth one's own
@@ -135,4 +135,11 @@ def _fit_edges(profile: np.ndarray, d: np.ndarray, first: np.ndarray, step: int)
         where[:, j] = np.argmin(residual, axis=1)
         best[:, j] = residual[rows, where[:, j]]
     j = np.argmin(best, axis=1)
-    return edge[rows, where[rows, j]], K_GRID[j]
+    # between the grid's values: a parabola in log k through the best one and its neighbours
+    jj = np.clip(j, 1, len(K_GRID) - 2)
+    a, b, c = best[rows, jj - 1], best[rows, jj], best[rows, jj + 1]
+    den = a - 2 * b + c
+    ok = (jj == j) & np.isfinite(a + b + c) & (den > 0)
+    shift = np.where(ok, 0.5 * (a - c) / np.where(ok, den, 1.0), 0.0)
+    log_k = np.log(K_GRID[jj]) + np.clip(shift, -1, 1) * np.log(K_GRID[1] / K_GRID[0])
+    return edge[rows, where[rows, j]], np.where(ok, np.exp(log_k), K_GRID[j])
