@@ -40,6 +40,12 @@ SHIFTS = np.arange(-0.5, 1.5 + 1e-9, 0.05)
 #: model's 14 mm shaft at 0.06/mm and 0.6 mm/px: k ~0.5)
 K_GRID = np.geomspace(0.02, 1.5, 16)
 
+#: a profile the bone's shape fits worse than this (RMS, as a share of its change over the
+#: fit's window) is some other edge (the other component, a ramp): not modelled
+MAX_MISFIT = 0.05
+import os  # noqa: E402
+_DEBUG = os.environ.get("EDGEDEBUG")
+
 _FINE = 0.05
 _SQRT_X = np.arange(-12.0, 40.0, _FINE)
 
@@ -99,6 +105,11 @@ def second_edges(image: np.ndarray, points: np.ndarray, normals: np.ndarray,
     rows = np.flatnonzero(found)
     if len(rows):
         edges[rows], darkness[rows] = _fit_edges(profile[rows], d, first[rows], step)
+        if _DEBUG:
+            global LAST_MISFIT
+            full = np.full(len(points), np.nan)
+            full[rows] = LAST_MISFIT
+            LAST_MISFIT = full
     if exclude is not None:
         blocked = map_coordinates(np.asarray(exclude, dtype=float), coords, order=0, mode="constant").reshape(where.shape[:3])
         edges[blocked.reshape(len(points), -1).max(axis=1) > 0] = np.nan
@@ -142,4 +153,11 @@ def _fit_edges(profile: np.ndarray, d: np.ndarray, first: np.ndarray, step: int)
     ok = (jj == j) & np.isfinite(a + b + c) & (den > 0)
     shift = np.where(ok, 0.5 * (a - c) / np.where(ok, den, 1.0), 0.0)
     log_k = np.log(K_GRID[jj]) + np.clip(shift, -1, 1) * np.log(K_GRID[1] / K_GRID[0])
-    return edge[rows, where[rows, j]], np.where(ok, np.exp(log_k), K_GRID[j])
+    # how well the shape fits: the RMS misfit as a share of the profile's change over the window
+    chosen = edge[rows, where[rows, j]]
+    inside = (d[None, :] >= FROM_PX - 1.0) & (d[None, :] <= chosen[:, None] + 3.0)
+    span = np.array([np.ptp(p[m]) for p, m in zip(profile, inside)])
+    misfit = np.sqrt(np.maximum(best[rows, j], 0.0)) / np.maximum(span, 1e-12)
+    global LAST_MISFIT
+    LAST_MISFIT = misfit
+    return np.where(misfit <= MAX_MISFIT, chosen, np.nan), np.where(ok, np.exp(log_k), K_GRID[j])
