@@ -29,8 +29,12 @@ This module moves every outline point to the boundary that explains the image ar
    over more points without the strays of point 5.
 4. The moves are smoothed along the outline (a median): the bias changes slowly along
    it, the noise of a single fit does not.
-5. Points that land far from the rest (another edge beside the component's, such as a
-   bone's cortex, pulls whole stretches by a pixel or two) are left out of the outline.
+5. Points that land far from the rest (another edge beside the component's pulls whole
+   stretches by a pixel or two) are left out of the outline.
+
+A bone's edge within a few pixels outside the outline is part of the model instead
+(``core.second_edge``): found on the image's outer profile, its light ``exp(-k sqrt)``
+multiplies the background of the points beside it.
 
 The profile shape comes from the mesh at the current pose, so the refinement runs in the
 automatic outline loop's later passes (``core.pipeline``, where the refined outline is
@@ -53,7 +57,7 @@ from scipy.spatial import cKDTree
 from .geometry import View
 from .mesh import PreparedMesh
 from .pose import rotation_matrix
-from .second_edge import REACH_PX as SECOND_EDGE_REACH_PX, blurred_sqrt, edge_shape, second_edges
+from .second_edge import REACH_PX as SECOND_EDGE_REACH_PX, edge_shape, second_edges
 from .silhouette import mesh_silhouette
 from .spline import first_self_intersection, untangle_outline
 
@@ -85,9 +89,6 @@ class RimModel:
     mu: float
     sigma: float
 
-
-import os  # noqa: E402  (research toggle)
-_BONE = os.environ.get("BONE", "lin")
 
 #: what a refinement without enough points to fit assumes: a sharp edge (it moves nothing)
 STEP = RimModel(MU_GRID[-1], 0.8)
@@ -231,9 +232,9 @@ def _templates(lengths: np.ndarray, mu: float, sigma: float) -> np.ndarray:
 
 def _residuals(pts: _Points, mu: float, sigma: float, search: np.ndarray = _SEARCH) -> tuple[np.ndarray, np.ndarray]:
     """For every point and candidate boundary (relative to the point): the least-squares
-    residual of ``value ~ (B + G s + A bone)(1 - template) + O template`` (B, G, A, O
-    free, O < B; ``bone`` the blurred square root of a second edge, ``_Points.edge``, only
-    where one lies near). Returns (P, S) residuals and the candidate positions along the
+    residual of ``value ~ (B + G s) bone (1 - template) + O template`` (B, G, O free,
+    O < B; ``bone`` the light a second edge outside lets through, ``_Points.edge``, 1
+    where none lies near). Returns (P, S) residuals and the candidate positions along the
     normal (P, S)."""
     T = _templates(pts.lengths, mu, sigma)
     P, _W = pts.s.shape
@@ -255,18 +256,11 @@ def _residuals(pts: _Points, mu: float, sigma: float, search: np.ndarray = _SEAR
     near = np.flatnonzero(np.isfinite(pts.edge))
     if len(near):  # a bone's edge beside the rim: its profile is part of the background
         sub = [b[near] for b in basis]
-        if _BONE == "lin":
-            bone = blurred_sqrt(pts.edge[near, None] - pts.s[near], sigma)[:, None, :]
-            res4, coef4 = _least_squares([sub[0], sub[1], bone * sub[0], sub[2]], v[near])
-            residual[near], darker[near] = res4, coef4[..., 3] < coef4[..., 0]
-        else:
-            shape = edge_shape(pts.edge[near, None] - pts.s[near], pts.edge_k[near], sigma)[:, None, :]
-            if _BONE == "free":
-                res4, coef4 = _least_squares([sub[0], sub[1], (shape - 1) * sub[0], sub[2]], v[near])
-                residual[near], darker[near] = res4, coef4[..., 3] < coef4[..., 0]
-            else:
-                res3, coef3 = _least_squares([shape * sub[0], shape * sub[1], sub[2]], v[near])
-                residual[near], darker[near] = res3, coef3[..., 2] < coef3[..., 0]
+        # (B + G s) exp(-k sqrt(edge - s)) (1 - t) + O t: the bone's k measured beside the
+        # rim (``second_edges``), no further free number that the noise could trade with s0
+        shape = edge_shape(pts.edge[near, None] - pts.s[near], pts.edge_k[near], sigma)[:, None, :]
+        res, coef3 = _least_squares([shape * sub[0], shape * sub[1], sub[2]], v[near])
+        residual[near], darker[near] = res, coef3[..., 2] < coef3[..., 0]
     residual = np.where(darker, residual, np.inf)
     return residual, s0
 

@@ -3,18 +3,25 @@
 The rim fit (``core.rim``) explains the pixels around each outline point by the metal's
 blurred profile over a background with a slope. Where a bone's edge runs within a few
 pixels outside the outline, the background is not a slope: behind a cylinder-like bone
-the path length grows like the square root of the distance inside its edge, and a fit
-without it pulls whole stretches of the outline by a tenth of a pixel or more (on the
-X-ray model, a tray stretch beside a bone band moved -0.14 to -0.19 px).
+the path length grows like the square root of the distance inside its edge, so the light
+falls like ``exp(-k sqrt(x))``, and a fit without it pulls whole stretches of the outline
+inwards (a tray stretch beside a hand-drawn bone band, 4 px out: -0.35 to -0.41 px).
 
 ``second_edges`` finds such an edge per outline point: the image's profile outwards
 along the normal (0-12 px, averaged over three lines across it and over the point's
 neighbours along the outline), the first change of more than ``JUMP`` over 2 px beyond
-``FROM_PX`` (nearer, the rim's own blur), then the place where a blurred square root
-(``blurred_sqrt``) fits the profile best. The rim fit then adds that square root, with a
-free amplitude, to the background of points whose edge lies within ``REACH_PX``.
-Farther out the square root is nearly a straight line over the fit's pixels and would
-only trade with the boundary under noise.
+``FROM_PX`` (nearer, the rim's own blur), then the edge position and darkness ``k`` whose
+blurred shape (``edge_shape``, times a level and a slope) fits that profile best. A
+profile the shape does not fit (``MAX_MISFIT``: the component's own edge across a notch,
+a stripe) is left alone. The rim fit then multiplies its background by that shape at
+points whose edge lies within ``REACH_PX``, with ``k`` as measured here: a free
+amplitude instead (tried: a square root added to the background) traded with the
+boundary under noise where the edge lies beyond the fit's pixels.
+
+Known limit: a dark ramp that starts at the outline and fades over a few pixels fits the
+shape about as well as a bone; the rim fit then keeps part of such a stretch (13 of 30
+points in a test), 0.3-0.7 px inside, where without the model the stray rule leaves
+most of it out.
 """
 from __future__ import annotations
 
@@ -43,18 +50,9 @@ K_GRID = np.geomspace(0.02, 1.5, 16)
 #: a profile the bone's shape fits worse than this (RMS, as a share of its change over the
 #: fit's window) is some other edge (the other component, a ramp): not modelled
 MAX_MISFIT = 0.05
-import os  # noqa: E402
-_DEBUG = os.environ.get("EDGEDEBUG")
 
 _FINE = 0.05
 _SQRT_X = np.arange(-12.0, 40.0, _FINE)
-
-
-def blurred_sqrt(x: np.ndarray, sigma: float) -> np.ndarray:
-    """sqrt(max(x, 0)) blurred by a Gaussian of ``sigma`` px, at ``x`` (px inside the
-    edge): a cylinder's chord near its silhouette, as a detector sees it."""
-    table = gaussian_filter1d(np.sqrt(np.clip(_SQRT_X, 0.0, None)), max(sigma, 1e-3) / _FINE, mode="nearest")
-    return np.interp(x, _SQRT_X, table)
 
 
 def edge_shape(x: np.ndarray, k: np.ndarray, sigma: float) -> np.ndarray:
@@ -105,11 +103,6 @@ def second_edges(image: np.ndarray, points: np.ndarray, normals: np.ndarray,
     rows = np.flatnonzero(found)
     if len(rows):
         edges[rows], darkness[rows] = _fit_edges(profile[rows], d, first[rows], step)
-        if _DEBUG:
-            global LAST_MISFIT
-            full = np.full(len(points), np.nan)
-            full[rows] = LAST_MISFIT
-            LAST_MISFIT = full
     if exclude is not None:
         blocked = map_coordinates(np.asarray(exclude, dtype=float), coords, order=0, mode="constant").reshape(where.shape[:3])
         edges[blocked.reshape(len(points), -1).max(axis=1) > 0] = np.nan
@@ -158,6 +151,4 @@ def _fit_edges(profile: np.ndarray, d: np.ndarray, first: np.ndarray, step: int)
     inside = (d[None, :] >= FROM_PX - 1.0) & (d[None, :] <= chosen[:, None] + 3.0)
     span = np.array([np.ptp(p[m]) for p, m in zip(profile, inside)])
     misfit = np.sqrt(np.maximum(best[rows, j], 0.0)) / np.maximum(span, 1e-12)
-    global LAST_MISFIT
-    LAST_MISFIT = misfit
     return np.where(misfit <= MAX_MISFIT, chosen, np.nan), np.where(ok, np.exp(log_k), K_GRID[j])
