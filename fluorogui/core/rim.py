@@ -47,7 +47,6 @@ refines only soft ones: a step edge stays where Canny puts it.
 """
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -57,6 +56,7 @@ from scipy.spatial import cKDTree
 from .geometry import View
 from .mesh import PreparedMesh
 from .pose import rotation_matrix
+from .profile_fit import least_squares, smooth_along
 from .second_edge import REACH_PX as SECOND_EDGE_REACH_PX, edge_shape, second_edges
 from .silhouette import mesh_silhouette
 from .spline import first_self_intersection, untangle_outline
@@ -251,7 +251,7 @@ def _residuals(pts: _Points, mu: float, sigma: float, search: np.ndarray = _SEAR
     # by the metal, and what comes through the metal (scatter, glare) deep inside it
     s_rel = (pts.s - pts.at[:, None])[:, None, :]
     basis = [(1 - t) * wgt, s_rel * (1 - t) * wgt, t * wgt]
-    residual, coef = _least_squares(basis, v)
+    residual, coef = least_squares(basis, v)
     darker = coef[..., 2] < coef[..., 0]  # the metal is darker than its surround
     near = np.flatnonzero(np.isfinite(pts.edge))
     if len(near):  # a bone's edge beside the rim: its profile is part of the background
@@ -259,19 +259,10 @@ def _residuals(pts: _Points, mu: float, sigma: float, search: np.ndarray = _SEAR
         # (B + G s) exp(-k sqrt(edge - s)) (1 - t) + O t: the bone's k measured beside the
         # rim (``second_edges``), no further free number that the noise could trade with s0
         shape = edge_shape(pts.edge[near, None] - pts.s[near], pts.edge_k[near], sigma)[:, None, :]
-        res, coef3 = _least_squares([shape * sub[0], shape * sub[1], sub[2]], v[near])
+        res, coef3 = least_squares([shape * sub[0], shape * sub[1], sub[2]], v[near])
         residual[near], darker[near] = res, coef3[..., 2] < coef3[..., 0]
     residual = np.where(darker, residual, np.inf)
     return residual, s0
-
-
-def _least_squares(basis: list[np.ndarray], v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per (point, candidate): the residual of ``v`` (P, S, W) fitted by the weighted
-    basis functions (each (P, S, W)) and their coefficients (P, S, len(basis))."""
-    normal = np.stack([np.stack([(a * b).sum(-1) for b in basis], -1) for a in basis], -2)
-    rhs = np.stack([(a * v).sum(-1) for a in basis], -1)
-    coef = np.linalg.solve(normal + 1e-9 * np.eye(len(basis)), rhs[..., None])[..., 0]
-    return (v * v).sum(-1) - (coef * rhs).sum(-1), coef
 
 
 def _best_positions(residual: np.ndarray, s0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -489,22 +480,6 @@ def _strays(offsets: np.ndarray) -> np.ndarray:
     far = np.zeros(len(offsets), dtype=bool)
     far[finite] = np.abs(offsets[finite] - centre) > max(STRAY_PX, STRAY_SCALES * scale)
     return far
-
-
-def smooth_along(values: np.ndarray, half_window: int) -> np.ndarray:
-    """The median of each value of a closed outline's points and its ``half_window``
-    neighbours either side, NaN left out (0 where a window holds no number). The rim's
-    bias changes slowly along an outline, the noise of a single profile fit does not:
-    the median keeps the first and drops most of the second."""
-    values = np.asarray(values, dtype=float)
-    if half_window <= 0 or len(values) <= 2 * half_window:
-        return np.nan_to_num(values)
-    padded = np.r_[values[-half_window:], values, values[:half_window]]
-    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half_window + 1)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # windows without a number
-        out = np.nanmedian(windows, axis=1)
-    return np.nan_to_num(out)
 
 
 def _usable(pts: _Points) -> np.ndarray:

@@ -28,6 +28,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import gaussian_filter1d, map_coordinates
 
+from .profile_fit import least_squares, smooth_along
+
 #: the outer profile: out to this far (px) from the point, sampled at this step
 SCAN_PX, SCAN_STEP = 12.0, 0.25
 #: an edge counts from this far out (px), where the averaged profile changes by more than
@@ -97,17 +99,15 @@ def second_edges(image: np.ndarray, points: np.ndarray, normals: np.ndarray,
     level = np.maximum(np.maximum(profile[:, :-step], profile[:, step:]), 1e-12)
     jump = np.abs(profile[:, step:] - profile[:, :-step]) / level > JUMP
     jump &= (d[:-step] >= FROM_PX)[None, :]
-    found = jump.any(axis=1)
+    candidate = jump.any(axis=1)
+    if exclude is not None:  # a scan that meets another component sees its edge, not a bone's
+        blocked = map_coordinates(np.asarray(exclude, dtype=float), coords, order=0, mode="constant")
+        candidate &= blocked.reshape(len(points), -1).max(axis=1) <= 0
     first = np.argmax(jump, axis=1)
     edges, darkness = np.full(len(points), np.nan), np.full(len(points), np.nan)
-    rows = np.flatnonzero(found)
+    rows = np.flatnonzero(candidate)
     if len(rows):
         edges[rows], darkness[rows] = _fit_edges(profile[rows], d, first[rows], step)
-    if exclude is not None:
-        blocked = map_coordinates(np.asarray(exclude, dtype=float), coords, order=0, mode="constant").reshape(where.shape[:3])
-        edges[blocked.reshape(len(points), -1).max(axis=1) > 0] = np.nan
-    from .rim import smooth_along  # here: core.rim imports this module
-
     found = np.isfinite(edges)
     return (np.where(found, smooth_along(edges, HALF_WINDOW), np.nan),
             np.where(found, smooth_along(np.where(found, darkness, np.nan), HALF_WINDOW), np.nan))
@@ -131,11 +131,8 @@ def _fit_edges(profile: np.ndarray, d: np.ndarray, first: np.ndarray, step: int)
     where = np.zeros((len(profile), len(K_GRID)), dtype=int)
     for j, k in enumerate(K_GRID):
         shape = edge_shape(x.reshape(1, -1), np.array([k]), DETECT_SIGMA).reshape(x.shape)
-        basis = [shape * w, d[None, None, :] * shape * w]
-        normal = np.stack([np.stack([(a * b).sum(-1) for b in basis], -1) for a in basis], -2)
-        rhs = np.stack([(a * v).sum(-1) for a in basis], -1)
-        coef = np.linalg.solve(normal + 1e-12 * np.eye(2), rhs[..., None])[..., 0]
-        residual = ((v * v).sum(-1) - (coef * rhs).sum(-1)) / np.maximum(w.sum(-1), 1.0)
+        residual, _ = least_squares([shape * w, d[None, None, :] * shape * w], v, ridge=1e-12)
+        residual = residual / np.maximum(w.sum(-1), 1.0)
         where[:, j] = np.argmin(residual, axis=1)
         best[:, j] = residual[rows, where[:, j]]
     j = np.argmin(best, axis=1)
