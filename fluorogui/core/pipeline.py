@@ -33,7 +33,7 @@ from .edges import component_outline
 from .geometry import View
 from .matching import MatchProblem, MatchResult, MatchSettings, match
 from .mesh import PreparedMesh
-from .rim import RimModel, edge_model, is_soft, refine_outline
+from .rim import RimModel, edge_model, is_soft, refine_outlines, rim_models_together
 from .pose import motion_between, rotation_matrix
 from .silhouette import mesh_silhouette
 from .spline import OutlineError, OutlineSpline
@@ -125,16 +125,17 @@ def refine_rims(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.n
                 only: Sequence[int] | None = None) -> tuple[list[np.ndarray | None], list[RimModel | None]]:
     """Automatic outlines moved to the boundary the metal's rim profile gives at ``pose``
     (``core.rim``), per view (None stays None; views not in ``only`` stay as they are),
-    and each image's rim model (fitted unless given in ``models``)."""
+    and each image's rim model (fitted unless given in ``models``; the views fitted
+    together, one attenuation for the component's metal)."""
     models = list(models) if models is not None else [None] * len(views)
-    refined = []
-    for k, points in enumerate(outlines):
-        if points is None or (only is not None and k not in only):
-            refined.append(points)
-            continue
-        exclude = occluded[k] if occluded is not None and k < len(occluded) else None
-        new, models[k] = refine_outline(images[k], views[k], mesh, pose, points, models[k], exclude)
-        refined.append(new)
+    refined = list(outlines)
+    chosen = [k for k, points in enumerate(outlines) if points is not None and (only is None or k in only)]
+    if chosen:
+        excludes = [occluded[k] if occluded is not None and k < len(occluded) else None for k in chosen]
+        new, fitted = refine_outlines([images[k] for k in chosen], [views[k] for k in chosen], mesh, pose,
+                                      [outlines[k] for k in chosen], [models[k] for k in chosen], excludes)
+        for k, outline, model in zip(chosen, new, fitted):
+            refined[k], models[k] = outline, model
     return refined, models
 
 
@@ -143,18 +144,30 @@ def soft_edge_views(images, views, mesh: PreparedMesh, pose, outlines: Sequence[
     """The views (with an outline) whose edge is a soft rim (``core.rim.is_soft``), judged
     at ``pose`` by each image's rim model: the one in ``models`` or, where that is None,
     ``core.rim.edge_model`` (a quick fit where that finds a step, else the full one the
-    refinement uses). Returns the views and the models."""
+    refinement uses). Where two or more views judged here are soft, their models are
+    fitted again together (``core.rim.rim_models_together``: one attenuation for the
+    component's metal: a noisy view's own varies by several per cent, and over three
+    noise draws the views' own moved a 15 % smaller femur 0.004-0.024 deg further from
+    the truth than the shared one). Returns the views and the models."""
     models = list(models) if models is not None else [None] * len(views)
-    soft = []
+    soft, judged_here = [], []
+    excludes = [occluded[k] if occluded is not None and k < len(occluded) else None for k in range(len(views))]
     for k, points in enumerate(outlines):
         if points is None:
             continue
         model = models[k]
         if model is None:
-            exclude = occluded[k] if occluded is not None and k < len(occluded) else None
-            model = models[k] = edge_model(images[k], views[k], mesh, pose, points, exclude)
+            model = models[k] = edge_model(images[k], views[k], mesh, pose, points, excludes[k])
+            judged_here.append(k)
         if is_soft(model):
             soft.append(k)
+    together = [k for k in judged_here if k in soft]
+    if len(together) > 1:
+        joint = rim_models_together([images[k] for k in together], [views[k] for k in together], mesh, pose,
+                                    [outlines[k] for k in together], [excludes[k] for k in together])
+        if all(is_soft(m) for m in joint):  # together they must still be soft rims
+            for k, model in zip(together, joint):
+                models[k] = model
     return soft, models
 
 

@@ -51,7 +51,7 @@ def test_auto_refines_a_soft_rim_and_leaves_a_step_edge_alone(tray, monkeypatch)
     def no_fit(*args, **kwargs):
         raise AssertionError("the edge was judged again")
     monkeypatch.setattr("fluorogui.core.pipeline.edge_model", no_fit)
-    monkeypatch.setattr("fluorogui.core.pipeline.refine_outline", no_fit)
+    monkeypatch.setattr("fluorogui.core.pipeline.refine_outlines", no_fit)
     again = segment_and_match(step, VIEWS, mesh, auto.result.pose, loop=LoopSettings(rim="auto"), rim_models=models)
     assert again.passes == 1 and again.result.settings["rim_refined"] == [False, False]
 
