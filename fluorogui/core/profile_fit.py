@@ -10,12 +10,35 @@ import numpy as np
 
 def least_squares(basis: list[np.ndarray], v: np.ndarray, ridge: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
     """Per (point, candidate): the residual of ``v`` (P, S, W) fitted by the weighted
-    basis functions (each (P, S, W)) and their coefficients (P, S, len(basis)); ``ridge``
-    keeps a basis that is zero everywhere solvable."""
+    basis functions (each (P, S, W), or broadcasting to it) and their coefficients
+    (P, S, len(basis)); ``ridge`` keeps a basis that is zero everywhere solvable."""
+    if len(basis) == 3:
+        return _least_squares_3(basis, v, ridge)
     normal = np.stack([np.stack([(a * b).sum(-1) for b in basis], -1) for a in basis], -2)
     rhs = np.stack([(a * v).sum(-1) for a in basis], -1)
     coef = np.linalg.solve(normal + ridge * np.eye(len(basis)), rhs[..., None])[..., 0]
     return (v * v).sum(-1) - (coef * rhs).sum(-1), coef
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("...w,...w->...", *np.broadcast_arrays(a, b))
+
+
+def _least_squares_3(basis: list[np.ndarray], v: np.ndarray, ridge: float) -> tuple[np.ndarray, np.ndarray]:
+    """``least_squares`` of three basis functions: the symmetric normal equations solved
+    by their cofactors (the rim fit's grid search solves millions of them; a batched
+    ``np.linalg.solve`` took most of its time)."""
+    a0, a1, a2 = basis
+    n00, n01, n02 = _dot(a0, a0) + ridge, _dot(a0, a1), _dot(a0, a2)
+    n11, n12, n22 = _dot(a1, a1) + ridge, _dot(a1, a2), _dot(a2, a2) + ridge
+    r0, r1, r2 = _dot(a0, v), _dot(a1, v), _dot(a2, v)
+    c00, c01, c02 = n11 * n22 - n12 * n12, n02 * n12 - n01 * n22, n01 * n12 - n02 * n11
+    c11, c12, c22 = n00 * n22 - n02 * n02, n01 * n02 - n00 * n12, n00 * n11 - n01 * n01
+    det = n00 * c00 + n01 * c01 + n02 * c02
+    coef = np.stack([(c00 * r0 + c01 * r1 + c02 * r2) / det, (c01 * r0 + c11 * r1 + c12 * r2) / det,
+                     (c02 * r0 + c12 * r1 + c22 * r2) / det], -1)
+    fitted = coef[..., 0] * r0 + coef[..., 1] * r1 + coef[..., 2] * r2
+    return (v * v).sum(-1) - fitted, coef
 
 
 def smooth_along(values: np.ndarray, half_window: int) -> np.ndarray:

@@ -96,7 +96,8 @@ def test_only_a_sharp_profile_wins_on_a_near_tie(monkeypatch, step_cost, expecte
         shape = step_cost if mu == rim.MU_GRID[-1] else 1.0 + 0.004 * (np.log(mu) / log_step) ** 2
         return shape + (sigma - 0.8) ** 2
 
-    monkeypatch.setattr(rim, "_residuals", lambda pts, mu, sigma, search: (mu, sigma))
+    monkeypatch.setattr(rim, "_candidates", lambda pts, search: None)
+    monkeypatch.setattr(rim, "_fit_residuals", lambda pts, candidates, mu, sigma: (mu, sigma))
     monkeypatch.setattr(rim, "_best_positions", lambda mu, sigma: (None, np.full(10, cost(mu, sigma) / 10)))
     points = rim._Points(*(np.zeros((10, 3)),) * 4, np.zeros(10), np.zeros((10, 3)), np.zeros(10), np.zeros(10))
     model = rim.fit_rim_model(points)
@@ -112,7 +113,8 @@ def test_the_views_of_a_component_share_one_attenuation(monkeypatch):
     def cost(view, mu, sigma):  # a parabola in log(mu); view 1 fits twice the residual of view 0
         return (1.0 + view) * (1.0 + 0.1 * np.log(mu / centre[view]) ** 2 + (sigma - centre[view] + 0.3) ** 2)
 
-    monkeypatch.setattr(rim, "_residuals", lambda pts, mu, sigma, search: (pts.at[0], mu, sigma))
+    monkeypatch.setattr(rim, "_candidates", lambda pts, search: None)
+    monkeypatch.setattr(rim, "_fit_residuals", lambda pts, candidates, mu, sigma: (pts.at[0], mu, sigma))
     monkeypatch.setattr(rim, "_best_positions", lambda view, mu, sigma: (None, np.full(10, cost(view, mu, sigma) / 10)))
     views = [rim._Points(*(np.zeros((10, 3)),) * 4, np.full(10, v), np.zeros((10, 3)), np.zeros(10), np.zeros(10))
              for v in (0.0, 1.0)]
