@@ -337,11 +337,13 @@ def best_translation(edge_mask: np.ndarray, predicted_px: np.ndarray, search_px:
     return best
 
 
-def _dark_edge_points(image, edges, predicted, sigma, polarity, gradients=None):
-    """Sub-pixel points of the pixels of an edge map, their connected-edge labels, and
-    whether each has the expected polarity relative to the predicted outline."""
+def _dark_edge_points(image, edges, predicted, sigma, polarity, gradients=None, within_px=None):
+    """Sub-pixel points of the pixels of an edge map, their connected-edge labels (of the
+    whole map), and whether each has the expected polarity relative to the predicted
+    outline; with ``within_px``, only of the pixels that may lie that close to the
+    prediction once refined (noise gives a weak edge map tens of thousands of pixels)."""
     _, labels = cv2.connectedComponents(edges.astype(np.uint8), connectivity=8)
-    rows, cols = np.nonzero(edges)
+    rows, cols = np.nonzero(edges if within_px is None else edges & _band(edges.shape, predicted, within_px))
     _, gx, gy = gradients if gradients is not None else smoothed_gradients(image, sigma)
     refined, grad = subpixel_edges(gx, gy, np.column_stack([cols, rows]).astype(float))
     if polarity == "dark":
@@ -354,6 +356,16 @@ def _dark_edge_points(image, edges, predicted, sigma, polarity, gradients=None):
     else:
         raise ValueError(f"unknown polarity {polarity!r}; use 'dark' or 'any'")
     return refined, labels[rows, cols], agrees
+
+
+def _band(shape, predicted: np.ndarray, within_px: float) -> np.ndarray:
+    """Pixels (boolean image of ``shape``) that lie within ``within_px`` of a closed
+    outline, with room to spare: a refined edge point moves up to 1 px from its pixel
+    (``subpixel_edges``) and the drawn line is rounded to whole pixels."""
+    band = np.zeros(shape, dtype=np.uint8)
+    polygon = np.round(np.asarray(predicted, dtype=float) * 4).astype(np.int32)  # 2 fractional bits
+    cv2.polylines(band, [polygon], True, 1, thickness=2 * int(np.ceil(within_px + 3)) + 1, shift=2)
+    return band > 0
 
 
 def uncovered_arc(points: np.ndarray, predicted_px: np.ndarray, tolerance_px: float = 8.0,
@@ -471,7 +483,9 @@ def _outline_in_region(image, predicted, roi, keep, sigma, tolerance_px, polarit
         pred = predicted + shift
         # every Canny pixel counts (no chain linking, which drops pixels where Canny's
         # edge is two pixels thick); pieces are the connected edges
-        refined, labels, agrees = _dark_edge_points(image, edges, pred, sigma, polarity, gradients)
+        # points farther than tolerance_px from the prediction count nowhere (not as
+        # cover, left out of the merge): only those near are refined
+        refined, labels, agrees = _dark_edge_points(image, edges, pred, sigma, polarity, gradients, tolerance_px)
         points, pieces = refined[agrees], labels[agrees]
         had_gaps = False
         if gap_fill is not None:
@@ -479,7 +493,8 @@ def _outline_in_region(image, predicted, roi, keep, sigma, tolerance_px, polarit
             had_gaps = bool(gap.any())
             weak = weak_edges() & ~edges if had_gaps else None
             if had_gaps and weak.any():
-                w_points, w_labels, w_agrees = _dark_edge_points(image, weak, pred, sigma, polarity, gradients)
+                w_points, w_labels, w_agrees = _dark_edge_points(image, weak, pred, sigma, polarity, gradients,
+                                                                     tolerance_px)
                 w_bins, _ = uncovered_arc(w_points, pred, tolerance_px, min_gap_px=min_gap_px)
                 use = w_agrees & gap[w_bins]
                 points = np.vstack([points, w_points[use]])
