@@ -127,6 +127,17 @@ class FrameMatcher:
             cached = self._field_cache = (list(images), [image_field(image, margin_px=2) for image in images])
         return cached[1]
 
+    def _rims_for(self, images, component: str) -> list:
+        """The rim models an attempt starts with: those of a matched attempt in this frame
+        (an image's rim does not change with the start, and judging it again in every probe
+        cost a second or more per view), else the component's judgement so far."""
+        cached = getattr(self, "_frame_rims", None)  # (images, {component: models}), as in _fields
+        if cached is None or len(cached[0]) != len(images) or any(a is not b for a, b in zip(cached[0], images)):
+            cached = self._frame_rims = (list(images), {})
+        if component in cached[1]:
+            return list(cached[1][component])
+        return self.rim_judgements.setdefault(component, RimJudgement(len(self.views))).for_attempt()
+
     # -- one attempt ---------------------------------------------------------------------------
     def attempt(self, images, job: ComponentInput, start, occluded, cancel, loop=None) -> FrameResult:
         """One segment -> match loop from ``start`` and the quality checks of its result."""
@@ -138,7 +149,7 @@ class FrameMatcher:
             def step(calls, objective, pose, _c=job.component):
                 self.live(_c, calls, objective, pose)
         try:
-            rims = self.rim_judgements.setdefault(job.component, RimJudgement(len(self.views))).for_attempt()
+            rims = self._rims_for(images, job.component)
             out = segment_and_match(images, self.views, job.mesh, start, s.match, loop, job.given, occluded,
                                     step, cancel, rims)
         except SegmentationError as exc:
@@ -157,6 +168,8 @@ class FrameMatcher:
         limits = replace(s.quality, max_jump_mm=s.quality.max_jump_mm * max(1, job.gap),
                          max_jump_deg=s.quality.max_jump_deg * max(1, job.gap))
         status, reason = judge(quality, limits, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))])
+        if status == MATCHED:
+            self._frame_rims[1][job.component] = list(rims)
         return FrameResult(0, job.component, result.pose, status, reason, result, quality,
                            out.outlines, time.perf_counter() - t0, rim_models=rims)
 
