@@ -47,6 +47,7 @@ refines only soft ones: a step edge stays where Canny puts it.
 """
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -189,10 +190,32 @@ class _Points:
     edge_k: np.ndarray  # (P,) how dark that edge is (``second_edge.edge_shape``)
 
 
+#: the last few results of ``_gather``: judging a view's rim, fitting it with the other
+#: views' and refining its outline gather the same points at the same pose
+_GATHERED: list = []
+_GATHERED_LOCK = threading.Lock()
+
+
 def _gather(image, view, mesh, pose, points, exclude=None) -> tuple[_Points, np.ndarray]:
     """What the fit needs of each outline point, and the model's outward normal (P, 2)
-    along which it moves."""
-    pose = np.asarray(pose, dtype=float)
+    along which it moves (read-only arrays: the same inputs give the same object)."""
+    pose, points = np.asarray(pose, dtype=float), np.asarray(points, dtype=float)
+    key = (image, view, mesh, exclude)
+    with _GATHERED_LOCK:
+        for entry in _GATHERED:
+            if all(a is b for a, b in zip(entry[0], key)) and np.array_equal(entry[1], pose) \
+                    and np.array_equal(entry[2], points):
+                return entry[3]
+    result = _gather_uncached(np.asarray(image, dtype=float), view, mesh, pose, points, exclude)
+    for array in (*vars(result[0]).values(), result[1]):
+        array.flags.writeable = False
+    with _GATHERED_LOCK:
+        _GATHERED.insert(0, (key, pose.copy(), points.copy(), result))
+        del _GATHERED[6:]
+    return result
+
+
+def _gather_uncached(image, view, mesh, pose, points, exclude) -> tuple[_Points, np.ndarray]:
     model = mesh_silhouette(mesh, rotation_matrix(*pose[3:]), pose[:3], view).resample(spacing_px=0.5).points_px
     normals_model = outline_normals(model)
     _, nearest = cKDTree(model).query(points)
@@ -416,7 +439,7 @@ def refine_outlines(images, views, mesh: PreparedMesh, pose, outlines_px, models
             gathered.append((points, None, None, None))
             models[k] = models[k] or STEP
             continue
-        pts, n = _gather(np.asarray(images[k], dtype=float), views[k], mesh, pose, points, excludes[k])
+        pts, n = _gather(images[k], views[k], mesh, pose, points, excludes[k])
         gathered.append((points, pts, n, _usable(pts)))
     to_fit = [k for k, (_, pts, _, _) in enumerate(gathered) if pts is not None and models[k] is None]
     if to_fit:
@@ -461,7 +484,7 @@ def rim_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_p
     points = np.asarray(outline_px, dtype=float).reshape(-1, 2)
     if len(points) < 8:
         return STEP
-    pts, _ = _gather(np.asarray(image, dtype=float), view, mesh, pose, points, exclude)
+    pts, _ = _gather(image, view, mesh, pose, points, exclude)
     return _fit_model(pts, _usable(pts), smooth, judging)
 
 
@@ -470,7 +493,7 @@ def rim_models_together(images, views, mesh: PreparedMesh, pose, outlines_px, ex
     """The rim models of one component's views as ``refine_outlines`` fits them together
     (one attenuation, each view's blur), without moving anything."""
     excludes = list(excludes) if excludes is not None else [None] * len(views)
-    gathered = [_gather(np.asarray(image, dtype=float), view, mesh, pose, np.asarray(points, dtype=float), exclude)[0]
+    gathered = [_gather(image, view, mesh, pose, points, exclude)[0]
                 for image, view, points, exclude in zip(images, views, outlines_px, excludes)]
     return _fit_models(gathered, [_usable(pts) for pts in gathered], smooth)
 
@@ -542,7 +565,7 @@ def edge_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_
     sparse = points[::max(1, len(points) // DECIDE_POINTS)]
     if len(sparse) < 8:
         return STEP
-    pts, _ = _gather(np.asarray(image, dtype=float), view, mesh, pose, sparse, exclude)
+    pts, _ = _gather(image, view, mesh, pose, sparse, exclude)
     usable = _usable(pts)
     if usable.sum() < 8:
         return STEP
