@@ -73,3 +73,34 @@ def test_frame_matcher_reuses_the_models_only_after_three_matched_frames(monkeyp
     assert handed[1] == handed[2] == [None, None]  # judged in each frame itself
     assert handed[3] == handed[4] == [None, STEP]  # view 2: frame 2's clear step
     assert handed[5] == handed[6] == [STEP, STEP]  # view 1: the median of frames 2-4, not frame 1's soft fit
+
+
+def test_the_attempts_of_a_frame_after_a_matched_one_start_from_its_models(monkeypatch):
+    """Within a frame the probes after a matched attempt are handed its rim models rather
+    than judging the same images again; an attempt that fails its checks hands nothing on,
+    and the next frame judges afresh (its models are not settled yet)."""
+    handed: list[list] = []
+    statuses = iter([NEEDS_REVIEW, MATCHED, MATCHED, MATCHED, MATCHED, MATCHED, MATCHED])
+
+    def fake_loop(images, views, mesh, start, settings, loop, given, occluded, step, cancel, rims):
+        handed.append(list(rims))
+        for k in range(len(rims)):
+            if rims[k] is None:
+                rims[k] = RimModel(1.0 + len(handed), 1.2)  # a model per judging attempt
+        result = SimpleNamespace(cancelled=False, pose=np.zeros(6), converged=True, per_view_mean_mm=[0.05, 0.05],
+                                 outlines_px=None, objective_mm=0.05,
+                                 weakest_rotation_axis=lambda: np.array([0.0, 0.0, 1.0]))
+        return SimpleNamespace(result=result, splines=[], outlines=None)
+
+    monkeypatch.setattr(framematch, "segment_and_match", fake_loop)
+    monkeypatch.setattr(framematch, "assess", lambda *a, **k: None)
+    monkeypatch.setattr(framematch, "judge", lambda *a, **k: (next(statuses), ""))
+    matcher = FrameMatcher(two_views(image_size=(512, 512), pitch=315.0 / 512), WorkflowSettings())
+    job = ComponentInput("femoral", SimpleNamespace(centroid=np.zeros(3)), np.zeros(6))
+    first = matcher.match_component(0, [np.zeros((512, 512))] * 2, job)
+    # the start fails its checks, a turned start matches, then the two probes (the same pose)
+    assert first.status == MATCHED and len(handed) == 4
+    assert handed[0] == handed[1] == [None, None]  # each judges: the failed one hands nothing on
+    assert handed[2] == handed[3] == [RimModel(3.0, 1.2)] * 2  # the matched attempt's models
+    matcher.match_component(1, [np.zeros((512, 512))] * 2, job)
+    assert handed[4] == [None, None]  # another frame's images: judged again
