@@ -498,7 +498,7 @@ def _outline_in_region(image, predicted, roi, keep, sigma, tolerance_px, polarit
                 w_bins, _ = uncovered_arc(w_points, pred, tolerance_px, min_gap_px=min_gap_px)
                 use = w_agrees & gap[w_bins]
                 points = np.vstack([points, w_points[use]])
-                pieces = np.concatenate([pieces, w_labels[use] + int(labels.max()) + 1])
+                pieces = np.concatenate([pieces, w_labels[use] + (int(labels.max()) + 1 if len(labels) else 0)])
         _, left = uncovered_arc(points, pred, tolerance_px, min_gap_px=0.0, hidden=hidden)
         return pred, points, pieces, had_gaps, int(left.sum())
 
