@@ -119,23 +119,31 @@ class FrameMatcher:
         self.live = live  # live(component, calls, objective_mm, pose) at every step of a match
         # each component's rim models per view (core.rim): judged in its first matched frames, then reused
         self.rim_judgements: dict[str, RimJudgement] = {}
+        self._frame: tuple[list, dict] | None = None  # see _frame_state
+
+    def _frame_state(self, images) -> dict:
+        """What is worked out once per frame, for this set of images: "fields" (their
+        fields of view) and "rims" (component -> a matched attempt's rim models). Holding
+        the images keeps their ids unique while they are compared by identity."""
+        held = self._frame
+        if held is None or len(held[0]) != len(images) or any(a is not b for a, b in zip(held[0], images)):
+            held = self._frame = (list(images), {"rims": {}})
+        return held[1]
 
     def _fields(self, images) -> list[np.ndarray]:
         """The fields of view of this frame's images (computed once per set of images)."""
-        cached = getattr(self, "_field_cache", None)  # (images, masks): holding the images keeps ids unique
-        if cached is None or len(cached[0]) != len(images) or any(a is not b for a, b in zip(cached[0], images)):
-            cached = self._field_cache = (list(images), [image_field(image, margin_px=2) for image in images])
-        return cached[1]
+        state = self._frame_state(images)
+        if "fields" not in state:
+            state["fields"] = [image_field(image, margin_px=2) for image in images]
+        return state["fields"]
 
     def _rims_for(self, images, component: str) -> list:
         """The rim models an attempt starts with: those of a matched attempt in this frame
         (an image's rim does not change with the start, and judging it again in every probe
         cost a second or more per view), else the component's judgement so far."""
-        cached = getattr(self, "_frame_rims", None)  # (images, {component: models}), as in _fields
-        if cached is None or len(cached[0]) != len(images) or any(a is not b for a, b in zip(cached[0], images)):
-            cached = self._frame_rims = (list(images), {})
-        if component in cached[1]:
-            return list(cached[1][component])
+        matched = self._frame_state(images)["rims"]
+        if component in matched:
+            return list(matched[component])
         return self.rim_judgements.setdefault(component, RimJudgement(len(self.views))).for_attempt()
 
     # -- one attempt ---------------------------------------------------------------------------
@@ -169,7 +177,7 @@ class FrameMatcher:
                          max_jump_deg=s.quality.max_jump_deg * max(1, job.gap))
         status, reason = judge(quality, limits, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))])
         if status == MATCHED:
-            self._frame_rims[1][job.component] = list(rims)
+            self._frame_state(images)["rims"][job.component] = list(rims)
         return FrameResult(0, job.component, result.pose, status, reason, result, quality,
                            out.outlines, time.perf_counter() - t0, rim_models=rims)
 
