@@ -74,9 +74,10 @@ def xray_scene(flexion, args):
         images = [xray_image(v, [Body(world, mesh.faces, MU_METAL)], model, rng) for v in views]
         outlines = segment_outlines(images, views, mesh, truth)
         start = truth + rng.normal(0, 0.5, 6)
+        weights = None
         if args.rim:  # as validate idealized --rim
-            outlines, _ = rim_refined_outlines(images, views, mesh, outlines, start)
-        result = match(MatchProblem(mesh, views, fit_splines(outlines)), start)
+            outlines, _, weights = rim_refined_outlines(images, views, mesh, outlines, start)
+        result = match(MatchProblem(mesh, views, fit_splines(outlines, weights)), start)
         errors.append(pose_difference(result.pose, truth))
         reported.append(result.sd)
     errors = np.asarray(errors)

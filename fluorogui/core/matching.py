@@ -12,7 +12,9 @@ point carries the model point it images, so the residuals have analytic derivati
 correspondences frozen within an evaluation; residuals are signed point-to-curve
 distances in both directions (model to image, and image to model, which stops the
 outline from sliding onto part of the image outline) with a Huber loss against occluded
-or mis-segmented outline parts; the pose is parametrised about the model centroid with
+or mis-segmented outline parts, each view's residuals weighted alike or, where the
+outline carries point weights (``OutlineSpline.weight_at``: the rim refinement's
+precision), by them; the pose is parametrised about the model centroid with
 rotations scaled by the model radius, so rotation and translation steps are equally
 conditioned; Levenberg–Marquardt steps; an initial translation from the outline
 centroids in both views; optional restarts.
@@ -341,7 +343,8 @@ class _FastEvaluation:
                     dist, closest_pt, normal = dist[on_edge], closest_pt[on_edge], normal[on_edge]
                     t_near = t_near[on_edge]
             self.per_view_mm.append(float(np.mean(dist)) * view.mm_per_px())
-            self._add(np.einsum("ij,ij->i", normal, uv - closest_pt), np.einsum("ij,ijk->ik", normal, Jp), X, c, rho)
+            self._add(np.einsum("ij,ij->i", normal, uv - closest_pt), np.einsum("ij,ijk->ik", normal, Jp), X, c, rho,
+                      spline.weight_at(t_near))
             self.view_of.append(k)
             self.where.append(t_near)
             if settings.symmetric:
@@ -350,17 +353,21 @@ class _FastEvaluation:
                 n_model = _polyline_normals(sil.points_px, idx)
                 Xm = sil.model_points[idx] @ R.T + t
                 uvm, Jm = view.project_jacobian(Xm)
-                self._add(np.einsum("ij,ij->i", n_model, uvm - g), np.einsum("ij,ijk->ik", n_model, Jm), Xm, c, rho)
+                self._add(np.einsum("ij,ij->i", n_model, uvm - g), np.einsum("ij,ijk->ik", n_model, Jm), Xm, c, rho,
+                          None if image_params is None else spline.weight_at(image_params[k]))
                 self.view_of.append(k)
                 self.where.append(None if image_params is None else image_params[k])
         self.objective_mm = float(sum(self.per_view_mm))
 
-    def _add(self, r: np.ndarray, nJ: np.ndarray, X: np.ndarray, c: np.ndarray, rho: float) -> None:
-        """Residual rows with d/d(delta_c [mm], omega*rho [mm]) for X' = exp(w)(X - c) + c + delta."""
+    def _add(self, r: np.ndarray, nJ: np.ndarray, X: np.ndarray, c: np.ndarray, rho: float,
+             weights: np.ndarray | None = None) -> None:
+        """Residual rows with d/d(delta_c [mm], omega*rho [mm]) for X' = exp(w)(X - c) + c + delta;
+        each block (one view, one direction) sums to weight 1, shared by the outline's
+        ``weight_at`` where it has weights."""
         dw = -_times_skew(nJ, X - c) / rho
         self.r.append(r)
         self.J.append(np.hstack([nJ, dw]))
-        self.w.append(np.full(len(r), 1.0 / len(r)))
+        self.w.append(np.full(len(r), 1.0 / len(r)) if weights is None else weights / np.sum(weights))
 
     def robust_cost(self, huber: float) -> float:
         total = 0.0

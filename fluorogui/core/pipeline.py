@@ -86,12 +86,14 @@ RIM_MODES = ("auto", "on", "off")
 @dataclass
 class LoopOutcome:
     """The last pass's match (calls and seconds summed over passes), the outlines and
-    splines it used (outlines None when given ones were used) and the number of passes."""
+    splines it used (outlines None when given ones were used), the number of passes and
+    the outlines' point weights (per view, None: all alike; see ``refine_rims``)."""
 
     result: MatchResult
     outlines: list[np.ndarray] | None
     splines: list[OutlineSpline]
     passes: int
+    weights: list[np.ndarray | None] | None = None
 
 
 def predicted_outline(mesh: PreparedMesh, pose, view: View, spacing_px: float = 2.0) -> np.ndarray:
@@ -122,21 +124,25 @@ def segment_outlines(images: Sequence[np.ndarray], views: Sequence[View], mesh: 
 
 def refine_rims(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.ndarray | None], occluded=None,
                 models: list[RimModel | None] | None = None,
-                only: Sequence[int] | None = None) -> tuple[list[np.ndarray | None], list[RimModel | None]]:
+                only: Sequence[int] | None = None) -> tuple[list[np.ndarray | None], list[RimModel | None], list]:
     """Automatic outlines moved to the boundary the metal's rim profile gives at ``pose``
     (``core.rim``), per view (None stays None; views not in ``only`` stay as they are),
-    and each image's rim model (fitted unless given in ``models``; the views fitted
-    together, one attenuation for the component's metal)."""
+    each image's rim model (fitted unless given in ``models``; the views fitted
+    together, one attenuation for the component's metal) and each outline's point
+    weights (``core.rim.precision_weights``; None for the outlines not refined), for
+    ``fit_splines``."""
     models = list(models) if models is not None else [None] * len(views)
     refined = list(outlines)
+    weights: list = [None] * len(views)
     chosen = [k for k, points in enumerate(outlines) if points is not None and (only is None or k in only)]
     if chosen:
         excludes = [occluded[k] if occluded is not None and k < len(occluded) else None for k in chosen]
-        new, fitted = refine_outlines([images[k] for k in chosen], [views[k] for k in chosen], mesh, pose,
-                                      [outlines[k] for k in chosen], [models[k] for k in chosen], excludes)
-        for k, outline, model in zip(chosen, new, fitted):
-            refined[k], models[k] = outline, model
-    return refined, models
+        new, fitted, new_weights = refine_outlines([images[k] for k in chosen], [views[k] for k in chosen], mesh,
+                                                   pose, [outlines[k] for k in chosen], [models[k] for k in chosen],
+                                                   excludes)
+        for k, outline, model, w in zip(chosen, new, fitted, new_weights):
+            refined[k], models[k], weights[k] = outline, model, w
+    return refined, models, weights
 
 
 def soft_edge_views(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.ndarray | None],
@@ -171,15 +177,16 @@ def soft_edge_views(images, views, mesh: PreparedMesh, pose, outlines: Sequence[
     return soft, models
 
 
-def fit_splines(outlines: Sequence[np.ndarray | None]) -> list[OutlineSpline | None]:
-    """Splines through outlines (None stays None); raises SegmentationError naming the view."""
+def fit_splines(outlines: Sequence[np.ndarray | None], weights: Sequence | None = None) -> list[OutlineSpline | None]:
+    """Splines through outlines (None stays None), with their points' ``weights`` where
+    given (per view, None: all alike); raises SegmentationError naming the view."""
     splines = []
     for k, points in enumerate(outlines):
         if points is None:
             splines.append(None)
             continue
         try:
-            splines.append(OutlineSpline.fit(points))
+            splines.append(OutlineSpline.fit(points, weights=weights[k] if weights is not None else None))
         except (OutlineError, ValueError) as exc:
             raise SegmentationError(k, str(exc)) from None
     return splines
@@ -220,7 +227,7 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
     pose = np.asarray(start, dtype=float)
     given = list(splines) if splines is not None else [None] * len(views)
     missing = [k for k, g in enumerate(given) if g is None]
-    outlines = None
+    outlines, outline_weights = None, None
     current = given
     total_calls, total_seconds, history = 0, 0.0, []
     result, passes = None, 0
@@ -237,6 +244,7 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
             try:
                 new_outlines = segment_outlines(images, views, mesh, pose, occluded,
                                                 loop.search_px if k == 0 else loop.later_search_px, missing)
+                weights = None  # the refined outlines' point weights, per view
                 if use_rim and k > 0:  # the pose is a matched one: its rim profiles are the image's
                     if rim_views is None:
                         rim_views, judged = soft_edge_views(images, views, mesh, pose, new_outlines, occluded,
@@ -245,16 +253,16 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
                     if rim_views and not refined:
                         trial = (new_outlines, fit_splines(new_outlines))
                     if rim_views:
-                        new_outlines, fitted = refine_rims(images, views, mesh, pose, new_outlines, occluded,
-                                                           rim_models, rim_views)
+                        new_outlines, fitted, weights = refine_rims(images, views, mesh, pose, new_outlines,
+                                                                    occluded, rim_models, rim_views)
                         rim_models[:] = fitted
                         refined = True
-                new_splines = fit_splines(new_outlines)
+                new_splines = fit_splines(new_outlines, weights)
             except SegmentationError:
                 if result is None:
                     raise
                 break  # keep the previous pass
-            outlines = new_outlines
+            outlines, outline_weights = new_outlines, weights
             current = [g if g is not None else n for g, n in zip(given, new_splines)]
         # later passes start from a matched pose: no need to centre the model first
         pass_settings = settings if passes == 0 or not settings.centre_first else replace(settings, centre_first=False)
@@ -269,6 +277,7 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
             total_seconds += other.seconds
             if other.objective_mm <= result.objective_mm:
                 result, outlines, current, use_rim = other, trial[0], plain, False
+                outline_weights = None
         passes += 1
         total_calls += result.calls
         total_seconds += result.seconds
@@ -286,7 +295,7 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
     result.calls, result.seconds, result.history = total_calls, total_seconds, history
     result.settings = dict(result.settings, loop=loop.to_dict(), passes=passes,
                            rim_refined=[k in (rim_views or []) and refined and use_rim for k in range(len(views))])
-    return LoopOutcome(result, outlines, list(current), passes)
+    return LoopOutcome(result, outlines, list(current), passes, outline_weights)
 
 
 def match_images(images, views, mesh: PreparedMesh, start, settings: MatchSettings | None = None,

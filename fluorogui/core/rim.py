@@ -31,6 +31,10 @@ This module moves every outline point to the boundary that explains the image ar
    it, the noise of a single fit does not.
 5. Points that land far from the rest (another edge beside the component's pulls whole
    stretches by a pixel or two) are left out of the outline.
+6. Each point gets a weight for the match (``precision_weights``): the inverse variance
+   of the fits about it, measured as their scatter. Where the metal thins gently the
+   profile's minimum is shallow and the fits scatter three times as far as on a steep
+   rim; with even weights those stretches set the pose's noise.
 
 A bone's edge within a few pixels outside the outline is part of the model instead
 (``core.second_edge``): found on the image's outer profile, its light ``exp(-k sqrt)``
@@ -59,7 +63,7 @@ from .geometry import View
 from .mesh import PreparedMesh
 from .path_length import path_lengths
 from .pose import rotation_matrix
-from .profile_fit import least_squares, smooth_along
+from .profile_fit import least_squares, precision_weights, smooth_along
 from .second_edge import REACH_PX as SECOND_EDGE_REACH_PX, edge_shape, second_edges
 from .silhouette import mesh_silhouette
 from .spline import first_self_intersection, untangle_outline
@@ -355,15 +359,16 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
     ``exclude`` (a boolean image: another component, whose own edge would spoil it).
     Points that land far from the rest (``_strays``) are left out of the result, and a
     result that crosses itself is mended or given up (``simple_or_plain``)."""
-    outlines, models = refine_outlines([image], [view], mesh, pose, [outline_px], [model], [exclude], smooth)
+    outlines, models, _ = refine_outlines([image], [view], mesh, pose, [outline_px], [model], [exclude], smooth)
     return outlines[0], models[0]
 
 
 def refine_outlines(images, views, mesh: PreparedMesh, pose, outlines_px, models=None, excludes=None,
-                    smooth: int = 8) -> tuple[list[np.ndarray], list[RimModel]]:
+                    smooth: int = 8) -> tuple[list[np.ndarray], list[RimModel], list[np.ndarray | None]]:
     """``refine_outline`` in each of a component's views; the views whose model is not
     given (None in ``models``) have theirs fitted together (``fit_rim_models``: one
-    attenuation, each view's blur)."""
+    attenuation, each view's blur). Also returns each refined outline's point weights
+    (``precision_weights``; None where nothing was refined), for ``OutlineSpline.fit``."""
     models = list(models) if models is not None else [None] * len(views)
     excludes = list(excludes) if excludes is not None else [None] * len(views)
     gathered = []
@@ -380,17 +385,24 @@ def refine_outlines(images, views, mesh: PreparedMesh, pose, outlines_px, models
         fitted = _fit_models([gathered[k][1] for k in to_fit], [gathered[k][3] for k in to_fit], smooth)
         for k, model in zip(to_fit, fitted):
             models[k] = model
-    refined = []
+    refined, weights = [], []
     for (points, pts, n, usable), model in zip(gathered, models):
         if pts is None:
             refined.append(points.copy())
+            weights.append(None)
             continue
-        moves, offsets = _moves(pts, model, usable, smooth)
+        moves, offsets, found = _moves(pts, model, usable, smooth)
         drop = _strays(offsets)
         if drop.mean() > MAX_DROPPED:  # too many to be strays: the pose is not close enough to judge
             drop[:] = False
-        refined.append(simple_or_plain((points + moves[:, None] * n)[~drop], points))
-    return refined, models
+        moved = (points + moves[:, None] * n)[~drop]
+        outline = simple_or_plain(moved, points)
+        refined.append(outline)
+        if outline is not moved and outline.shape == points.shape and np.array_equal(outline, points):
+            weights.append(None)  # given up for Canny's own outline
+        else:  # each point (of an untangled outline too) weighted as the moved point it is
+            weights.append(precision_weights(found)[~drop][cKDTree(moved).query(outline)[1]])
+    return refined, models, weights
 
 
 #: at most this share of a refined outline's points may go to cut out its small loops
@@ -519,15 +531,17 @@ STRAY_SCALES, STRAY_PX = 5.0, 0.6
 REFIT_POINTS = 300
 
 
-def _moves(pts: _Points, model: RimModel, usable: np.ndarray, smooth: int) -> tuple[np.ndarray, np.ndarray]:
-    """Each point's smoothed move along the normal (px) under ``model``, and where it
-    lands from the model boundary (NaN for points that are not ``usable``)."""
+def _moves(pts: _Points, model: RimModel, usable: np.ndarray,
+           smooth: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each point's smoothed move along the normal (px) under ``model``, where it lands
+    from the model boundary (NaN for points that are not ``usable``), and where its own
+    fit put the boundary (NaN where the fit does not count)."""
     residual, s0 = _residuals(pts, model.mu, model.sigma)
     boundary, best = _best_positions(residual, s0)
     moved = boundary - pts.at
     keep = usable & np.isfinite(best) & (np.abs(moved) <= MAX_MOVE_PX)
     moves = smooth_along(np.where(keep, moved, np.nan), smooth)
-    return moves, np.where(usable, pts.at + moves, np.nan)
+    return moves, np.where(usable, pts.at + moves, np.nan), np.where(keep, boundary, np.nan)
 
 
 def _strays(offsets: np.ndarray) -> np.ndarray:

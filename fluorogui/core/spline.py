@@ -27,13 +27,20 @@ class OutlineError(ValueError):
 # -- polylines --------------------------------------------------------------------------------
 def _drop_repeated_points(points: np.ndarray) -> np.ndarray:
     """Remove consecutive duplicates, including a closing point equal to the first."""
+    return points[_distinct(points)]
+
+
+def _distinct(points: np.ndarray) -> np.ndarray:
+    """Which points ``_drop_repeated_points`` keeps (a boolean mask)."""
+    keep = np.ones(len(points), dtype=bool)
     if len(points) < 2:
-        return points
-    step = np.linalg.norm(np.diff(points, axis=0), axis=1)
-    points = points[np.concatenate([[True], step > 1e-9])]
-    while len(points) > 1 and np.linalg.norm(points[-1] - points[0]) <= 1e-9:
-        points = points[:-1]
-    return points
+        return keep
+    keep[1:] = np.linalg.norm(np.diff(points, axis=0), axis=1) > 1e-9
+    last = len(points) - 1
+    while last > 0 and (not keep[last] or np.linalg.norm(points[last] - points[0]) <= 1e-9):
+        keep[last] = False
+        last -= 1
+    return keep
 
 
 def resample_closed_polyline(points, n: int | None = None, spacing: float | None = None) -> np.ndarray:
@@ -180,18 +187,25 @@ class OutlineSpline:
         #: (G, 2) parameter intervals where the outline bridges a gap between its points (a
         #: chord across missing or hidden edges); set by ``fit``, empty when unknown
         self.gaps = np.zeros((0, 2))
+        #: how much each stretch of the outline counts in a match (``weight_at``): (parameters,
+        #: relative weights, mean 1) of the fitted points, or None for all alike
+        self.point_weights: tuple[np.ndarray, np.ndarray] | None = None
 
     # -- construction ------------------------------------------------------------------------
     @classmethod
-    def fit(cls, points, smoothing: float = 0.0) -> "OutlineSpline":
+    def fit(cls, points, smoothing: float = 0.0, weights=None) -> "OutlineSpline":
         """Periodic cubic spline through ordered outline points (K, 2).
 
         ``smoothing`` is the expected RMS noise of the points in px: 0 interpolates (no
         shrinkage at all); a positive value lets the spline deviate from the points by about
         that much (scipy's s = K * smoothing**2), which removes edge jitter but rounds
-        corners sharper than a few pixels slightly.
+        corners sharper than a few pixels slightly. ``weights`` (K, positive) say how much
+        each point's stretch of the outline counts in a match (``weight_at``): the inverse
+        variance of where a point was found, relative to the others.
         """
-        pts = _drop_repeated_points(validate_outline(points))
+        pts = validate_outline(points)
+        kept = _distinct(pts)
+        pts = pts[kept]
         closed = np.vstack([pts, pts[:1]])
         u = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(closed, axis=0), axis=1))])
         s = float(len(pts)) * float(smoothing) ** 2
@@ -200,7 +214,22 @@ class OutlineSpline:
         steps = np.diff(u)
         bridge = steps > max(GAP_MIN_PX, GAP_FACTOR * float(np.median(steps)))
         spline.gaps = np.column_stack([u[:-1][bridge], u[1:][bridge]])
+        if weights is not None:
+            w = np.asarray(weights, dtype=float).reshape(-1)
+            if len(w) != len(kept) or not np.all(np.isfinite(w) & (w > 0)):
+                raise OutlineError(f"outline weights must be {len(kept)} positive numbers")
+            w = w[kept]
+            spline.point_weights = (u[:-1], w / w.mean())
         return spline
+
+    def weight_at(self, t) -> np.ndarray:
+        """The relative weight of the outline at parameters t (linear between the fitted
+        points; 1 everywhere when the outline was fitted without weights)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        if self.point_weights is None:
+            return np.ones(len(t))
+        at, w = self.point_weights
+        return np.interp(self.wrap(t), at, w, period=self.period)
 
     def to_dict(self) -> dict:
         knots, coefficients, degree = self.tck
@@ -209,12 +238,16 @@ class OutlineSpline:
             "coefficients": [c.tolist() for c in coefficients],
             "degree": degree,
             "t_range": list(self.t_range),
-        }
+        } | ({} if self.point_weights is None else
+             {"weights": [self.point_weights[0].tolist(), self.point_weights[1].tolist()]})
 
     @classmethod
     def from_dict(cls, d: dict) -> "OutlineSpline":
         try:
-            return cls((d["knots"], d["coefficients"], d["degree"]), d["t_range"])
+            spline = cls((d["knots"], d["coefficients"], d["degree"]), d["t_range"])
+            if d.get("weights") is not None:
+                spline.point_weights = tuple(np.asarray(x, dtype=float) for x in d["weights"])
+            return spline
         except KeyError as exc:
             raise OutlineError(f"spline is missing the field {exc.args[0]!r}") from None
 

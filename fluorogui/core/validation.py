@@ -216,24 +216,24 @@ def occlusion_masks(views, mesh: PreparedMesh, R, t, margin_px: int = 3) -> list
 
 
 def rim_refined_outlines(images, views, mesh: PreparedMesh, plain, start, settings: MatchSettings | None = None,
-                         occluded=None, mode: str = "on") -> tuple[list, list[int]]:
+                         occluded=None, mode: str = "on") -> tuple[list, list[int], list]:
     """``plain`` outlines refined for the metal's rim as the automatic loop does: at the pose
     matched from ``start``, twice (the second time at the pose the first refinement gives),
     the image's rim models fitted once and kept; with ``mode`` "auto" only in the views
-    whose edge is soft (``pipeline.soft_edge_views``), "off" none. Returns the outlines and
-    the views refined."""
+    whose edge is soft (``pipeline.soft_edge_views``), "off" none. Returns the outlines,
+    the views refined and the outlines' point weights (None per view: all alike)."""
     if mode == "off":
-        return list(plain), []
+        return list(plain), [], [None] * len(plain)
     pose = match(MatchProblem(mesh, views, fit_splines(plain), occluded), start, settings).pose
     only, models = [k for k, p in enumerate(plain) if p is not None], None
     if mode == "auto":
         only, models = soft_edge_views(images, views, mesh, pose, plain, occluded)
         if not only:
-            return list(plain), []
+            return list(plain), [], [None] * len(plain)
     for _ in range(2):
-        outlines, models = refine_rims(images, views, mesh, pose, plain, occluded, models, only)
-        pose = match(MatchProblem(mesh, views, fit_splines(outlines), occluded), pose, settings).pose
-    return outlines, only
+        outlines, models, weights = refine_rims(images, views, mesh, pose, plain, occluded, models, only)
+        pose = match(MatchProblem(mesh, views, fit_splines(outlines, weights), occluded), pose, settings).pose
+    return outlines, only, weights
 
 
 def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings, n_starts: int = 10,
@@ -272,9 +272,9 @@ def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings,
     images = [(render or render_fluoro)(v, bodies, rng) for v in views]
     outlines = segment_outlines(images, views, mesh, truth, occluded)
     starts = perturbed_starts(truth, n_starts, rng, sd_fraction=start_sd_fraction)
-    outlines, extra["rim_refined"] = rim_refined_outlines(images, views, mesh, outlines, starts[0], settings,
-                                                          occluded, rim)
-    problem = MatchProblem(mesh, views, fit_splines(outlines), occluded)
+    outlines, extra["rim_refined"], weights = rim_refined_outlines(images, views, mesh, outlines, starts[0], settings,
+                                                                   occluded, rim)
+    problem = MatchProblem(mesh, views, fit_splines(outlines, weights), occluded)
     results, errors = run_starts(problem, truth, starts, settings)
     return CaseResult(label or f"{flexion_deg:g} deg", truth, results, errors, summarise(errors, results), extra)
 
