@@ -64,20 +64,31 @@ class SplineRecord:
 
 @dataclass(eq=False)
 class OutlineRecord:
-    """An edited image outline: ordered points (K, 2) in pixels, its spline, review state."""
+    """An edited image outline: ordered points (K, 2) in pixels, its spline, review state,
+    and optionally how much each point counts in a match (``weights``, K positive numbers:
+    the rim refinement's ``core.rim.precision_weights``; None: all alike)."""
 
     points: np.ndarray
     spline: SplineRecord | None = None
     reviewed: bool = False
+    weights: np.ndarray | None = None
 
     def __post_init__(self):
         self.points = np.asarray(self.points, dtype=float).reshape(-1, 2)
         self.reviewed = bool(self.reviewed)
+        if self.weights is not None:
+            self.weights = np.asarray(self.weights, dtype=float).reshape(-1)
+            if len(self.weights) != len(self.points) or not np.all(np.isfinite(self.weights) & (self.weights > 0)):
+                raise ValueError(f"an outline of {len(self.points)} points needs as many positive weights, "
+                                 f"got {len(self.weights)}")
 
     def __eq__(self, other) -> bool:
         if not isinstance(other, OutlineRecord):
             return NotImplemented
-        return _same_array(self.points, other.points) and self.spline == other.spline and self.reviewed == other.reviewed
+        same_weights = (self.weights is None and other.weights is None) or (
+            self.weights is not None and other.weights is not None and _same_array(self.weights, other.weights))
+        return (_same_array(self.points, other.points) and self.spline == other.spline
+                and self.reviewed == other.reviewed and same_weights)
 
 
 @dataclass

@@ -248,7 +248,7 @@ def project_to_document(project: Project, base: Path) -> dict:
                 "points": pack_array(record.points),
                 "spline": None if record.spline is None else _spline_to_dict(record.spline),
                 "reviewed": bool(record.reviewed),
-            }
+            } | ({} if record.weights is None else {"weights": pack_array(record.weights)})
             for (frame, view, component), record in sorted(project.records.items(), key=_sort_key)
         ],
         "poses": [
@@ -347,6 +347,7 @@ def project_from_document(document: dict, base: Path) -> Project:
             spline=None if spline is None else SplineRecord(spline.knots, spline.coefficients,
                                                             spline.degree, tuple(spline.t_range)),
             reviewed=raw.reviewed,
+            weights=raw.weights,
         )
     poses = {}
     for i, raw in enumerate(doc.poses):

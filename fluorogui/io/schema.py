@@ -282,6 +282,16 @@ class RecordDocument(_Strict):
     points: numeric_array((None, 2))
     spline: SplineDocument | None
     reviewed: bool
+    weights: numeric_array((None,)) | None = None  # per point, in a match (positive)
+
+    @model_validator(mode="after")
+    def _weights_fit_the_points(self):
+        if self.weights is not None:
+            if len(self.weights) != len(self.points):
+                raise ValueError(f"{len(self.weights)} weights for {len(self.points)} points")
+            if not np.all(self.weights > 0):
+                raise ValueError("weights must be positive")
+        return self
 
 
 class MatchDocument(_Strict):

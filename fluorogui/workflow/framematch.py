@@ -179,7 +179,7 @@ class FrameMatcher:
         if status == MATCHED:
             self._frame_state(images)["rims"][job.component] = list(rims)
         return FrameResult(0, job.component, result.pose, status, reason, result, quality,
-                           out.outlines, time.perf_counter() - t0, rim_models=rims)
+                           out.outlines, time.perf_counter() - t0, rim_models=rims, outline_weights=out.weights)
 
     # -- one component, with recovery ------------------------------------------------------------
     def match_component(self, frame: int, images, job: ComponentInput, occluded=None,

@@ -67,10 +67,11 @@ class FrameState(enum.IntEnum):
     NEEDS_REVIEW = 4  # a component failed its checks (or could not be matched)
 
 
-def fitted_outline(points: np.ndarray) -> OutlineSpline | None:
-    """The spline through an outline, or None while the outline cannot carry one."""
+def fitted_outline(points: np.ndarray, weights: np.ndarray | None = None) -> OutlineSpline | None:
+    """The spline through an outline (with its points' weights), or None while the
+    outline cannot carry one."""
     try:
-        return OutlineSpline.fit(points)
+        return OutlineSpline.fit(points, weights=weights)
     except (OutlineError, ValueError):
         return None
 
@@ -336,9 +337,13 @@ class Session(WorkMixin, KneeMixin):
         record = self.project.records.get(tuple(key))
         return None if record is None else record.points.copy()
 
-    def set_outline(self, key, points, text: str = "Edit outline", reviewed: bool | None = True) -> None:
+    def set_outline(self, key, points, text: str = "Edit outline", reviewed: bool | None = True,
+                    weights: np.ndarray | None = None) -> None:
         """Change an outline through the history (None removes it). A user's edit marks the
-        outline reviewed (it is then used as it is); ``reviewed=None`` keeps the flag."""
+        outline reviewed (it is then used as it is); ``reviewed=None`` keeps the flag.
+        ``weights``: the points' weights in a match (``OutlineRecord.weights``); without
+        them an outline whose points stay the same keeps its weights (marking it reviewed
+        does not change how it matches), an edited one has none."""
         key = (int(key[0]), int(key[1]), str(key[2]))
         before = self.project.records.get(key)
         if points is None:
@@ -346,13 +351,16 @@ class Session(WorkMixin, KneeMixin):
         else:
             points = np.asarray(points, dtype=float).reshape(-1, 2)
             keep = before.reviewed if (before is not None and reviewed is None) else bool(reviewed)
-            after = self._new_record(key, points, keep)
+            if weights is None and before is not None and before.weights is not None \
+                    and before.points.shape == points.shape and np.array_equal(before.points, points):
+                weights = before.weights
+            after = self._new_record(key, points, keep, weights)
         self.history.push(Command(text, key, before, after, self._store_outline))
 
-    def _new_record(self, key, points: np.ndarray, reviewed: bool) -> OutlineRecord:
+    def _new_record(self, key, points: np.ndarray, reviewed: bool, weights=None) -> OutlineRecord:
         """The record keeps the points; ``spline`` fits them when first asked (the same
         spline every time, so neither the file nor storing a tracked frame needs it)."""
-        return OutlineRecord(points, None, reviewed=reviewed)
+        return OutlineRecord(points, None, reviewed=reviewed, weights=weights)
 
     def _store_outline(self, key, record: OutlineRecord | None) -> None:
         if record is None:
@@ -369,7 +377,7 @@ class Session(WorkMixin, KneeMixin):
             return None
         cached = self._splines.get(key)
         if cached is None or cached[0] is not record:  # e.g. a record loaded from a file
-            cached = self._splines[key] = (record, fitted_outline(record.points))
+            cached = self._splines[key] = (record, fitted_outline(record.points, record.weights))
         return cached[1]
 
     def given_splines(self, component: str, frame: int) -> list[OutlineSpline | None] | None:
@@ -398,12 +406,15 @@ class Session(WorkMixin, KneeMixin):
                 existing = self.project.poses.get((r.frame, r.component))
                 if existing is not None and existing.reviewed:
                     continue
+                weights = r.outline_weights or []
                 for view, points in enumerate(r.outlines or []):
                     key = (r.frame, view, r.component)
                     old = self.project.records.get(key)
                     if points is not None and (old is None or not old.reviewed):
                         # 1e-4 px is far below the edges' accuracy and keeps the file small
-                        self.set_outline(key, np.round(points, 4), "Automatic outline", reviewed=False)
+                        w = weights[view] if view < len(weights) else None
+                        self.set_outline(key, np.round(points, 4), "Automatic outline", reviewed=False,
+                                         weights=w)
                 record = r.record()
                 if record is not None:
                     self.set_record(r.component, r.frame, record, "Match")

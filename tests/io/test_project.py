@@ -45,7 +45,7 @@ def full_project(root: Path) -> Project:
     spline = SplineRecord(rng.random(11), rng.random((2, 7)) * 60, 3, (0.0, 1.0 / 3.0))
     records = {
         (0, 0, "femur"): OutlineRecord(rng.random((40, 2)) * 60, spline, True),
-        (0, 1, "femur"): OutlineRecord(rng.random((35, 2)) * 60, None, False),
+        (0, 1, "femur"): OutlineRecord(rng.random((35, 2)) * 60, None, False, weights=rng.random(35) + 0.05),
         (2, 1, "tibia"): OutlineRecord(np.empty((0, 2)), None, False),
     }
     match = MatchRecord(0.123456789, [0.06, 0.063456789], 651, 113.25, False, "paper-bfgs", {"outline_points": 60})
@@ -214,6 +214,11 @@ def test_missing_and_malformed_fields(tmp_path):
         edited(tmp_path, lambda d: d["records"][1].update(view=5))
     )
     assert "field 'settings' must be an object, not a list of 0" in load_error(edited(tmp_path, lambda d: d.update(settings=[])))
+    points = len(json.loads((FIXTURES / "project_v2.fluoro").read_text())["records"][0]["points"])
+    assert f"3 weights for {points} points" in load_error(
+        edited(tmp_path, lambda d: d["records"][0].update(weights=[1.0, 2.0, 3.0])))
+    assert "weights must be positive" in load_error(
+        edited(tmp_path, lambda d: d["records"][0].update(weights=[0.0] * points)))
 
 
 def test_v1_with_bad_key(tmp_path):

@@ -167,3 +167,20 @@ def test_matched_pose_keeps_its_sd_in_the_project(demo):
     session.save()
     stored = Session.open(demo).pose_record("femoral", 1).match.quality["sd"]
     np.testing.assert_allclose(stored, sd)
+
+
+def test_a_rim_refined_outline_keeps_its_point_weights_in_the_project_until_edited(demo):
+    session = Session.open(demo)  # frame 0 matched, saved and loaded again
+    weighted = {k: r for k, r in session.project.records.items() if r.weights is not None}
+    # the demo's tray is judged a soft rim in one view: that outline was refined and weighted
+    assert [(f, c) for f, _, c in weighted] == [(0, "tibial")], sorted(session.project.records)
+    key, record = next(iter(weighted.items()))
+    assert len(record.weights) == len(record.points) and record.weights.min() < 0.5 < 2 < record.weights.max()
+    assert np.array_equal(session.spline(key).point_weights[1], record.weights / record.weights.mean())
+    session.set_outline(key, record.points.copy(), "Accept outline")  # the same points, now reviewed
+    assert session.project.records[key].reviewed
+    assert np.array_equal(session.project.records[key].weights, record.weights)
+    session.set_outline(key, record.points + 0.25)  # an edit: the fits no longer describe these points
+    assert session.project.records[key].weights is None and session.spline(key).point_weights is None
+    session.history.undo()
+    assert np.array_equal(session.project.records[key].weights, record.weights)
