@@ -10,7 +10,8 @@ Layout (schema 5, the current one)::
                  "local_frame": 4x4}],
      "records": [{"frame": 0, "view": 0, "component": "femur", "points": <Kx2>,
                   "spline": {"knots": <n+4>, "coefficients": <2xn>, "degree": 3,
-                             "t_range": [t0, t1]} or null, "reviewed": true}],
+                             "t_range": [t0, t1]} or null, "reviewed": true,
+                  "weights": <K>}],            # weights: optional, each point's in a match
      "poses": [{"frame": 0, "component": "femur", "pose": [x, y, z, a, b, g],
                 "match": {"objective_mm": ..., ..., "quality": {...}, "history": [...]} or null,
                                                              # quality, history: optional
