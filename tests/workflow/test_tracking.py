@@ -169,18 +169,25 @@ def test_matched_pose_keeps_its_sd_in_the_project(demo):
     np.testing.assert_allclose(stored, sd)
 
 
-def test_a_rim_refined_outline_keeps_its_point_weights_in_the_project_until_edited(demo):
-    session = Session.open(demo)  # frame 0 matched, saved and loaded again
-    weighted = {k: r for k, r in session.project.records.items() if r.weights is not None}
-    # the demo's tray is judged a soft rim in one view: that outline was refined and weighted
-    assert [(f, c) for f, _, c in weighted] == [(0, "tibial")], sorted(session.project.records)
-    key, record = next(iter(weighted.items()))
-    assert len(record.weights) == len(record.points) and record.weights.min() < 0.5 < 2 < record.weights.max()
-    assert np.array_equal(session.spline(key).point_weights[1], record.weights / record.weights.mean())
+def test_an_automatic_outline_keeps_its_point_weights_in_the_project_until_edited(demo):
+    from fluorogui.workflow.results import FrameResult
+
+    session = Session.open(demo)
+    key = (0, 1, "tibial")
+    points = session.outline_points(key)
+    weights = np.linspace(0.5, 2.0, len(points))  # as the rim refinement gives them
+    pose = session.pose_record("tibial", 0).pose
+    session.store(FrameResult(0, "tibial", pose, "matched", outlines=[None, points], outline_weights=[None, weights]))
+    session.save()
+    session = Session.open(demo)
+    record = session.project.records[key]
+    np.testing.assert_array_equal(record.weights, weights)
+    assert np.allclose(session.spline(key).point_weights[1], weights / weights.mean())
+    assert session.project.records[(0, 0, "tibial")].weights is None
     session.set_outline(key, record.points.copy(), "Accept outline")  # the same points, now reviewed
     assert session.project.records[key].reviewed
-    assert np.array_equal(session.project.records[key].weights, record.weights)
+    np.testing.assert_array_equal(session.project.records[key].weights, weights)
     session.set_outline(key, record.points + 0.25)  # an edit: the fits no longer describe these points
     assert session.project.records[key].weights is None and session.spline(key).point_weights is None
     session.history.undo()
-    assert np.array_equal(session.project.records[key].weights, record.weights)
+    np.testing.assert_array_equal(session.project.records[key].weights, weights)
