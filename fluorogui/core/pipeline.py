@@ -129,7 +129,7 @@ def refine_rims(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.n
     (``core.rim``), per view (None stays None; views not in ``only`` stay as they are),
     each image's rim model (fitted unless given in ``models``; the views fitted
     together, one attenuation for the component's metal) and each outline's point
-    weights (``core.rim.precision_weights``; None for the outlines not refined), for
+    weights (``core.profile_fit.precision_weights``; None for the outlines not refined), for
     ``fit_splines``."""
     models = list(models) if models is not None else [None] * len(views)
     refined = list(outlines)
