@@ -398,7 +398,7 @@ def refine_outlines(images, views, mesh: PreparedMesh, pose, outlines_px, models
         moved = (points + moves[:, None] * n)[~drop]
         outline = simple_or_plain(moved, points)
         refined.append(outline)
-        if outline is not moved and outline.shape == points.shape and np.array_equal(outline, points):
+        if outline is not moved and np.array_equal(outline, points):
             weights.append(None)  # given up for Canny's own outline
         else:  # each point (of an untangled outline too) weighted as the moved point it is
             weights.append(precision_weights(found)[~drop][cKDTree(moved).query(outline)[1]])

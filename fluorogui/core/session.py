@@ -85,10 +85,8 @@ class OutlineRecord:
     def __eq__(self, other) -> bool:
         if not isinstance(other, OutlineRecord):
             return NotImplemented
-        same_weights = (self.weights is None and other.weights is None) or (
-            self.weights is not None and other.weights is not None and _same_array(self.weights, other.weights))
         return (_same_array(self.points, other.points) and self.spline == other.spline
-                and self.reviewed == other.reviewed and same_weights)
+                and self.reviewed == other.reviewed and _same_array(self.weights, other.weights))
 
 
 @dataclass

@@ -351,8 +351,7 @@ class Session(WorkMixin, KneeMixin):
         else:
             points = np.asarray(points, dtype=float).reshape(-1, 2)
             keep = before.reviewed if (before is not None and reviewed is None) else bool(reviewed)
-            if weights is None and before is not None and before.weights is not None \
-                    and before.points.shape == points.shape and np.array_equal(before.points, points):
+            if weights is None and before is not None and np.array_equal(before.points, points):
                 weights = before.weights
             after = self._new_record(key, points, keep, weights)
         self.history.push(Command(text, key, before, after, self._store_outline))
