@@ -1,6 +1,7 @@
 """Numeric helpers the rim fit (``core.rim``) and the second-edge fit (``core.second_edge``)
 share: batched linear least squares over per-point basis functions, a median along a
-closed outline, and the precision of the fits along it (the rim's point weights)."""
+closed outline, the precision of the fits along it (the rim's point weights), and a
+closed outline's outward normals and curvature."""
 from __future__ import annotations
 
 import warnings
@@ -62,8 +63,11 @@ PRECISION_HALF_WINDOW = 16
 #: px: the least spread a stretch is credited with, below the steepest rims' 0.05 px (10th
 #: percentile over the smaller femur's points, 8 noise draws), so no stretch takes over a match
 PRECISION_FLOOR_PX = 0.02
-#: weights are kept within this factor either side of their mean
-PRECISION_RANGE = 20.0
+#: weights are kept within this factor either side of their mean. At 20x the steep
+#: stretches that then set the pose leaned the femur +0.016 deg in alpha (their own small
+#: biases, not noise: the weights of one draw gave the same lean on another draw's outline);
+#: at 5x +0.007, with its beta/gamma spread still half the even weights' (12 draws, ad hoc)
+PRECISION_RANGE = 5.0
 
 
 def precision_weights(found: np.ndarray, half_window: int = PRECISION_HALF_WINDOW) -> np.ndarray:
@@ -91,3 +95,27 @@ def precision_weights(found: np.ndarray, half_window: int = PRECISION_HALF_WINDO
     w = 1.0 / np.maximum(spread, PRECISION_FLOOR_PX) ** 2
     w = np.clip(w / w.mean(), 1.0 / PRECISION_RANGE, PRECISION_RANGE)
     return w / w.mean()
+
+
+def outline_normals(closed: np.ndarray) -> np.ndarray:
+    """Unit outward normals of a closed polyline's vertices (either orientation)."""
+    p = np.asarray(closed, dtype=float)
+    tangent = np.roll(p, -1, axis=0) - np.roll(p, 1, axis=0)
+    normal = np.column_stack([tangent[:, 1], -tangent[:, 0]])
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+    outward = np.einsum("ij,ij->i", p - p.mean(0), normal).sum() > 0
+    return normal if outward else -normal
+
+
+def outline_curvature(closed: np.ndarray, normals: np.ndarray, half_px: float = 2.0) -> np.ndarray:
+    """Signed curvature (1/px) of a closed, evenly spaced polyline at its vertices, positive
+    where it bends towards the inside (away from the outward ``normals``): from the second
+    difference over ``half_px`` either side, which also smooths a mesh silhouette's facets."""
+    p = np.asarray(closed, dtype=float)
+    step = float(np.median(np.linalg.norm(np.diff(p, axis=0), axis=1))) if len(p) > 1 else 1.0
+    k = int(min(max(1, round(half_px / max(step, 1e-9))), (len(p) - 1) // 2))
+    if k < 1:
+        return np.zeros(len(p))
+    ahead, behind = np.roll(p, -k, axis=0), np.roll(p, k, axis=0)
+    h2 = np.linalg.norm(ahead - p, axis=1) * np.linalg.norm(p - behind, axis=1)
+    return -np.einsum("ij,ij->i", ahead - 2 * p + behind, normals) / np.maximum(h2, 1e-12)
