@@ -66,7 +66,7 @@ PRECISION_FLOOR_PX = 0.02
 #: weights are kept within this factor either side of their mean. At 20x the steep
 #: stretches that then set the pose leaned the femur +0.016 deg in alpha (their own small
 #: biases, not noise: the weights of one draw gave the same lean on another draw's outline);
-#: at 5x +0.007, with its beta/gamma spread still half the even weights' (12 draws, ad hoc)
+#: at 5x +0.007, its beta / gamma spread still 0.4 / 0.7 of the even weights' (12 draws, ad hoc)
 PRECISION_RANGE = 5.0
 
 
