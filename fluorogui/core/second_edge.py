@@ -5,7 +5,8 @@ blurred profile over a background with a slope. Where a bone's edge runs within 
 pixels outside the outline, the background is not a slope: behind a cylinder-like bone
 the path length grows like the square root of the distance inside its edge, so the light
 falls like ``exp(-k sqrt(x))``, and a fit without it pulls whole stretches of the outline
-inwards (a tray stretch beside a hand-drawn bone band, 4 px out: -0.35 to -0.41 px).
+inwards (a tray stretch beside a hand-drawn bone band, 4 px out: -0.19 to -0.26 px;
+with the bone modelled -0.01 to -0.02 px).
 
 ``second_edges`` finds such an edge per outline point: the image's profile outwards
 along the normal (0-12 px, averaged over three lines across it and over the point's
