@@ -329,8 +329,8 @@ def fit_rim_models(views_pts: list[_Points], max_points: int = 120, tolerance: f
     grid = np.log(MU_GRID)
     if 0 < best < len(MU_GRID) - 1:
         grid = log_mu + FINE_LOG_MU_STEPS
-        curves = [_residual_per_mu(pts, max_points, sigma_grid, tuple(np.exp(grid))) if c is not None else None
-                  for pts, c in zip(views_pts, curves)]
+        curves = [_residual_per_mu_near(pts, max_points, sigma_grid, tuple(np.exp(grid)), c[1][best])
+                  if c is not None else None for pts, c in zip(views_pts, curves)]
         fitted = [c for c in curves if c is not None]
         total = sum(per_mu / per_mu.min() for per_mu, _ in fitted)
         best = int(np.argmin(total))
@@ -344,11 +344,12 @@ def fit_rim_models(views_pts: list[_Points], max_points: int = 120, tolerance: f
 FINE_LOG_MU_STEPS = np.array([-0.1, -0.05, 0.0, 0.05, 0.1])
 
 
-def _residual_per_mu(pts: _Points, max_points: int, sigma_grid: tuple,
-                     mu_grid: tuple = MU_GRID) -> tuple[np.ndarray, np.ndarray] | None:
+def _residual_per_mu(pts: _Points, max_points: int, sigma_grid: tuple, mu_grid: tuple = MU_GRID,
+                     with_costs: bool = False) -> tuple | None:
     """Per attenuation of the grid: the least total residual of the best boundaries over
     (up to ``max_points`` evenly spread) points, over the blurs (a parabola between the
-    grid's), and the blur there; None when no pair fits any point."""
+    grid's), and the blur there (and, ``with_costs``, the whole (mu, sigma) table); None
+    when no pair fits any point."""
     sub = _subset(pts, slice(None, None, max(1, len(pts.at) // max_points)))
     candidates = _candidates(sub, _SEARCH[::2])
     costs = np.full((len(mu_grid), len(sigma_grid)), np.inf)
@@ -361,7 +362,26 @@ def _residual_per_mu(pts: _Points, max_points: int, sigma_grid: tuple,
     if not np.isfinite(costs).any():
         return None
     sigmas, per_mu = zip(*(_parabola_vertex(sigma_grid, row) for row in costs))
-    return np.asarray(per_mu), np.asarray(sigmas)
+    return (np.asarray(per_mu), np.asarray(sigmas)) + ((costs,) if with_costs else ())
+
+
+def _residual_per_mu_near(pts: _Points, max_points: int, sigma_grid: tuple, mu_grid: tuple,
+                          sigma: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """``_residual_per_mu`` over only the blurs of the grid within two steps of ``sigma``
+    (the finer attenuations lie close to the coarse best, and so does their blur), or the
+    whole grid where a least residual lands on that window's edge: the same result, since
+    only the least sample and its neighbours shape the parabola, at under half the cost."""
+    j = int(np.argmin(np.abs(np.asarray(sigma_grid) - sigma)))
+    lo, hi = max(j - 2, 0), min(j + 3, len(sigma_grid))
+    window = tuple(sigma_grid[lo:hi])
+    result = _residual_per_mu(pts, max_points, window, mu_grid, with_costs=True)
+    if result is None:
+        return None
+    per_mu, sigmas, costs = result
+    least = np.argmin(costs, axis=1)
+    if np.any((least == 0) & (lo > 0)) or np.any((least == len(window) - 1) & (hi < len(sigma_grid))):
+        return _residual_per_mu(pts, max_points, sigma_grid, mu_grid)
+    return per_mu, sigmas
 
 
 def _parabola_vertex(x: np.ndarray, y: np.ndarray, k: int | None = None) -> tuple[float, float]:
