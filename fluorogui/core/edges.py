@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .spline import resample_closed_polyline, untangle_outline
+from .spline import outward_normals, resample_closed_polyline, untangle_outline
 
 #: fraction of the reference gradient (see ``canny_edges``) used by default
 DEFAULT_LOW, DEFAULT_HIGH = 0.1, 0.3
@@ -309,14 +309,6 @@ def outline_from_mask(mask: np.ndarray, offset_px: float = 0.0) -> np.ndarray:
 
 
 # -- the whole path ----------------------------------------------------------------------------
-def _outward_normals(closed: np.ndarray) -> np.ndarray:
-    tangent = np.roll(closed, -1, axis=0) - np.roll(closed, 1, axis=0)
-    normal = np.column_stack([tangent[:, 1], -tangent[:, 0]])
-    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
-    area2 = np.sum(closed[:, 0] * np.roll(closed[:, 1], -1) - np.roll(closed[:, 0], -1) * closed[:, 1])
-    return normal if area2 > 0 else -normal
-
-
 def best_translation(edge_mask: np.ndarray, predicted_px: np.ndarray, search_px: int = 60) -> np.ndarray:
     """Shift (du, dv) of the predicted outline that best fits an edge map (mean capped
     chamfer distance), coarse to fine over +-``search_px``."""
@@ -349,7 +341,7 @@ def _dark_edge_points(image, edges, predicted, sigma, polarity, gradients=None, 
     if polarity == "dark":
         dense, _, _ = _arc_parameter(predicted)
         _, nearest = cKDTree(dense).query(refined)
-        outward = _outward_normals(dense)[nearest]
+        outward = outward_normals(dense)[nearest]
         agrees = np.einsum("ij,ij->i", grad, outward) > 0.5 * np.linalg.norm(grad, axis=1)
     elif polarity == "any":
         agrees = np.ones(len(refined), dtype=bool)

@@ -1,7 +1,7 @@
 """Numeric helpers the rim fit (``core.rim``) and the second-edge fit (``core.second_edge``)
 share: batched linear least squares over per-point basis functions, a median along a
 closed outline, the precision of the fits along it (the rim's point weights), and a
-closed outline's outward normals and curvature."""
+closed outline's curvature."""
 from __future__ import annotations
 
 import warnings
@@ -95,16 +95,6 @@ def precision_weights(found: np.ndarray, half_window: int = PRECISION_HALF_WINDO
     w = 1.0 / np.maximum(spread, PRECISION_FLOOR_PX) ** 2
     w = np.clip(w / w.mean(), 1.0 / PRECISION_RANGE, PRECISION_RANGE)
     return w / w.mean()
-
-
-def outline_normals(closed: np.ndarray) -> np.ndarray:
-    """Unit outward normals of a closed polyline's vertices (either orientation)."""
-    p = np.asarray(closed, dtype=float)
-    tangent = np.roll(p, -1, axis=0) - np.roll(p, 1, axis=0)
-    normal = np.column_stack([tangent[:, 1], -tangent[:, 0]])
-    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
-    outward = np.einsum("ij,ij->i", p - p.mean(0), normal).sum() > 0
-    return normal if outward else -normal
 
 
 def outline_curvature(closed: np.ndarray, normals: np.ndarray, half_px: float = 2.0) -> np.ndarray:

@@ -68,10 +68,10 @@ from .geometry import View
 from .mesh import PreparedMesh
 from .path_length import path_lengths
 from .pose import rotation_matrix
-from .profile_fit import least_squares, outline_curvature, outline_normals, precision_weights, smooth_along
+from .profile_fit import least_squares, outline_curvature, precision_weights, smooth_along
 from .second_edge import REACH_PX as SECOND_EDGE_REACH_PX, edge_shape, second_edges
 from .silhouette import mesh_silhouette
-from .spline import first_self_intersection, untangle_outline
+from .spline import first_self_intersection, outward_normals, untangle_outline
 
 #: candidate attenuations (1/mm; the last one is a step) and blurs (px, Gaussian sigma
 #: including the pixel's own width)
@@ -151,7 +151,7 @@ def _gather(image, view, mesh, pose, points, exclude=None) -> tuple[_Points, np.
 
 def _gather_uncached(image, view, mesh, pose, points, exclude) -> tuple[_Points, np.ndarray]:
     model = mesh_silhouette(mesh, rotation_matrix(*pose[3:]), pose[:3], view).resample(spacing_px=0.5).points_px
-    normals_model = outline_normals(model)
+    normals_model = outward_normals(model)
     _, nearest = cKDTree(model).query(points)
     m, n = model[nearest], normals_model[nearest]
     bend = outline_curvature(model, normals_model)[nearest]

@@ -40,6 +40,7 @@ from scipy.spatial import cKDTree
 from .geometry import View
 from .mesh import PreparedMesh, prepare_mesh
 from .silhouette import silhouette_edges
+from .spline import outward_normals
 
 N_BINS = 16  # quantised normal directions of the oriented edge maps
 PAD = 40  # padding (pixels of a map level) so shifted look-ups never leave the array
@@ -108,17 +109,6 @@ def _closed_resample(p: np.ndarray, k: int) -> np.ndarray:
     return np.column_stack([np.interp(t, s, np.r_[p[:, 0], p[0, 0]]), np.interp(t, s, np.r_[p[:, 1], p[0, 1]])])
 
 
-def outward_normals(p: np.ndarray) -> np.ndarray:
-    """Unit outward normals of a closed polyline (either orientation)."""
-    t = np.roll(p, -1, axis=0) - np.roll(p, 1, axis=0)
-    n = np.column_stack([t[:, 1], -t[:, 0]])
-    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
-    x, y = p[:, 0], p[:, 1]
-    if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) < 0:  # negative area: (t_y, -t_x) points inwards
-        n = -n
-    return n
-
-
 # -- silhouettes along many directions ----------------------------------------------------------
 @dataclass
 class ShapeLibrary:
@@ -170,7 +160,7 @@ class ShapeLibrary:
         normals = np.stack([t[..., 1], -t[..., 0]], axis=-1)
         normals /= np.maximum(np.linalg.norm(normals, axis=-1, keepdims=True), 1e-12)
         x, y = points[..., 0], points[..., 1]
-        inwards = np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1) < 0  # see outward_normals
+        inwards = np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1) < 0  # see spline.outward_normals
         normals[inwards] *= -1
         return cls(mesh.centroid.copy(), coarse, decimate_mesh(mesh, 15000), d, a, b, points, normals, cKDTree(d))
 

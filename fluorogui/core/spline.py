@@ -63,6 +63,17 @@ def resample_closed_polyline(points, n: int | None = None, spacing: float | None
     return np.column_stack([np.interp(targets, arc, closed[:, 0]), np.interp(targets, arc, closed[:, 1])])
 
 
+def outward_normals(closed) -> np.ndarray:
+    """Unit outward normals (K, 2) of a closed polyline's vertices, either orientation:
+    the central difference turned a quarter, flipped where the shoelace area is negative."""
+    p = np.asarray(closed, dtype=float)
+    tangent = np.roll(p, -1, axis=0) - np.roll(p, 1, axis=0)
+    normal = np.column_stack([tangent[:, 1], -tangent[:, 0]])
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+    area2 = np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1])
+    return normal if area2 > 0 else -normal
+
+
 def _orientation(a, b, c) -> np.ndarray:
     return (b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1]) - (b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0])
 

@@ -6,7 +6,8 @@ import pytest
 from scipy.ndimage import gaussian_filter1d
 
 from fluorogui.core import rim
-from fluorogui.core.profile_fit import outline_curvature, outline_normals
+from fluorogui.core.profile_fit import outline_curvature
+from fluorogui.core.spline import outward_normals
 
 
 @pytest.mark.parametrize("slope", [-0.05, 0.0, 0.05])
@@ -34,9 +35,9 @@ def test_the_curvature_of_a_circle_is_one_over_its_radius(clockwise):
     angle = np.arange(0.0, 2 * np.pi, 0.5 / radius)  # 0.5 px apart, as the rim's model outline
     circle = radius * np.column_stack([np.cos(angle), np.sin(angle)]) + [100.0, 80.0]
     circle = circle[::-1] if clockwise else circle
-    bend = outline_curvature(circle, outline_normals(circle))
+    bend = outline_curvature(circle, outward_normals(circle))
     assert bend == pytest.approx(np.full(len(circle), 1.0 / radius), rel=0.01)
     # a dent bends the other way
     dented = circle.copy()
     dented[:, 0] = np.where(dented[:, 0] > 100 + 0.8 * radius, 2 * (100 + 0.8 * radius) - dented[:, 0], dented[:, 0])
-    assert outline_curvature(dented, outline_normals(dented)).min() < -0.5 / radius
+    assert outline_curvature(dented, outward_normals(dented)).min() < -0.5 / radius
