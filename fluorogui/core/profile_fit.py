@@ -1,7 +1,7 @@
 """Numeric helpers the rim fit (``core.rim``) and the second-edge fit (``core.second_edge``)
 share: batched linear least squares over per-point basis functions, a median along a
-closed outline, the precision of the fits along it (the rim's point weights), and a
-closed outline's curvature."""
+closed outline, the precision of the fits along it (the rim's point weights), a closed
+outline's curvature, and the rule that leaves out fits pulled off by another edge."""
 from __future__ import annotations
 
 import warnings
@@ -109,3 +109,23 @@ def outline_curvature(closed: np.ndarray, normals: np.ndarray, half_px: float = 
     ahead, behind = np.roll(p, -k, axis=0), np.roll(p, k, axis=0)
     h2 = np.linalg.norm(ahead - p, axis=1) * np.linalg.norm(p - behind, axis=1)
     return -np.einsum("ij,ij->i", ahead - 2 * p + behind, normals) / np.maximum(h2, 1e-12)
+
+
+#: a stray lies farther than this many robust SDs (and this many px) from the outline's
+#: median offset to the model boundary
+STRAY_SCALES, STRAY_PX = 5.0, 0.6
+
+
+def strays(offsets: np.ndarray) -> np.ndarray:
+    """True for points whose offset (px) from the model boundary at the matched pose lies
+    far from the outline's median one: ``STRAY_SCALES`` robust SDs (1.4826 x the median
+    absolute deviation) and at least ``STRAY_PX``. Next to a bone's edge the profile fit
+    is pulled by a pixel or two along a whole stretch; elsewhere it varies by tenths."""
+    finite = np.isfinite(offsets)
+    if finite.sum() < 8:
+        return np.zeros(len(offsets), dtype=bool)
+    centre = np.median(offsets[finite])
+    scale = 1.4826 * np.median(np.abs(offsets[finite] - centre))
+    far = np.zeros(len(offsets), dtype=bool)
+    far[finite] = np.abs(offsets[finite] - centre) > max(STRAY_PX, STRAY_SCALES * scale)
+    return far

@@ -68,10 +68,10 @@ from .geometry import View
 from .mesh import PreparedMesh
 from .path_length import path_lengths
 from .pose import rotation_matrix
-from .profile_fit import least_squares, outline_curvature, precision_weights, smooth_along
+from .profile_fit import least_squares, outline_curvature, precision_weights, smooth_along, strays
 from .second_edge import REACH_PX as SECOND_EDGE_REACH_PX, edge_shape, second_edges
 from .silhouette import mesh_silhouette
-from .spline import first_self_intersection, outward_normals, untangle_outline
+from .spline import outward_normals, simple_or_plain
 
 #: candidate attenuations (1/mm; the last one is a step) and blurs (px, Gaussian sigma
 #: including the pixel's own width)
@@ -409,7 +409,7 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
     its ``smooth`` neighbours either side; a fit does not count when it fails, when it
     would move its point by more than ``MAX_MOVE_PX``, or when a pixel it uses lies under
     ``exclude`` (a boolean image: another component, whose own edge would spoil it).
-    Points that land far from the rest (``_strays``) are left out of the result, and a
+    Points that land far from the rest (``profile_fit.strays``) are left out of the result, and a
     result that crosses itself is mended or given up (``simple_or_plain``)."""
     outlines, models, _ = refine_outlines([image], [view], mesh, pose, [outline_px], [model], [exclude], smooth)
     return outlines[0], models[0]
@@ -444,7 +444,7 @@ def refine_outlines(images, views, mesh: PreparedMesh, pose, outlines_px, models
             weights.append(None)
             continue
         moves, offsets, found = _moves(pts, model, usable, smooth)
-        drop = _strays(offsets)
+        drop = strays(offsets)
         if drop.mean() > MAX_DROPPED:  # too many to be strays: the pose is not close enough to judge
             drop[:] = False
         moved = (points + moves[:, None] * n)[~drop]
@@ -455,24 +455,6 @@ def refine_outlines(images, views, mesh: PreparedMesh, pose, outlines_px, models
         else:  # each point (of an untangled outline too) weighted as the moved point it is
             weights.append(precision_weights(found)[~drop][cKDTree(moved).query(outline)[1]])
     return refined, models, weights
-
-
-#: at most this share of a refined outline's points may go to cut out its small loops
-MAX_UNTANGLED = 0.05
-
-
-def simple_or_plain(refined: np.ndarray, plain: np.ndarray) -> np.ndarray:
-    """``refined`` if it is a simple closed polygon; else with its small loops cut out
-    (``spline.untangle_outline``) if that costs at most ``MAX_UNTANGLED`` of its points;
-    else ``plain``. Moves along the model's normals can cross where the outline comes
-    close to itself, and a stray's gap can leave a step that folds back: a crossing
-    outline cannot be fitted, and one odd stretch must not cost the whole refinement."""
-    if first_self_intersection(refined) is None:
-        return refined
-    untangled = untangle_outline(refined)
-    if len(untangled) >= (1.0 - MAX_UNTANGLED) * len(refined) and first_self_intersection(untangled) is None:
-        return untangled
-    return np.asarray(plain, dtype=float).copy()
 
 
 def rim_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_px: np.ndarray,
@@ -517,7 +499,7 @@ def _fit_models(views_pts: list[_Points], usable: list[np.ndarray], smooth: int,
     # strays must not decide the images' model either: fit it again without them, over
     # more points (the attenuation of a first fit over 120 points varies by several per
     # cent from one noise draw to the next, and moves the outline with it)
-    kept = {k: usable[k] & ~_strays(_moves(views_pts[k], models[k], usable[k], smooth)[1]) for k in again}
+    kept = {k: usable[k] & ~strays(_moves(views_pts[k], models[k], usable[k], smooth)[1]) for k in again}
     again = [k for k in again if kept[k].sum() >= 8]
     if again:
         for k, model in zip(again, fit_rim_models([_subset(views_pts[k], kept[k]) for k in again],
@@ -576,9 +558,6 @@ def edge_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_
 
 #: at most this share of an outline's points is left out as strays
 MAX_DROPPED = 0.2
-#: a stray lies farther than this many robust SDs (and this many px) from the outline's
-#: median offset to the model boundary
-STRAY_SCALES, STRAY_PX = 5.0, 0.6
 #: points (evenly spread) the second fit of a rim model uses
 REFIT_POINTS = 300
 
@@ -597,21 +576,6 @@ def _moves(pts: _Points, model: RimModel, usable: np.ndarray,
     keep = usable & np.isfinite(best) & (np.abs(moved) <= MAX_MOVE_PX)
     moves = smooth_along(np.where(keep, moved, np.nan), smooth)
     return moves, np.where(usable, pts.at + moves, np.nan), np.where(keep, boundary, np.nan)
-
-
-def _strays(offsets: np.ndarray) -> np.ndarray:
-    """True for points whose offset (px) from the model boundary at the matched pose lies
-    far from the outline's median one: ``STRAY_SCALES`` robust SDs (1.4826 x the median
-    absolute deviation) and at least ``STRAY_PX``. Next to a bone's edge the profile fit
-    is pulled by a pixel or two along a whole stretch; elsewhere it varies by tenths."""
-    finite = np.isfinite(offsets)
-    if finite.sum() < 8:
-        return np.zeros(len(offsets), dtype=bool)
-    centre = np.median(offsets[finite])
-    scale = 1.4826 * np.median(np.abs(offsets[finite] - centre))
-    far = np.zeros(len(offsets), dtype=bool)
-    far[finite] = np.abs(offsets[finite] - centre) > max(STRAY_PX, STRAY_SCALES * scale)
-    return far
 
 
 def _usable(pts: _Points) -> np.ndarray:

@@ -148,6 +148,24 @@ def untangle_outline(points, max_rounds: int = 200) -> np.ndarray:
     return pts
 
 
+#: at most this share of a refined outline's points may go to cut out its small loops
+MAX_UNTANGLED = 0.05
+
+
+def simple_or_plain(refined: np.ndarray, plain: np.ndarray) -> np.ndarray:
+    """``refined`` if it is a simple closed polygon; else with its small loops cut out
+    (``untangle_outline``) if that costs at most ``MAX_UNTANGLED`` of its points;
+    else ``plain``. Moves along the model's normals can cross where the outline comes
+    close to itself, and a stray's gap can leave a step that folds back: a crossing
+    outline cannot be fitted, and one odd stretch must not cost the whole refinement."""
+    if first_self_intersection(refined) is None:
+        return refined
+    untangled = untangle_outline(refined)
+    if len(untangled) >= (1.0 - MAX_UNTANGLED) * len(refined) and first_self_intersection(untangled) is None:
+        return untangled
+    return np.asarray(plain, dtype=float).copy()
+
+
 def validate_outline(points) -> np.ndarray:
     """The outline as a float (K, 2) array; raises OutlineError if it is unusable."""
     try:

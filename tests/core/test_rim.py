@@ -10,8 +10,8 @@ from scipy.spatial import cKDTree
 from fluorogui.core.edges import component_outline
 from fluorogui.core import rim
 from fluorogui.core.pipeline import LoopSettings, predicted_outline, segment_and_match
-from fluorogui.core.rim import RimModel, path_lengths, refine_outline, simple_or_plain, smooth_along
-from fluorogui.core.spline import first_self_intersection
+from fluorogui.core.rim import RimModel, path_lengths, refine_outline, smooth_along
+from fluorogui.core.spline import first_self_intersection, simple_or_plain
 from fluorogui.core.validation import two_views
 from fluorogui.validation.xray import Body, XrayModel, path_length, xray_image
 
