@@ -369,8 +369,10 @@ def _residual_per_mu_near(pts: _Points, max_points: int, sigma_grid: tuple, mu_g
                           sigma: float) -> tuple[np.ndarray, np.ndarray] | None:
     """``_residual_per_mu`` over only the blurs of the grid within two steps of ``sigma``
     (the finer attenuations lie close to the coarse best, and so does their blur), or the
-    whole grid where a least residual lands on that window's edge: the same result, since
-    only the least sample and its neighbours shape the parabola, at under half the cost."""
+    whole grid where a least residual lands on that window's edge. Only the least sample
+    and its neighbours shape the parabola, so this gives what the whole grid gives wherever
+    the grid's least blur lies inside the window (the femur's refined outline the same to
+    the last digit), with 25 fits in place of 60."""
     j = int(np.argmin(np.abs(np.asarray(sigma_grid) - sigma)))
     lo, hi = max(j - 2, 0), min(j + 3, len(sigma_grid))
     window = tuple(sigma_grid[lo:hi])
