@@ -95,7 +95,10 @@ def test_large_mesh_renders_fast_and_matches_disc_area():
     start = time.perf_counter()
     cov = render_silhouette(view, vertices + [0, 0, 50.0], faces)
     elapsed = time.perf_counter() - start
-    assert elapsed < 1.0
+    # a guard against losing the vectorised path, not a speed measurement: 0.38-0.70 s
+    # with two validation runs on the 2 cores, 1.13 s with the test suite beside them too
+    # (a 1 s bound failed there)
+    assert elapsed < 3.0
     # the sphere's silhouette from a point source is a circle of radius d r / sqrt(D^2 - r^2)
     D = 1050.0
     radius_px = 1000.0 * 30.0 / np.sqrt(D**2 - 30.0**2) / 0.25
