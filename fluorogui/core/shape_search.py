@@ -155,13 +155,7 @@ class ShapeLibrary:
             outer = max(contours, key=len)
             o = _smooth_closed(outer[:, 0, :] * resolution_mm + lo[j], 2)  # drop the pixel staircase
             points[j] = _closed_resample(o, n_points)
-        # outward unit normals of all outlines at once
-        t = np.roll(points, -1, axis=1) - np.roll(points, 1, axis=1)
-        normals = np.stack([t[..., 1], -t[..., 0]], axis=-1)
-        normals /= np.maximum(np.linalg.norm(normals, axis=-1, keepdims=True), 1e-12)
-        x, y = points[..., 0], points[..., 1]
-        inwards = np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1) < 0  # see spline.outward_normals
-        normals[inwards] *= -1
+        normals = outward_normals(points)  # of all outlines at once
         return cls(mesh.centroid.copy(), coarse, decimate_mesh(mesh, 15000), d, a, b, points, normals, cKDTree(d))
 
 

@@ -64,14 +64,16 @@ def resample_closed_polyline(points, n: int | None = None, spacing: float | None
 
 
 def outward_normals(closed) -> np.ndarray:
-    """Unit outward normals (K, 2) of a closed polyline's vertices, either orientation:
-    the central difference turned a quarter, flipped where the shoelace area is negative."""
+    """Unit outward normals (..., K, 2) of closed polylines' vertices (K, 2), or of a batch
+    of them (..., K, 2), either orientation: the central difference turned a quarter,
+    flipped where the shoelace area is negative."""
     p = np.asarray(closed, dtype=float)
-    tangent = np.roll(p, -1, axis=0) - np.roll(p, 1, axis=0)
-    normal = np.column_stack([tangent[:, 1], -tangent[:, 0]])
-    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
-    area2 = np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1])
-    return normal if area2 > 0 else -normal
+    tangent = np.roll(p, -1, axis=-2) - np.roll(p, 1, axis=-2)
+    normal = np.stack([tangent[..., 1], -tangent[..., 0]], axis=-1)
+    normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-12)
+    x, y = p[..., 0], p[..., 1]
+    area2 = np.sum(x * np.roll(y, -1, axis=-1) - np.roll(x, -1, axis=-1) * y, axis=-1)
+    return np.where((area2 > 0)[..., None, None], normal, -normal)
 
 
 def _orientation(a, b, c) -> np.ndarray:
