@@ -213,7 +213,7 @@ class _Candidates:
     value: np.ndarray  # (P, 1, W) weighted
     s_rel: np.ndarray  # (P, 1, W) px along the normal from the outline point
     near: np.ndarray  # indices of the points with a second edge near
-    shapes: dict  # sigma -> the bone edge's profile at the near points (``edge_shape``)
+    shapes: dict  # sigma -> the bone edge's profile at the near points (``edge_shape``) and its slope outwards
 
 
 def _candidates(pts: _Points, search: np.ndarray = _SEARCH) -> _Candidates:
@@ -344,12 +344,11 @@ def fit_rim_models(views_pts: list[_Points], max_points: int = 120, tolerance: f
 FINE_LOG_MU_STEPS = np.array([-0.1, -0.05, 0.0, 0.05, 0.1])
 
 
-def _residual_per_mu(pts: _Points, max_points: int, sigma_grid: tuple, mu_grid: tuple = MU_GRID,
-                     with_costs: bool = False) -> tuple | None:
+def _residual_per_mu(pts: _Points, max_points: int, sigma_grid: tuple,
+                     mu_grid: tuple = MU_GRID) -> tuple[np.ndarray, np.ndarray] | None:
     """Per attenuation of the grid: the least total residual of the best boundaries over
     (up to ``max_points`` evenly spread) points, over the blurs (a parabola between the
-    grid's), and the blur there (and, ``with_costs``, the whole (mu, sigma) table); None
-    when no pair fits any point."""
+    grid's), and the blur there; None when no pair fits any point."""
     sub = _subset(pts, slice(None, None, max(1, len(pts.at) // max_points)))
     candidates = _candidates(sub, _SEARCH[::2])
     costs = np.full((len(mu_grid), len(sigma_grid)), np.inf)
@@ -362,7 +361,7 @@ def _residual_per_mu(pts: _Points, max_points: int, sigma_grid: tuple, mu_grid: 
     if not np.isfinite(costs).any():
         return None
     sigmas, per_mu = zip(*(_parabola_vertex(sigma_grid, row) for row in costs))
-    return (np.asarray(per_mu), np.asarray(sigmas)) + ((costs,) if with_costs else ())
+    return np.asarray(per_mu), np.asarray(sigmas)
 
 
 def _residual_per_mu_near(pts: _Points, max_points: int, sigma_grid: tuple, mu_grid: tuple,
@@ -376,14 +375,12 @@ def _residual_per_mu_near(pts: _Points, max_points: int, sigma_grid: tuple, mu_g
     j = int(np.argmin(np.abs(np.asarray(sigma_grid) - sigma)))
     lo, hi = max(j - 2, 0), min(j + 3, len(sigma_grid))
     window = tuple(sigma_grid[lo:hi])
-    result = _residual_per_mu(pts, max_points, window, mu_grid, with_costs=True)
-    if result is None:
-        return None
-    per_mu, sigmas, costs = result
-    least = np.argmin(costs, axis=1)
-    if np.any((least == 0) & (lo > 0)) or np.any((least == len(window) - 1) & (hi < len(sigma_grid))):
+    result = _residual_per_mu(pts, max_points, window, mu_grid)
+    # a blur on the window's edge (where the parabola puts a least there, or stops at it)
+    if result is not None and ((lo > 0 and np.any(result[1] <= window[0]))
+                               or (hi < len(sigma_grid) and np.any(result[1] >= window[-1]))):
         return _residual_per_mu(pts, max_points, sigma_grid, mu_grid)
-    return per_mu, sigmas
+    return result
 
 
 def _parabola_vertex(x: np.ndarray, y: np.ndarray, k: int | None = None) -> tuple[float, float]:
