@@ -7,7 +7,7 @@ The public Python API (the same workflow the desktop app and the command line us
     for result in session.track(components="both", autosave=True):
         print(result.frame, result.component, result.status, result.pose)
 
-``Session``, ``FrameResult``, ``Placement``, ``WorkflowSettings`` and ``FrameState`` are
+``Session``, ``FrameResult``, ``Placement``, ``Status``, ``WorkflowSettings`` and ``FrameState`` are
 imported on first use, so ``import fluorogui`` stays cheap.
 """
 
@@ -29,9 +29,10 @@ _PUBLIC = {
     "Session": "fluorogui.workflow.session",
     "FrameState": "fluorogui.workflow.session",
     "FrameResult": "fluorogui.workflow.results",
-    "Placement": "fluorogui.workflow.results",
+    "Placement": "fluorogui.core.search.find",
     "WorkflowSettings": "fluorogui.workflow.settings",
-    "build_demo_project": "fluorogui.io.demo",
+    "Status": "fluorogui.core.status",
+    "build_demo_project": "fluorogui.simulation.demo",
     "import_folder": "fluorogui.io.importer",
 }
 __all__ = ["__version__", *_PUBLIC]

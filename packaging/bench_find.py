@@ -1,4 +1,4 @@
-"""Developer benchmark: "find implants" (fluorogui.core.find.find_components) on every frame
+"""Developer benchmark: "find implants" (fluorogui.core.search.find.find_components) on every frame
 of the real biplane data, from nothing, then near perturbed reference poses.
 
 Per frame it prints the wall and CPU seconds for both components together and, per
@@ -31,13 +31,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from fluorogui.core import shape_search  # noqa: E402
-from fluorogui.core.find import find_components  # noqa: E402
-from fluorogui.core.mesh import prepare_mesh  # noqa: E402
-from fluorogui.core.pose import angles_from_matrix, pose_error, rotation_matrix, rotvec_matrix  # noqa: E402
+from fluorogui.core.projection.mesh import prepare_mesh  # noqa: E402
+from fluorogui.core.projection.pose import angles_from_matrix, pose_error, rotation_matrix, rotvec_matrix  # noqa: E402
+from fluorogui.core.search import shape_search  # noqa: E402
+from fluorogui.core.search.find import find_components  # noqa: E402
 from fluorogui.io.calibration import load_view  # noqa: E402
 from fluorogui.io.images import read_image  # noqa: E402
-from fluorogui.io.meshes import load_mesh  # noqa: E402
+from fluorogui.io.meshes.read import load_mesh  # noqa: E402
 
 COMPONENTS = ("femoral", "tibial")
 KEYS = ("x", "y", "z", "alpha", "beta", "gamma")
@@ -86,7 +86,7 @@ def perturbed(pose, mesh, mm, deg, rng) -> np.ndarray:
 def overlay(path, images, views, meshes, out) -> None:
     import cv2
 
-    from fluorogui.core.silhouette import mesh_silhouette
+    from fluorogui.core.projection.silhouette import mesh_silhouette
 
     tiles = []
     for image, view in zip(images, views):

@@ -24,7 +24,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from fluorogui.core.geometry import View
+from fluorogui.core.projection.geometry import View
 from fluorogui.io.calibration import save_view_json
 from fluorogui.io.importer import import_session
 from fluorogui.io.video import MAX_OPEN_VIDEOS

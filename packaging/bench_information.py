@@ -4,7 +4,7 @@
 
 The Cramer-Rao bound: the smallest standard deviation an unbiased estimator of the six
 pose variables can have, given the images' quantum noise. It is computed from the image
-model alone (``fluorogui.validation.xray``, noise-free transmitted fractions ``T`` per
+model alone (``fluorogui.reference.xray``, noise-free transmitted fractions ``T`` per
 pixel), never from the matcher: the Fisher information of Poisson counts of ``photons T``
 per pixel is ``photons * sum_pixels dT/dp_i dT/dp_j / T``, the derivatives by central
 differences of the rendered images over the pose variables (mm, degrees). The bound
@@ -23,11 +23,11 @@ import time
 
 import numpy as np
 
-from fluorogui.core.mesh import prepare_mesh
-from fluorogui.core.pose import transform_points
-from fluorogui.core.validation import dual_orthogonal_views, flexion_pose, two_views
-from fluorogui.io.meshes import load_mesh
-from fluorogui.validation.xray import MU_METAL, Body, XrayModel, line_integrals
+from fluorogui.core.projection.mesh import prepare_mesh
+from fluorogui.core.projection.pose import transform_points
+from fluorogui.io.meshes.read import load_mesh
+from fluorogui.reference.xray import MU_METAL, Body, XrayModel, line_integrals
+from fluorogui.simulation.protocols import dual_orthogonal_views, flexion_pose, two_views
 
 NAMES = ("x", "y", "z", "alpha", "beta", "gamma")
 #: central-difference step (mm, degrees): the silhouette moves about 0.05-0.1 px (0.02

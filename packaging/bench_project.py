@@ -16,8 +16,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from fluorogui.core.geometry import View  # noqa: E402
-from fluorogui.core.session import (  # noqa: E402
+from fluorogui.core.projection.geometry import View  # noqa: E402
+from fluorogui.core.records import (  # noqa: E402
     ImageSequence,
     MatchRecord,
     ModelEntry,
@@ -26,7 +26,7 @@ from fluorogui.core.session import (  # noqa: E402
     Project,
     SplineRecord,
 )
-from fluorogui.io.project import load_project, save_project  # noqa: E402
+from fluorogui.io.project.document import load_project, save_project  # noqa: E402
 
 
 def session(root: Path, frames: int, points: int) -> Project:

@@ -28,7 +28,7 @@ FRAMES = 60
 def load_inputs(data: Path):
     from fluorogui.io.calibration import load_view
     from fluorogui.io.images import read_image
-    from fluorogui.io.meshes import load_mesh
+    from fluorogui.io.meshes.read import load_mesh
 
     views = [load_view(data / "calibration" / f"cam{c}_mayacam2.txt") for c in (1, 2)]
     images = [read_image(data / "cam1" / "000000.tif"), read_image(data / "cam2" / "000522.tif")]
@@ -51,7 +51,7 @@ def build(scene, inputs, timings):
     timings["triangles"] = int(sum(len(f) for _, f in models.values()))
     scene.set_images(images)
     for k, view in enumerate(views):
-        from fluorogui.core.pose import transform_points
+        from fluorogui.core.projection.pose import transform_points
 
         uv = view.project(transform_points(pose, models["femoral"][0][::40]))
         scene.set_rays(k, uv)

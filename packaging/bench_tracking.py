@@ -5,7 +5,7 @@ Sections (all by default, or name some):
 * ``demo``: the built-in demo; frame 0 matched from its rough start, frames 1-3 tracked;
   errors against the stored true poses (target <= 0.05 mm / 0.05 deg).
 * ``synthetic``: a generated 100-frame knee bend of both real implant meshes
-  (``fluorogui.io.synthetic``: overlapping components in one view, non-orthogonal views,
+  (``fluorogui.simulation.knee_bend``: overlapping components in one view, non-orthogonal views,
   varying speed), tracked from nothing (find implants on the first frame); frames shown
   as matched more than 1 mm / 1 deg from the truth (target 0), RMS error over matched
   frames (target <= 0.05 mm / 0.05 deg), wall time (target <= 20 s with the workers), and
@@ -35,7 +35,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from fluorogui import Session  # noqa: E402
-from fluorogui.core.pose import pose_error  # noqa: E402
+from fluorogui.core.projection.pose import pose_error  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data"
 REFERENCE = ROOT / "tests" / "data" / "biplane_reference_poses.csv"
@@ -56,7 +56,7 @@ def _track(session: Session, workers: int, frames=None):
 def _jitter(centroid, poses) -> list[float]:
     from scipy.spatial.transform import Rotation
 
-    from fluorogui.core.pose import rotation_matrix
+    from fluorogui.core.projection.pose import rotation_matrix
 
     R = [rotation_matrix(*p[3:]) for p in poses]
     c = np.array([r @ centroid + p[:3] for r, p in zip(R, poses)])
@@ -67,7 +67,7 @@ def _jitter(centroid, poses) -> list[float]:
 
 
 def bench_demo(args) -> dict:
-    from fluorogui.io.demo import build_demo_project
+    from fluorogui.simulation.demo import build_demo_project
 
     folder = Path(tempfile.mkdtemp(prefix="bench-demo-"))
     session = Session.open(build_demo_project(folder))
@@ -89,7 +89,7 @@ def bench_demo(args) -> dict:
 
 
 def bench_synthetic(args) -> dict:
-    from fluorogui.io.synthetic import build_knee_sequence
+    from fluorogui.simulation.knee_bend import build_knee_sequence
 
     models = DATA / "biplane-tka" / "models"
     folder = Path(tempfile.mkdtemp(prefix="bench-knee-"))
@@ -140,8 +140,8 @@ def bench_synthetic(args) -> dict:
 def _knee_against_truth(session: Session, truth: dict) -> dict:
     """Kinematics of the tracked poses against those of the true poses (same anatomical
     frames): RMS per degree of freedom over frames where both components are matched."""
-    from fluorogui.core.kinematics import KINEMATICS_COLUMNS, knee_kinematics
-    from fluorogui.core.pose import pose_to_matrix
+    from fluorogui.core.knee.kinematics import KINEMATICS_COLUMNS, knee_kinematics
+    from fluorogui.core.projection.pose import pose_to_matrix
 
     anat = {c: session.anatomical_frame(c) for c in COMPONENTS}
     side = session.side or "right"
@@ -163,7 +163,7 @@ def _knee_against_truth(session: Session, truth: dict) -> dict:
 def _knee_curves(session: Session, figure: Path | None) -> dict:
     """The six curves of a tracked real sequence, their jitter over frames 50-69 (noise SD
     from second differences, var = 6 sigma^2 for white noise) and, if asked, the figure."""
-    from fluorogui.core.kinematics import KINEMATICS_COLUMNS
+    from fluorogui.core.knee.kinematics import KINEMATICS_COLUMNS
     from fluorogui.workflow.knee_plot import save_kinematics_figure
 
     rows = session.knee_rows()
@@ -186,7 +186,7 @@ def _knee_curves(session: Session, figure: Path | None) -> dict:
 
 def bench_real(args) -> dict:
     from fluorogui.io.importer import import_folder
-    from fluorogui.io.project import save_project
+    from fluorogui.io.project.document import save_project
 
     folder = Path(tempfile.mkdtemp(prefix="bench-real-"))
     path = folder / "real.fluoro"

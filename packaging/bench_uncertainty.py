@@ -4,13 +4,13 @@
     python packaging/bench_uncertainty.py --xray MESH [--flexion 30 60] [--rim] [--background none]
 
 For each scene (a bent ellipsoid, outlines made without the matcher's code by
-``fluorogui.validation.outlines``) the matcher is run on many noise realisations; the
+``fluorogui.reference.hull_outlines``) the matcher is run on many noise realisations; the
 table gives, per pose variable, the observed SD of the matched poses, the median reported
 SD, their ratio, and the ratio the SD would have if every outline point were counted as
 an independent sample (``cluster_px`` ~ 0).
 
 ``--xray MESH``: the whole path instead, on images of the independent X-ray model
-(``fluorogui.validation.xray``, quantum noise drawn anew per realisation; orthogonal
+(``fluorogui.reference.xray``, quantum noise drawn anew per realisation; orthogonal
 views, the mesh at each ``--flexion``): Canny outline, with ``--rim`` the rim refinement
 as ``validate idealized --rim`` makes it, then the match from a perturbed start. Beside
 the spread it gives the mean error and the RMS error, which hold the bias the noise does
@@ -23,13 +23,15 @@ import time
 
 import numpy as np
 
-from fluorogui.core.geometry import View
-from fluorogui.core.matching import MatchProblem, MatchSettings, match, pose_covariance, pose_sd
-from fluorogui.core.mesh import prepare_mesh
-from fluorogui.core.pose import pose_difference, rotation_matrix
-from fluorogui.core.spline import OutlineSpline
-from fluorogui.core.validation import dual_orthogonal_views
-from fluorogui.validation.outlines import bent_ellipsoid, noisy_hull_outline
+from fluorogui.core.matching.matcher import match
+from fluorogui.core.matching.problem import MatchProblem, MatchSettings
+from fluorogui.core.matching.uncertainty import pose_covariance, pose_sd
+from fluorogui.core.outlines.spline import OutlineSpline
+from fluorogui.core.projection.geometry import View
+from fluorogui.core.projection.mesh import prepare_mesh
+from fluorogui.core.projection.pose import pose_difference, rotation_matrix
+from fluorogui.reference.hull_outlines import bent_ellipsoid, noisy_hull_outline
+from fluorogui.simulation.protocols import dual_orthogonal_views
 
 TRUTH = np.array([3.0, -2.0, 5.0, 20.0, -15.0, 30.0])
 
@@ -56,11 +58,11 @@ def scene(name, views, start_sd, args, mesh, world):
 
 
 def xray_scene(flexion, args):
-    from fluorogui.core.pipeline import fit_splines, segment_outlines
-    from fluorogui.core.pose import transform_points
-    from fluorogui.core.validation import flexion_pose, rim_refined_outlines
-    from fluorogui.io.meshes import load_mesh
-    from fluorogui.validation.xray import MU_METAL, Body, XrayModel, xray_image
+    from fluorogui.core.matching.loop import fit_splines, segment_outlines
+    from fluorogui.core.projection.pose import transform_points
+    from fluorogui.io.meshes.read import load_mesh
+    from fluorogui.reference.xray import MU_METAL, Body, XrayModel, xray_image
+    from fluorogui.simulation.protocols import flexion_pose, rim_refined_outlines
 
     mesh = prepare_mesh(*load_mesh(args.xray))
     truth = flexion_pose(mesh.vertices, flexion)

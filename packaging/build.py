@@ -146,13 +146,13 @@ def _write_scene(folder: Path) -> tuple[list[str], list[float]]:
     import numpy as np
     import pyvista as pv
 
-    from fluorogui.core.mesh import prepare_mesh
-    from fluorogui.core.phantoms import femoral_component_mesh
-    from fluorogui.core.pose import transform_points
-    from fluorogui.core.render import render_fluoro
-    from fluorogui.core.validation import dual_orthogonal_views, flexion_pose
+    from fluorogui.core.projection.mesh import prepare_mesh
+    from fluorogui.core.projection.pose import transform_points
     from fluorogui.io.calibration import save_view_json
     from fluorogui.io.images import write_image
+    from fluorogui.simulation.phantoms import femoral_component_mesh
+    from fluorogui.simulation.protocols import dual_orthogonal_views, flexion_pose
+    from fluorogui.simulation.render import render_fluoro
 
     v, f = femoral_component_mesh()
     mesh = prepare_mesh(v, f)

@@ -80,7 +80,7 @@ def main(argv=None) -> int:
 def print_jointtrack_kinematics(session: Session, data: Path) -> None:
     """The knee kinematics of JointTrack's own poses with the default anatomical frames of
     the meshes (right knee): a check that those frames hold on this second design."""
-    from fluorogui.core.kinematics import KINEMATICS_COLUMNS
+    from fluorogui.core.knee.kinematics import KINEMATICS_COLUMNS
     from fluorogui.workflow.exports import kinematics_of_poses
 
     if set(POSE_FILES) - set(session.components()):

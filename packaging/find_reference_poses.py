@@ -1,7 +1,6 @@
 """Developer tool: reference poses of both components on the real biplane data.
 
-Frame 1: global search (dark blobs -> which blob is which component -> orientation scan ->
-matcher on the blob outlines), then two passes of Canny outlines along the found pose
+Frame 1: global search (*find implants*: ``core.search.find.find_components``), then two passes of Canny outlines along the found pose
 and the fast matcher. Following frames: start from the previous frame's pose, Canny
 outlines along it, fast matcher, twice. A component whose match fails or whose objective
 exceeds ``--max-objective`` is lost; with ``--reinit`` (default) the global search runs
@@ -38,12 +37,12 @@ import pyvista as pv
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from fluorogui.core.geometry import View  # noqa: E402
-from fluorogui.core.initialise import assign_blobs, dark_blobs  # noqa: E402
-from fluorogui.core.mesh import prepare_mesh  # noqa: E402
-from fluorogui.core.pipeline import match_images  # noqa: E402
-from fluorogui.core.pose import rotation_matrix  # noqa: E402
-from fluorogui.core.silhouette import mesh_silhouette  # noqa: E402
+from fluorogui.core.matching.loop import match_images  # noqa: E402
+from fluorogui.core.projection.geometry import View  # noqa: E402
+from fluorogui.core.projection.mesh import prepare_mesh  # noqa: E402
+from fluorogui.core.projection.pose import rotation_matrix  # noqa: E402
+from fluorogui.core.projection.silhouette import mesh_silhouette  # noqa: E402
+from fluorogui.core.search.find import find_components  # noqa: E402
 
 COMPONENTS = ("femoral", "tibial")
 COLOURS = {"femoral": (0, 0, 255), "tibial": (0, 200, 0)}
@@ -98,30 +97,32 @@ def overlay(images, views, meshes, poses, splines, path: Path, label: str) -> No
 
 
 def global_search(images, views, meshes, names) -> dict[str, np.ndarray]:
-    """Poses of the ``names`` components from scratch (blobs, assignment, orientation
-    search), each refined on Canny outlines from every refined candidate (the mask
-    outline can be incomplete: thin tray ends lost to the threshold); the best is kept."""
-    blobs = [dark_blobs(img) for img in images]
+    """Poses of the ``names`` components from scratch (*find implants*: dark regions, an
+    orientation scan on edge maps, refinement on Canny outlines), each matched again on
+    Canny outlines for two passes from the placement and from every candidate the search
+    kept; the best match is used, confident or not (the residual limit decides later)."""
     try:
-        found = assign_blobs(meshes, views, blobs, refine=6)
+        found = find_components(list(images), list(views), {n: meshes[n] for n in names})
     except ValueError as exc:
         print(f"  global search failed: {exc}", flush=True)
         return {}
     poses = {}
-    for name, a in found.items():
-        if name not in names:
-            continue
+    for name, p in found.items():
+        starts = ([p.pose] if p.pose is not None else []) + [pose for _score, pose in p.alternatives]
         best = None
-        for start in [a.result.pose] + [c[1] for c in a.result.candidates]:
+        for start in starts:
             try:
                 res, _ = match_images(images, views, meshes[name], start, passes=2)
             except ValueError:
                 continue
             if best is None or res.objective_mm < best.objective_mm:
                 best = res
-        poses[name] = best.pose if best is not None else a.result.pose
-        print(f"  {name} search on blobs {a.blob_indices}: objective {a.result.objective_mm:.2f} mm, "
-              f"mask IoU {np.round(a.result.iou, 3)}, {a.result.seconds:.1f} s", flush=True)
+        if best is None:
+            print(f"  {name}: not placed ({p.reason})", flush=True)
+            continue
+        poses[name] = best.pose
+        print(f"  {name} found{'' if p.found else ' (not confident: ' + p.reason + ')'}: objective "
+              f"{best.objective_mm:.2f} mm, IoU {np.round(p.iou, 3)}, {p.seconds:.1f} s", flush=True)
     return poses
 
 
@@ -238,8 +239,8 @@ def main(argv=None) -> int:
 
 def refine(args) -> int:
     """Re-match every reference row from its own pose; keep converged ones within --max-view-px."""
-    from fluorogui.core.pipeline import segment_and_match
-    from fluorogui.core.pose import pose_error
+    from fluorogui.core.matching.loop import segment_and_match
+    from fluorogui.core.projection.pose import pose_error
 
     views = load_views(args.data)
     meshes = {name: load_mesh(args.data / f"models/{name}_component.stl") for name in COMPONENTS}
@@ -252,7 +253,7 @@ def refine(args) -> int:
         images = [cv2.imread(str(args.data / pairs[frame][k]), cv2.IMREAD_GRAYSCALE) for k in ("cam1", "cam2")]
         old = np.array([float(row[k]) for k in ("x", "y", "z", "alpha", "beta", "gamma")])
         out = segment_and_match(images, views, meshes[name], old)
-        res = out.result
+        res = out
         px = [m / v.mm_per_px() for m, v in zip(res.per_view_mean_mm, views)]
         moved = pose_error(res.pose, old)
         note = f"moved {np.abs(moved[:3]).max():.3f} mm / {np.abs(moved[3:]).max():.3f} deg"

@@ -114,7 +114,7 @@ def make_large(folder: Path) -> None:
     sys.path.insert(0, str(HERE))
     from bench_project import session
 
-    from fluorogui.io.project import save_project
+    from fluorogui.io.project.document import save_project
 
     save_project(session(folder, 1400, 400), folder / "long.fluoro")
     triangles = 1_800_000
@@ -193,7 +193,7 @@ def main(argv=None) -> int:
 
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0
     totals = {key: sum(r.get(key, 0) for r in report.values()) for key in MUST_BE_ZERO}
-    print(f"\ntotal: " + ", ".join(f"{k} {v}" for k, v in totals.items()) + f"; peak memory of any worker {peak:.0f} MB")
+    print("\ntotal: " + ", ".join(f"{k} {v}" for k, v in totals.items()) + f"; peak memory of any worker {peak:.0f} MB")
     if args.json:
         print(json.dumps({"report": report, "totals": totals, "peak_mb": peak}, default=str))
     return 1 if any(totals.values()) or peak > 2048 else 0

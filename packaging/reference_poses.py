@@ -1,5 +1,5 @@
 """Developer tool: the matcher's poses on the real biplane data against reference poses
-that the matcher did not make (``fluorogui.validation.region_fit``: the mesh's projected
+that the matcher did not make (``fluorogui.reference.region_fit``: the mesh's projected
 region fitted to the segmented dark region of both images, no outline, edge detector or
 silhouette code of the matcher).
 
@@ -15,7 +15,7 @@ evidence), and the mean, SD and max of |difference|;
 ``--out`` writes the rows as CSV.
 
 ``--xray`` measures the reference fitter's own error instead, on images of the
-independent X-ray model (``fluorogui.validation.xray``: path length, Beer-Lambert, blur,
+independent X-ray model (``fluorogui.reference.xray``: path length, Beer-Lambert, blur,
 noise, a leg and bone background) with known poses: the real meshes at ``--flexion``
 angles, two views 70 deg apart and tilted 10 deg, 1024 px of 0.3076 mm like the real
 data, ``--starts`` starts per case moved uniformly by up to ``--perturb`` (default 2)
@@ -48,9 +48,16 @@ sys.path.insert(0, str(ROOT))
 
 from fluorogui.io.calibration import load_view  # noqa: E402
 from fluorogui.io.images import read_image  # noqa: E402
-from fluorogui.io.meshes import load_mesh  # noqa: E402
-from fluorogui.validation.region_fit import (EdgeMesh, coverage, field_of_view, fit_pose,  # noqa: E402
-                                             pose_difference, rotation, rotation_angle)
+from fluorogui.io.meshes.read import load_mesh  # noqa: E402
+from fluorogui.reference.region_fit import (  # noqa: E402
+    EdgeMesh,
+    coverage,
+    field_of_view,
+    fit_pose,
+    pose_difference,
+    rotation,
+    rotation_angle,
+)
 
 POSE_KEYS = ("x", "y", "z", "alpha", "beta", "gamma")
 DIFF_LABELS = ("dx", "dy", "dz", "dalpha", "dbeta", "dgamma", "dangle")
@@ -207,8 +214,8 @@ def single_plane(args) -> int:
 
 def xray_accuracy(args) -> int:
     """The fitter against known poses on independent X-ray model images."""
-    from fluorogui.core.validation import flexion_pose, two_views
-    from fluorogui.validation.xray import Body, XrayModel, xray_image
+    from fluorogui.reference.xray import Body, XrayModel, xray_image
+    from fluorogui.simulation.protocols import flexion_pose, two_views
 
     views = two_views(70.0, 10.0, image_size=(1024, 1024), pitch=315.0 / 1024.0)
     perturb = args.perturb or 2.0

@@ -24,11 +24,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from fluorogui.core.mesh import prepare_mesh  # noqa: E402
-from fluorogui.core.pipeline import LoopSettings, segment_and_match  # noqa: E402
+from fluorogui.core.matching.loop import LoopSettings, segment_and_match  # noqa: E402
+from fluorogui.core.projection.mesh import prepare_mesh  # noqa: E402
 from fluorogui.io.calibration import load_view  # noqa: E402
 from fluorogui.io.images import read_image  # noqa: E402
-from fluorogui.io.meshes import load_mesh  # noqa: E402
+from fluorogui.io.meshes.read import load_mesh  # noqa: E402
 from fluorogui.io.pose_files import POSE_KEYS  # noqa: E402
 from fluorogui.workflow.framematch import occlusion_masks  # noqa: E402
 
@@ -61,7 +61,7 @@ def main(argv=None) -> int:
             occluded = (occlusion_masks(views, [(other_mesh, listed[f, other])], listed[f, comp], mesh)
                         if (f, other) in listed else None)
             result = segment_and_match(images, views, mesh, listed[f, comp], loop=LoopSettings(rim=rim),
-                                       occluded=occluded, rim_models=models).result
+                                       occluded=occluded, rim_models=models)
             print(f"{'rim' if rim else 'plain'} frame {f}: objective {result.objective_mm:.4f} mm, per view "
                   + " / ".join(f"{v:.4f}" for v in result.per_view_mean_mm) + f", converged {result.converged}",
                   flush=True)

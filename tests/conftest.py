@@ -24,10 +24,10 @@ def biplane(shared_data):
 
     import numpy as np
 
-    from fluorogui.core.mesh import prepare_mesh
+    from fluorogui.core.projection.mesh import prepare_mesh
     from fluorogui.io.calibration import load_view
     from fluorogui.io.images import read_image
-    from fluorogui.io.meshes import load_mesh
+    from fluorogui.io.meshes.read import load_mesh
 
     d = shared_data / "biplane-tka"
     views = [load_view(d / "calibration" / f"cam{k}_mayacam2.txt") for k in (1, 2)]

@@ -1,8 +1,8 @@
 """The calibration wizard: plate images -> holes and residual map -> accept; bead images ->
 detected beads and reprojection errors -> accept; the views are written to a folder.
 
-Presentation only: the fits are ``fluorogui.core.distortion.fit_plate`` and
-``fluorogui.core.beads.calibrate_view``, run off the GUI thread by ``TaskRunner``; the
+Presentation only: the fits are ``fluorogui.core.calibration.distortion.fit_plate`` and
+``fluorogui.core.calibration.beads.calibrate_view``, run off the GUI thread by ``TaskRunner``; the
 tasks read files and return plain results, the pages show them. On finish
 ``self.views`` holds the calibrated views (each carrying its distortion correction) and
 the folder gets ``view<k>_mayacam2.txt`` (geometry, for XMALab / Autoscoper) and
@@ -52,52 +52,38 @@ class PlateOutcome:
 @dataclass
 class BeadOutcome:
     view: int
-    calibration: object  # fluorogui.core.beads.BeadCalibration
+    calibration: object  # fluorogui.core.calibration.beads.BeadCalibration
     picture: np.ndarray
 
 
 def plate_task(plates: dict[int, str], spacing_mm: float, grid: str, model: str):
-    """Fit a correction for every view that has a plate image."""
+    """Fit a correction for every view that has a plate image (``workflow.calibration``)."""
     def task(reporter) -> list[PlateOutcome]:
-        from fluorogui.core.distortion import DistortionError, fit_plate, residual_picture
-        from fluorogui.io.errors import InputError
-        from fluorogui.io.images import read_image
+        from fluorogui.core.calibration.distortion import residual_picture
+        from fluorogui.workflow.calibration import fit_plates
 
-        out = []
-        for view, path in sorted(plates.items()):
-            reporter.check()
-            reporter.report(f"view {view + 1}: fitting the plate", force=True)
-            image = read_image(path)
-            try:
-                fit = fit_plate(image, spacing_mm, grid, model)
-            except DistortionError as exc:
-                raise InputError(path, str(exc)) from None
-            out.append(PlateOutcome(view, fit.summary(), fit.correction.to_dict(), residual_picture(image, fit)))
-        return out
+        fits = fit_plates(plates, spacing_mm, grid, model, progress=lambda text: reporter.report(text, force=True),
+                          cancel=reporter.cancelled)
+        return [PlateOutcome(view, r.fit.summary(), r.correction, residual_picture(r.image, r.fit))
+                for view, r in sorted(fits.items())]
     return task
 
 
 def bead_task(images: dict[int, str], phantom_csv: str, corrections: dict[int, dict], pitch: float | None):
-    """Calibrate every view that has a bead image (each corrected with its plate fit first)."""
+    """Calibrate every view that has a bead image, each corrected with its plate fit first
+    (``workflow.calibration``)."""
     def task(reporter) -> list[BeadOutcome]:
-        from fluorogui.core.beads import BeadError, calibrate_view
-        from fluorogui.core.distortion import correction_from_dict
+        from fluorogui.core.calibration.distortion import correction_from_dict
         from fluorogui.io.beads import read_phantom_csv
-        from fluorogui.io.errors import InputError
-        from fluorogui.io.images import read_image
+        from fluorogui.workflow.calibration import calibrate_views
 
+        found = calibrate_views(images, phantom_csv, corrections, pitch,
+                                progress=lambda text: reporter.report(text, force=True), cancel=reporter.cancelled)
         beads = read_phantom_csv(phantom_csv)
         out = []
-        for view, path in sorted(images.items()):
-            reporter.check()
-            reporter.report(f"view {view + 1}: calibrating", force=True)
-            image = read_image(path)
+        for view, r in sorted(found.items()):
             correction = correction_from_dict(corrections[view]) if view in corrections else None
-            try:
-                result = calibrate_view(image, beads, correction, pitch, name=f"view {view + 1}")
-            except BeadError as exc:
-                raise InputError(phantom_csv if exc.about_phantom else path, str(exc)) from None
-            out.append(BeadOutcome(view, result, _bead_picture(image, result, beads, correction)))
+            out.append(BeadOutcome(view, r.calibration, _bead_picture(r.image, r.calibration, beads, correction)))
         return out
     return task
 
@@ -301,24 +287,21 @@ class CalibrationWizard(QWizard):
         self.resize(760, 660)
 
     def accept(self) -> None:
-        from fluorogui.io.calibration import save_view_json, save_view_mayacam2
         from fluorogui.io.corrections import attach_correction
         from fluorogui.io.errors import InputError
+        from fluorogui.workflow.calibration import write_views
 
-        out = Path(self.bead_page.out_dir.text().strip())
-        views, written = [], []
+        views = {}
+        for k, result in sorted(self.bead_page.results.items()):
+            view = result.view
+            if k in self.plate_page.corrections:
+                view = attach_correction(view, self.plate_page.corrections[k])
+            views[k] = view
         try:
-            out.mkdir(parents=True, exist_ok=True)
-            for k, result in sorted(self.bead_page.results.items()):
-                view = result.view
-                if k in self.plate_page.corrections:
-                    view = attach_correction(view, self.plate_page.corrections[k])
-                save_view_mayacam2(view, out / f"view{k + 1}_mayacam2.txt")
-                save_view_json(view, out / f"view{k + 1}.json")
-                views.append(view)
-                written += [out / f"view{k + 1}_mayacam2.txt", out / f"view{k + 1}.json"]
+            written = write_views(views, self.bead_page.out_dir.text().strip())
         except (InputError, OSError) as exc:
             self.bead_page.status.setText(f"<span style='color:#c62828'>{exc}</span>")
             return
+        views = [views[k] for k in sorted(views)]
         self.views, self.written = views, written
         super().accept()

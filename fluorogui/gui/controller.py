@@ -9,7 +9,7 @@ adapter only adds what a desktop app needs on top:
 * the GUI's own state: the frame on screen and the component being edited;
 * a ``QUndoStack`` that mirrors ``session.history`` (``HistoryMirror``) for the Undo /
   Redo actions and the window's modified flag;
-* the project lock (``fluorogui.io.lock``) while a project file is open;
+* the project lock (``fluorogui.io.project.lock``) while a project file is open;
 * ``apply_edit``, where the image panels' outline edits enter the session's history.
 
 No geometry, matching or caching lives here.
@@ -20,12 +20,12 @@ from pathlib import Path
 
 from PySide6.QtCore import QObject, Signal
 
-from fluorogui.core.session import Project
-from fluorogui.io.errors import InputError
-from fluorogui.io.lock import ProjectLock, ProjectLocked
-from fluorogui.workflow.commands import Command
-from fluorogui.workflow.session import COMPONENT_ORDER, FrameState, Session
+from fluorogui.core.records import Project
 from fluorogui.gui.undo_mirror import HistoryMirror
+from fluorogui.io.errors import InputError
+from fluorogui.io.project.lock import ProjectLock, ProjectLocked
+from fluorogui.workflow.history import Command
+from fluorogui.workflow.session import COMPONENT_ORDER, FrameState, Session
 
 PROGRAM = "fluorogui (desktop)"
 

@@ -4,7 +4,7 @@ projected model outlines, with the tools that review and edit an outline.
 Scene coordinates are pixel coordinates (u, v) = (column, row) with the origin at the
 centre of the top-left pixel (the image item is offset by -0.5, -0.5), so a point of an
 outline is drawn at its own (u, v). The geometry of every edit lives in
-``fluorogui.core.outline_edit``; this widget turns mouse gestures into those calls and
+``fluorogui.core.outlines.editing``; this widget turns mouse gestures into those calls and
 every outline or edge edit into one undoable step.
 
 In the app an edit goes to ``edit_sink(text, (key, points) or None, steps)``: the session
@@ -40,10 +40,10 @@ from PySide6.QtWidgets import (
     QGraphicsView,
 )
 
-from fluorogui.core import outline_edit as oe
-from fluorogui.core.edges import DEFAULT_HIGH, DEFAULT_LOW, canny_edges
-from fluorogui.core.edges import edge_contours as find_edge_contours
-from fluorogui.core.spline import OutlineSpline
+from fluorogui.core.outlines import editing as oe
+from fluorogui.core.outlines.edges import DEFAULT_HIGH, DEFAULT_LOW, canny_edges
+from fluorogui.core.outlines.edges import edge_contours as find_edge_contours
+from fluorogui.core.outlines.spline import OutlineSpline
 from fluorogui.gui.panel_items import (
     BACKGROUND,
     DEFAULT_COLOURS,
@@ -55,11 +55,11 @@ from fluorogui.gui.panel_items import (
     MIN_SCALE,
     PICK_TOLERANCE_PX,
     AnonymousImage,
-    add_spline_runs,
     ComponentItems,
     CrossItem,
     DotsItem,
     Tool,
+    add_spline_runs,
     cosmetic_pen,
     distance_colours,
     draw_label,

@@ -33,7 +33,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from fluorogui.core.session import Project
+from fluorogui.core.records import Project
 from fluorogui.io.errors import InputError
 from fluorogui.io.images import IMAGE_SUFFIXES, VIDEO_SUFFIXES
 from fluorogui.io.importer import (
@@ -43,7 +43,7 @@ from fluorogui.io.importer import (
     import_session,
     preview_image_source,
 )
-from fluorogui.io.meshes import MESH_SUFFIXES
+from fluorogui.io.meshes.read import MESH_SUFFIXES
 
 #: Separator of several image files in one field.
 FILE_SEPARATOR = "; "

@@ -16,9 +16,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fluorogui.core.pipeline import predicted_outline
-from fluorogui.gui.worker import TaskCancelled
-from fluorogui.workflow.results import FAILED, MATCHED, NEEDS_REVIEW, FrameResult, Placement
+from fluorogui.core.matching.loop import predicted_outline
+from fluorogui.core.status import Status
+from fluorogui.workflow.results import FrameResult
+from fluorogui.core.search.find import Placement
 from fluorogui.workflow.tracking import by_frame
 
 OVERLAY_SPACING_PX = 3.0
@@ -37,23 +38,9 @@ class LiveUpdate:
 
 
 @dataclass
-class MatchOutcome:
-    """The results of matching components in one frame (one per component)."""
-
-    frame: int
-    results: list[FrameResult]
-
-
-@dataclass
 class FindProgress:
     fraction: float
     text: str
-
-
-@dataclass
-class FindOutcome:
-    frame: int
-    placements: dict[str, Placement]
 
 
 @dataclass
@@ -84,10 +71,10 @@ def frame_status(results) -> str:
     """The worst status among a frame's new results: failed, needs review or matched
     (kept results were accepted or already matched)."""
     statuses = {r.status for r in results if not r.kept}
-    for status in (FAILED, NEEDS_REVIEW):
+    for status in (Status.FAILED, Status.NEEDS_REVIEW):
         if status in statuses:
             return status
-    return MATCHED
+    return Status.MATCHED
 
 
 def match_task(job):
@@ -95,7 +82,7 @@ def match_task(job):
     outline for the overlays, throttled by the runner."""
     meshes = {i.component: i.mesh for i in job.inputs}
 
-    def task(reporter) -> MatchOutcome:
+    def task(reporter) -> list[FrameResult]:
         histories = {name: [] for name in meshes}
 
         def live(component, calls, objective_mm, pose):
@@ -111,9 +98,8 @@ def match_task(job):
                                        outlines, list(histories[component])))
 
         results = job.run(live, reporter.cancelled)
-        if results is None or reporter.cancelled():
-            raise TaskCancelled()
-        return MatchOutcome(job.frame, results)
+        reporter.check()
+        return results
 
     return task
 
@@ -121,16 +107,15 @@ def match_task(job):
 def find_task(job):
     """Find the components of ``job`` (a ``FindJob``) with progress (fraction, text)."""
 
-    def task(reporter) -> FindOutcome:
+    def task(reporter) -> dict[str, Placement]:
         reporter.report(FindProgress(0.0, "Looking for the implants…"), force=True)
 
         def progress(fraction, text):
             reporter.report(FindProgress(float(fraction), str(text)))
 
         placements = job.run(progress, reporter.cancelled)
-        if placements is None or reporter.cancelled():
-            raise TaskCancelled()
-        return FindOutcome(job.frame, placements)
+        reporter.check()
+        return placements
 
     return task
 
@@ -147,8 +132,7 @@ def track_task(job):
             done += 1
             following = job.frames[done] if done < total else None
             reporter.emit(TrackedFrame(results[0].frame, results, done, total, time.perf_counter() - t0, following))
-        if reporter.cancelled():
-            raise TaskCancelled()
+        reporter.check()
         return TrackOutcome(done, total, time.perf_counter() - t0)
 
     return task

@@ -22,7 +22,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from fluorogui.core.kinematics import KinematicsError
+from fluorogui.core.knee.kinematics import KinematicsError
 from fluorogui.gui.knee_panel import AnatomicalFrameDialog, KneePanel
 from fluorogui.io.errors import InputError
 from fluorogui.workflow import exports

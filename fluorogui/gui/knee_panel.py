@@ -26,7 +26,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from fluorogui.core.kinematics import KINEMATICS_LABELS, KinematicsError, check_frame
+from fluorogui.core.knee.kinematics import KINEMATICS_LABELS, KinematicsError, check_frame
 from fluorogui.workflow.knee_plot import UNITS, draw_kinematics
 
 SIDE_CHOICES = (("Not set (right assumed)", None), ("Right knee", "right"), ("Left knee", "left"))

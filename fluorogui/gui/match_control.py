@@ -13,11 +13,11 @@ import time
 
 from PySide6.QtCore import QTimer
 
+from fluorogui.core.status import Status
 from fluorogui.gui import jobs
 from fluorogui.gui.eta import Eta, describe
 from fluorogui.io.errors import InputError
 from fluorogui.workflow.messages import rim_note, view_count_note
-from fluorogui.workflow.results import FAILED, NEEDS_REVIEW
 
 LIVE_3D_INTERVAL_S = 0.4  # the 3D model follows a live match at most this often
 LIVE_3D_MAX_RENDER_S = 0.03  # and not at all where a render takes longer
@@ -49,7 +49,7 @@ class TrackSummary:
 
     def add(self, frame: int, results) -> None:
         status = jobs.frame_status(results)
-        {FAILED: self.failed, NEEDS_REVIEW: self.review}.get(status, self.matched).append(frame)
+        {Status.FAILED: self.failed, Status.NEEDS_REVIEW: self.review}.get(status, self.matched).append(frame)
 
     @property
     def done(self) -> int:
@@ -247,16 +247,17 @@ class MatchControl:
 
     def _task_finished(self, result) -> None:
         s = self.controller.session
-        if isinstance(result, jobs.MatchOutcome):
-            self._store(result.results)
-            self._show_results(result.results)
-        elif isinstance(result, jobs.TrackOutcome):
+        if self._task_kind == "match":  # the frame's results, one per component
+            self._store(result)
+            self._show_results(result)
+        elif self._task_kind == "track":
             self._end_tracking()
-        elif isinstance(result, jobs.FindOutcome):
-            s.store_placements(result.placements)
-            found = [p for p in result.placements.values() if p.found]
-            text = "; ".join(p.describe() for p in result.placements.values())
-            text = f"Find implants in frame {result.frame}: {text}." + (
+        elif self._task_kind == "find":  # the placements by component
+            s.store_placements(result)
+            found = [p for p in result.values() if p.found]
+            text = "; ".join(p.describe() for p in result.values())
+            frame = next(iter(result.values())).frame if result else self.controller.frame
+            text = f"Find implants in frame {frame}: {text}." + (
                 " Press Ctrl+F5 to match both." if found else " Place the models by hand (Place model, C).")
             self.matcher.show_summary(text)
             self.statusBar().showMessage(text, 20000)
@@ -272,15 +273,15 @@ class MatchControl:
         parts = []
         for r in results:
             took = f" in {r.seconds:.1f} s" if r.seconds else ""
-            if r.status == NEEDS_REVIEW:
+            if r.status == Status.NEEDS_REVIEW:
                 parts.append(f"{r.component} needs review{took}: {r.reason}")
-            elif r.status == FAILED:
+            elif r.status == Status.FAILED:
                 parts.append(f"{r.component} failed: {r.reason}")
             else:
                 objective = f", objective {r.match.objective_mm:.3f} mm" if r.match is not None else ""
                 rim = rim_note(r.match.settings) if r.match is not None else ""
                 parts.append(f"{r.component} matched{took}{objective}" + (f" ({rim})" if rim else ""))
-        flagged = any(r.status != "matched" for r in results)
+        flagged = any(r.status != Status.MATCHED for r in results)
         advice = (" Check the outlines and match again (F5), or accept the pose as it is (Ctrl+Return)."
                   if flagged else " Ctrl+Return accepts.")
         text = f"Frame {results[0].frame if results else c.frame}: " + "; ".join(parts) + "." + advice

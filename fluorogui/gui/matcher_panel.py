@@ -30,8 +30,9 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from fluorogui.core.matching import MatchSettings
-from fluorogui.core.session import FAILED, MATCHED, NEEDS_REVIEW, PoseRecord
+from fluorogui.core.matching.problem import MatchSettings
+from fluorogui.core.records import PoseRecord
+from fluorogui.core.status import Status
 
 DENSITIES = ((3500, "3 500 points (quick look)"), (15000, "15 000 points (paper)"), (25000, "25 000 points (fine)"))
 LEVEL_COLOURS = {"ok": "#3cb45a", "bad": "#e12d2d", "warn": "#e6aa28", "": None}
@@ -47,14 +48,14 @@ def describe_pose(component: str, record: PoseRecord | None) -> tuple[str, str]:
         m = record.match
         numbers = f", {m.objective_mm:.3f} mm ({m.calls} calls, {m.seconds:.1f} s)"
     if record.reviewed:
-        flagged = f"; it had been flagged: {record.reason}" if record.status != MATCHED and record.reason else ""
+        flagged = f"; it had been flagged: {record.reason}" if record.status != Status.MATCHED and record.reason else ""
         return f"{component}: accepted{numbers}{flagged}", "ok"
-    if record.status == MATCHED:
+    if record.status == Status.MATCHED:
         return f"{component}: matched{numbers}", "ok"
-    if record.status == NEEDS_REVIEW:
+    if record.status == Status.NEEDS_REVIEW:
         why = record.reason or "a quality check failed"
         return f"{component}: needs review — {why}{numbers}", "bad"
-    if record.status == FAILED:
+    if record.status == Status.FAILED:
         why = record.reason or "no pose could be found"
         return f"{component}: failed — {why}", "bad"
     return f"{component}: placed, not matched yet (F5 matches it)", ""

@@ -12,7 +12,7 @@ from PySide6.QtGui import QColor
 from PySide6.QtWidgets import QFileDialog, QMessageBox
 
 from fluorogui.io.errors import InputError
-from fluorogui.io.meshes import MESH_SUFFIXES
+from fluorogui.io.meshes.read import MESH_SUFFIXES
 
 MESH_FILTER = f"Surface models ({' '.join('*' + s for s in sorted(MESH_SUFFIXES))});;All files (*)"
 

@@ -27,7 +27,7 @@ from PySide6.QtWidgets import (
     QGraphicsScene,
 )
 
-from fluorogui.core import outline_edit as oe
+from fluorogui.core.outlines import editing as oe
 
 
 class Tool(enum.Enum):

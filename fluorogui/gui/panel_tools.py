@@ -11,7 +11,7 @@ import numpy as np
 from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QPainterPath
 
-from fluorogui.core import outline_edit as oe
+from fluorogui.core.outlines import editing as oe
 from fluorogui.gui.panel_items import EditCommand, Tool, guarded, polygon
 
 

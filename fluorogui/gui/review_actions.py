@@ -6,6 +6,8 @@ enabled only in the state where it applies (never a hidden toggle).
 """
 from __future__ import annotations
 
+from fluorogui.core.status import Status
+
 
 class ReviewActions:
     """Frame and component navigation and pose acceptance of ``MainWindow`` (a mixin)."""
@@ -35,7 +37,7 @@ class ReviewActions:
         if c.frame is None or self.runner.is_running():
             return False
         record = s.pose_record(c.component, c.frame)
-        if record is None or (record.match is None and record.status == "placed"):
+        if record is None or (record.match is None and record.status == Status.PLACED):
             self.statusBar().showMessage(f"Match the {c.component} component first (F5); then accept it", 8000)
             return False
         if record.reviewed:
@@ -64,7 +66,7 @@ class ReviewActions:
         """Accept and Un-accept enabled for the state the active pose is in."""
         c, s = self.controller, self.controller.session
         record = s.pose_record(c.component, c.frame) if c.frame is not None else None
-        can = record is not None and not (record.match is None and record.status == "placed")
+        can = record is not None and not (record.match is None and record.status == Status.PLACED)
         accepted = bool(record is not None and record.reviewed)
         self.accept_action.setEnabled(can and not accepted)
         self.unaccept_action.setEnabled(accepted)

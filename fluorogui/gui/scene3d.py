@@ -21,8 +21,8 @@ import pyvista as pv
 from vtkmodules.util import numpy_support
 from vtkmodules.vtkRenderingCore import vtkBillboardTextActor3D
 
-from fluorogui.core.geometry import View, closest_point_between_rays
-from fluorogui.core.pose import matrix_to_pose, pose_to_matrix
+from fluorogui.core.projection.geometry import View, closest_point_between_rays
+from fluorogui.core.projection.pose import matrix_to_pose, pose_to_matrix
 
 VIEW_COLOURS = [(1.0, 0.55, 0.15), (0.25, 0.65, 1.0), (0.85, 0.35, 0.85), (0.4, 0.85, 0.4)]
 MODEL_COLOURS = {"femoral": (0.78, 0.84, 0.93), "tibial": (0.62, 0.86, 0.52)}

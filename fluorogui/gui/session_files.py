@@ -1,7 +1,7 @@
 """The session life cycle of the main window: open, save, the demo, import, recent files,
 autosave and crash recovery, and dropped files.
 
-An open project file is locked (``fluorogui.io.lock``) so that the command line or a
+An open project file is locked (``fluorogui.io.project.lock``) so that the command line or a
 second app cannot write it at the same time. A file another live program holds is not
 opened behind its back: a dialog says who holds it and offers to open it read-only
 (look, and save a copy with Save As).
@@ -19,8 +19,8 @@ from PySide6.QtCore import QStandardPaths, Qt
 from PySide6.QtWidgets import QApplication, QFileDialog, QMessageBox
 
 from fluorogui.io.errors import InputError
-from fluorogui.io.lock import ProjectLocked
-from fluorogui.io.meshes import MESH_SUFFIXES
+from fluorogui.io.meshes.read import MESH_SUFFIXES
+from fluorogui.io.project.lock import ProjectLocked
 from fluorogui.logs import log_exception
 
 PROJECT_FILTER = "fluorogui projects (*.fluoro);;All files (*)"
@@ -131,7 +131,7 @@ class SessionFiles:
 
     def open_demo(self, ask: bool = True) -> bool:
         """Open the built-in demo session (generated on first use)."""
-        from fluorogui.io.demo import demo_project_path
+        from fluorogui.simulation.demo import demo_project_path
 
         if ask and not self.maybe_save():
             return False
@@ -233,7 +233,7 @@ class SessionFiles:
         """Write the session to the recovery file if it has unsaved changes."""
         if not self.controller.dirty or not self.controller.project.views:
             return False
-        from fluorogui.io.project import save_project
+        from fluorogui.io.project.document import save_project
 
         path = self.recovery_path()
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -11,8 +11,8 @@ from PySide6.QtCore import Qt
 from PySide6.QtGui import QAction, QColor
 from PySide6.QtWidgets import QTreeWidgetItem
 
-from fluorogui.core.pipeline import predicted_outline
-from fluorogui.core.spline import OutlineError
+from fluorogui.core.matching.loop import predicted_outline
+from fluorogui.core.outlines.spline import OutlineError
 from fluorogui.gui import jobs
 from fluorogui.gui.matcher_panel import describe_pose
 from fluorogui.io.errors import InputError

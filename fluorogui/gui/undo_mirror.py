@@ -13,7 +13,7 @@ from __future__ import annotations
 from PySide6.QtCore import QObject
 from PySide6.QtGui import QUndoCommand, QUndoStack
 
-from fluorogui.workflow.commands import CommandStack
+from fluorogui.workflow.history import CommandStack
 
 
 class _MirrorCommand(QUndoCommand):

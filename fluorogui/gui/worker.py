@@ -19,6 +19,7 @@ from typing import Any, Callable
 
 from PySide6.QtCore import QObject, QThread, Signal
 
+from fluorogui.core.cancel import Cancelled, check_cancel
 from fluorogui.io.errors import InputError
 
 
@@ -38,10 +39,6 @@ def describe_error(exc: BaseException) -> str:
         text = "something went wrong inside fluorogui (the details went to the terminal)"
     text = text[0].upper() + text[1:]
     return text if text.endswith((".", "!", "?")) else text + "."
-
-
-class TaskCancelled(Exception):
-    """Raised by a task (or by ``Reporter.check``) to stop early."""
 
 
 class Reporter:
@@ -74,8 +71,8 @@ class Reporter:
         return self._cancel.is_set()
 
     def check(self) -> None:
-        if self._cancel.is_set():
-            raise TaskCancelled()
+        """Raise ``Cancelled`` once the user cancelled."""
+        check_cancel(self.cancelled)
 
 
 class _TaskThread(QThread):
@@ -93,7 +90,7 @@ class _TaskThread(QThread):
     def run(self) -> None:  # the worker thread
         try:
             result = self.task(self.reporter)
-        except TaskCancelled:
+        except Cancelled:
             self.stopped.emit()
             return
         except Exception as exc:  # noqa: BLE001 (reported to the user, never a crash)
@@ -102,7 +99,7 @@ class _TaskThread(QThread):
                 return
             self.error.emit(describe_error(exc))
             return
-        if self.reporter.cancelled() or getattr(result, "cancelled", False):
+        if self.reporter.cancelled():
             self.stopped.emit()
         else:
             self.done.emit(result)

@@ -18,7 +18,7 @@ Formats, detected by content (never by extension):
 
 Every format is written too (``save_view``), as exactly as it is read. MayaCam 2.0's
 optional ``undistortion`` block (OpenCV's k1 k2 p1 p2 k3 ... with the file's K) is kept in
-``view.extra["distortion"]`` and applied by ``fluorogui.core.distortion``.
+``view.extra["distortion"]`` and applied by ``fluorogui.core.calibration.distortion``.
 
 JointTrack pose files (``JT_EULER_312``) are read here too since they live in the
 JointTrack camera frame that ``JT_INTCALIB`` defines.
@@ -33,9 +33,10 @@ from pathlib import Path
 import numpy as np
 from pydantic import ValidationError
 
-from fluorogui.core.geometry import DEFAULT_PITCH_MM, GeometryError, View
-from fluorogui.core.pose import angles_from_matrix
-from fluorogui.io.errors import InputError, atomic_write_text, check_input_file, read_input_bytes
+from fluorogui.core.projection.geometry import DEFAULT_PITCH_MM, GeometryError, View
+from fluorogui.core.projection.pose import angles_from_matrix
+from fluorogui.io.errors import InputError
+from fluorogui.io.files import atomic_write_text, check_input_file, read_input_bytes
 from fluorogui.io.images import has_dicom_preamble
 from fluorogui.io.schema import CalibrationDocument, DocumentError, describe, parse_json
 

@@ -2,11 +2,12 @@
 
 A correction file (``fluorogui calibrate distortion --out CORR.json``) is JSON:
 ``{"format": "fluorogui-distortion", "version": 1, "correction": {...}, "summary": {...}}``
-where ``correction`` is ``fluorogui.core.distortion``'s ``to_dict()``. Attached to a view
+where ``correction`` is ``fluorogui.core.calibration.distortion``'s ``to_dict()``. Attached to a view
 (``attach_correction``) it is stored in ``view.extra["distortion"]``, which the view's
 ``to_dict`` writes into calibration JSON and project files; MayaCam 2.0's
 ``undistortion`` block arrives the same way. ``correct_view_image`` applies it to an image
-of that view (the paper's order: correct first, then segment and match).
+of that view (the paper's order: correct first, then segment and match), and
+``read_view_image`` reads, checks and corrects an image of a view in one step.
 """
 from __future__ import annotations
 
@@ -17,9 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from fluorogui.core.distortion import Correction, DistortionError, PlateFit, correction_from_dict
-from fluorogui.core.geometry import View
-from fluorogui.io.errors import InputError, atomic_write_text, describe_os_error
+from fluorogui.core.calibration.distortion import Correction, DistortionError, PlateFit, correction_from_dict
+from fluorogui.core.projection.geometry import View
+from fluorogui.io.errors import InputError, describe_os_error
+from fluorogui.io.files import atomic_write_text
 
 CORRECTION_FORMAT = "fluorogui-distortion"
 CORRECTION_VERSION = 1
@@ -94,3 +96,17 @@ def correct_view_image(image: np.ndarray, view: View | None) -> np.ndarray:
     """``image`` corrected for ``view``'s distortion, or as it is when the view has none."""
     model = view_correction(view) if view is not None else None
     return image if model is None else model.correct_image(image)
+
+
+def read_view_image(path, view: View | None) -> np.ndarray:
+    """The one reading of an image of a view (the app, tracking and the command line): the
+    file read (``io.images.read_image``; ``FILE@N`` for a frame), checked against the
+    view's image size and corrected for its distortion. Raises InputError naming the file."""
+    from fluorogui.io.calibration import check_image_size
+    from fluorogui.io.images import read_image
+
+    image = read_image(path)
+    if view is None:
+        return image
+    check_image_size(view, image.shape, path)
+    return correct_view_image(image, view)

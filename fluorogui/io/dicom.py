@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fluorogui.core.geometry import GeometryError, View
+from fluorogui.core.projection.geometry import GeometryError, View
 from fluorogui.io.errors import InputError, describe_os_error
 
 _PIXEL_TAGS = ("PixelData", "FloatPixelData", "DoubleFloatPixelData")

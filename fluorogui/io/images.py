@@ -22,7 +22,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from fluorogui.io.errors import InputError, check_input_file, describe_os_error
+from fluorogui.io.errors import InputError, describe_os_error
+from fluorogui.io.files import check_input_file
 
 TIFF_SUFFIXES = (".tif", ".tiff")
 CV2_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")

@@ -42,21 +42,21 @@ from typing import Callable, Sequence, Union
 import cv2
 import numpy as np
 
-from fluorogui.core.session import ImageSequence, ModelEntry, Project
+from fluorogui.core.records import ImageSequence, ModelEntry, Project
 from fluorogui.io.calibration import check_image_size, load_view
 from fluorogui.io.errors import InputError, describe_os_error
+from fluorogui.io.files import read_text_file
 from fluorogui.io.images import (
     IMAGE_SUFFIXES,
     VIDEO_SUFFIXES,
-    frame_count,
     ImageInfo,
+    frame_count,
     frame_reference,
     image_info,
     read_image,
     split_frame_reference,
 )
-from fluorogui.io.meshes import MESH_SUFFIXES, load_mesh
-from fluorogui.io.tables import read_text_table
+from fluorogui.io.meshes.read import MESH_SUFFIXES, load_mesh
 
 ImageSource = Union[Path, str, Sequence[Union[Path, str]]]
 
@@ -221,7 +221,7 @@ def list_image_files(folder) -> list[Path]:
 def read_pairs_csv(path, n_views: int = 2) -> tuple[list[int], list[list[Path]]]:
     """Frames and, per view, the image of each frame, from a ``frame,cam1,cam2`` CSV."""
     path = _absolute(path)
-    text = read_text_table(path, "CSV file")  # regular text files only
+    text = read_text_file(path, "CSV file")  # regular text files only
     rows = [(n, [c.strip() for c in row]) for n, row in enumerate(csv.reader(text.splitlines()), start=1)]
     rows = [(n, row) for n, row in rows if any(row)]
     if rows and rows[0][1][0].lower() == "frame":

@@ -5,7 +5,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError, atomic_write_text, read_input_bytes
+from fluorogui.io.errors import InputError
+from fluorogui.io.files import atomic_write_text, read_input_bytes
 
 MAX_OUTLINE_BYTES = 50_000_000
 

@@ -24,17 +24,18 @@ from pathlib import Path
 
 import numpy as np
 
-from fluorogui.core.geometry import View
-from fluorogui.core.pose import angles_from_matrix, pose_to_matrix
+from fluorogui.core.projection.geometry import View
+from fluorogui.core.projection.pose import angles_from_matrix, pose_to_matrix
 from fluorogui.io.calibration import jointtrack_matrix
-from fluorogui.io.errors import InputError, atomic_write_text
-from fluorogui.io.tables import read_text_table
+from fluorogui.io.errors import InputError
+from fluorogui.io.files import atomic_write_text, read_text_file
 
 POSE_KEYS = ("x", "y", "z", "alpha", "beta", "gamma")
 JTS_TITLE = "JT_EULER_312"
 JTS_HEADER = "          x_tran,          y_tran,          z_tran,                   z_rot,           x_rot,           y_rot"
 NOT_OPTIMIZED = "NOT_OPTIMIZED"
 MAX_ROWS = 1_000_000
+MAX_POSE_VALUE = 1e7  # mm or degrees: anything larger is not a pose
 
 
 def _number_text(value) -> str:
@@ -44,7 +45,7 @@ def _number_text(value) -> str:
 
 def read_text_lines(path: Path) -> list[str]:
     """The lines of a text file, opened the one checked way (regular file, size, not binary)."""
-    return read_text_table(path, "pose file").splitlines()
+    return read_text_file(path, "pose file").splitlines()
 
 
 def _float(path: Path, text: str, where: str) -> float:
@@ -196,41 +197,49 @@ def write_csv(path, header_comments: list[str], columns: list[str], rows: list[l
 
 
 def read_csv_table(path, required: tuple[str, ...], lines: list[str] | None = None) -> list[dict]:
-    """Rows (dicts) of a CSV whose ``#`` lines are comments; refuses missing columns."""
+    """Rows (dicts) of a CSV whose ``#`` lines are comments; refuses missing columns and
+    ragged rows. Each row's ``LINE`` key is its line number in the file, for messages."""
     path = Path(path)
-    lines = [line for line in (read_text_lines(path) if lines is None else lines) if not line.lstrip().startswith("#")]
-    reader = csv.reader(lines)
+    numbered = [(n, line) for n, line in enumerate(read_text_lines(path) if lines is None else lines, start=1)
+                if not line.lstrip().startswith("#")]
+    reader = csv.reader(line for _, line in numbered)
+
+    def line_number() -> int:  # of the line the reader took last
+        return numbered[reader.line_num - 1][0] if 0 < reader.line_num <= len(numbered) else reader.line_num
+
     try:
         header = [h.strip() for h in next(reader)]
     except StopIteration:
         raise InputError(path, "is empty") from None
     missing = [c for c in required if c not in header]
     if missing:
-        raise InputError(path, f"lacks the column{'s' if len(missing) > 1 else ''} {', '.join(missing)} "
-                               f"(it has {', '.join(header[:12])})")
+        raise InputError(path, f"line {line_number()}: the header lacks the column{'s' if len(missing) > 1 else ''} "
+                               f"{', '.join(missing)} (expected {','.join(required)})")
     rows = []
-    for number, fields in enumerate(reader, start=2):
+    for fields in reader:
         if not any(f.strip() for f in fields):
             continue
         if len(fields) != len(header):
-            raise InputError(path, f"data row {number - 1} has {len(fields)} columns; the header has {len(header)}")
-        rows.append(dict(zip(header, (f.strip() for f in fields))))
+            raise InputError(path, f"line {line_number()} has {len(fields)} values; the header has {len(header)}")
+        rows.append(dict(zip(header, (f.strip() for f in fields))) | {LINE: line_number()})
         if len(rows) > MAX_ROWS:
             raise InputError(path, f"more than {MAX_ROWS} rows")
     return rows
 
 
-def read_long_poses(path, components=("femoral", "tibial"), lines: list[str] | None = None
-                    ) -> dict[tuple[int, str], np.ndarray]:
-    """Poses by (frame, component) from a CSV with ``frame,component,x,y,z,alpha,beta,gamma``.
+LINE = "\0line"  # the key of a row's line number (no column can be named so)
 
-    NaN poses are kept (as NaN) so the caller can report the frame; a repeated frame and
-    component is refused.
-    """
+
+def read_long_poses(path, components=("femoral", "tibial"), lines: list[str] | None = None,
+                    finite: bool = False) -> dict[tuple[int, str], np.ndarray]:
+    """Poses by (frame, component) from a CSV with ``frame,component,x,y,z,alpha,beta,gamma``:
+    the one reader of long pose tables (imported poses, the kinematics command, validation
+    references). NaN poses are kept (as NaN) so the caller can report the frame, unless
+    ``finite``; a repeated frame and component is refused."""
     path = Path(path)
     out: dict[tuple[int, str], np.ndarray] = {}
-    for number, row in enumerate(read_csv_table(path, ("frame", "component", *POSE_KEYS), lines), start=1):
-        where = f"data row {number}"
+    for row in read_csv_table(path, ("frame", "component", *POSE_KEYS), lines):
+        where = f"line {row[LINE]}"
         frame_text = row["frame"]
         try:
             frame = int(frame_text)
@@ -241,7 +250,15 @@ def read_long_poses(path, components=("femoral", "tibial"), lines: list[str] | N
             raise InputError(path, f"{where}: component {row['component'][:20]!r} is not one of {', '.join(components)}")
         if (frame, component) in out:
             raise InputError(path, f"{where}: frame {frame} has a second {component} pose")
-        out[(frame, component)] = np.array([_float(path, row[k], f"{where}, {k}") for k in POSE_KEYS])
+        pose = np.array([_float(path, row[k], f"{where}, {k}") for k in POSE_KEYS])
+        if finite:
+            for k, value in zip(POSE_KEYS, pose):
+                if not np.isfinite(value):
+                    raise InputError(path, f"{where}: column '{k}' is not a finite number: {row[k][:30]!r}")
+                if abs(value) > MAX_POSE_VALUE:
+                    raise InputError(path, f"{where}: column '{k}' is {row[k][:30]!r}; a pose value is at most "
+                                           f"{MAX_POSE_VALUE:g} mm or degrees")
+        out[(frame, component)] = pose
     if not out:
         raise InputError(path, "holds no poses")
     return out
@@ -256,14 +273,15 @@ def read_wide_poses(path, components=("femoral", "tibial"), lines: list[str] | N
     if rows and not present:
         raise InputError(path, "has neither long (component, x, …) nor wide (femoral_x, …) pose columns")
     out = {}
-    for number, row in enumerate(rows, start=1):
+    for row in rows:
+        where = f"line {row[LINE]}"
         try:
             frame = int(row["frame"])
         except ValueError:
-            raise InputError(path, f"data row {number}: frame {row['frame'][:20]!r} is not a whole number") from None
+            raise InputError(path, f"{where}: frame {row['frame'][:20]!r} is not a whole number") from None
         for component in present:
             out[(frame, component)] = np.array(
-                [_float(path, row[f"{component}_{k}"], f"data row {number}, {component}_{k}") for k in POSE_KEYS])
+                [_float(path, row[f"{component}_{k}"], f"{where}, {component}_{k}") for k in POSE_KEYS])
     if not out:
         raise InputError(path, "holds no poses")
     return out
@@ -277,3 +295,11 @@ def read_pose_csv(path, components=("femoral", "tibial")) -> dict[tuple[int, str
     if "component" in [h.strip() for h in header.split(",")]:
         return read_long_poses(path, components, lines)
     return read_wide_poses(path, components, lines)
+
+
+def read_reference_poses(path, component: str | None = None) -> list[tuple[int, str, np.ndarray]]:
+    """(frame, component, pose) of every row of a long pose CSV (``read_long_poses``, finite
+    values only), or of ``component``'s rows only, in frame order."""
+    poses = read_long_poses(path, finite=True)
+    return [(frame, name, pose) for (frame, name), pose in sorted(poses.items())
+            if component is None or name == component]

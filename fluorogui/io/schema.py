@@ -1,8 +1,7 @@
 """The schemas of fluorogui's own file formats, checked once at the boundary (pydantic v2).
 
-* ``ProjectDocument``: a ``.fluoro`` project of the current schema (``io.project``);
+* ``ProjectDocument``: a ``.fluoro`` project of the current schema (``io.project.document``);
 * ``CalibrationDocument``: a fluorogui calibration JSON (``io.calibration``);
-* ``ReferencePoseRow``: a row of a reference-pose CSV (``io.tables``).
 
 Every model is strict: numbers must be JSON numbers (``"12"`` is refused), finite, and in
 a stated range; lists have bounded lengths. Large arrays (outline points, spline knots and
@@ -18,10 +17,12 @@ from __future__ import annotations
 import base64
 import json
 import math
-from typing import Optional, Annotated, Any, Literal
+from typing import Annotated, Any, Literal, Optional
 
 import numpy as np
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from fluorogui.core.status import Status
 
 MAX_NESTING = 64  # a project is 6 deep; a file nested deeper is not ours
 MAX_INTEGER_DIGITS = 30
@@ -29,7 +30,7 @@ MAX_VIEWS = 16
 MAX_FRAMES = 1_000_000
 MAX_OUTLINE_POINTS = 100_000  # a traced outline has hundreds to thousands
 MAX_TEXT = 4096  # names, paths, reasons
-POSE_STATUSES = ("matched", "needs_review", "failed", "placed")  # = core.session.POSE_STATUSES
+POSE_STATUSES = tuple(s.value for s in Status)
 
 
 class DocumentError(ValueError):
@@ -231,7 +232,7 @@ class ViewDocument(_Strict):
     pitch_mm: fixed(2, Annotated[float, Field(allow_inf_nan=False, gt=0, le=100)])
     principal_point_px: fixed(2, Coordinate)
     image_size_px: fixed(2, Annotated[int, Field(ge=1, le=100_000)])
-    # an image-intensifier correction (fluorogui.core.distortion), checked by View.from_dict
+    # an image-intensifier correction (fluorogui.core.calibration.distortion), checked by View.from_dict
     distortion: Optional[dict] = None
 
     def model_dump(self, **kwargs):  # no "distortion": None key for views without one
@@ -394,33 +395,3 @@ def check_typed_settings(values: dict, defaults: dict, where: str) -> None:
             continue
         if not ok:
             raise ValueError(f"{name} must be {kind}, not {_shown(value)}")
-
-
-# -- CSV rows -----------------------------------------------------------------------------------
-def _csv_number(text: str) -> float:
-    value = float(text)  # ValueError names nothing; the caller names the line and column
-    if not math.isfinite(value):
-        raise ValueError("not a finite number")
-    return value
-
-
-class ReferencePoseRow(BaseModel):
-    """One line of a reference-pose CSV: ``frame,component,x,y,z,alpha,beta,gamma``."""
-
-    model_config = ConfigDict(strict=True)
-    frame: Annotated[str, Field(min_length=1, max_length=64)]
-    component: Name
-    pose: fixed(6, Coordinate)
-
-    @classmethod
-    def from_csv(cls, row: dict) -> "ReferencePoseRow":
-        pose = []
-        for key in ("x", "y", "z", "alpha", "beta", "gamma"):
-            try:
-                pose.append(_csv_number(row[key]))
-            except ValueError:
-                raise ValueError(f"column '{key}' is not a finite number: {str(row[key])[:30]!r}") from None
-        return cls(frame=row["frame"], component=row["component"], pose=pose)
-
-
-REFERENCE_COLUMNS = ("frame", "component", "x", "y", "z", "alpha", "beta", "gamma")

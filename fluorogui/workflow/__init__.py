@@ -1,8 +1,8 @@
-"""The Qt-free workflow: sessions, the matching loop with quality checks, find implants,
-tracking and batch runs. The desktop app, the command line and scripts all call it."""
-from fluorogui.workflow.results import FAILED, MATCHED, NEEDS_REVIEW, PLACED, FrameResult, Placement
+"""The Qt-free workflow the app, the command line and scripts share: sessions, matching a frame, find implants, tracking, calibration, kinematics and exports."""
+from fluorogui.core.status import Status
+from fluorogui.workflow.results import FrameResult
+from fluorogui.core.search.find import Placement
 from fluorogui.workflow.session import FrameState, Session
 from fluorogui.workflow.settings import TrackingSettings, WorkflowSettings
 
-__all__ = ["FAILED", "MATCHED", "NEEDS_REVIEW", "PLACED", "FrameResult", "FrameState", "Placement", "Session",
-           "TrackingSettings", "WorkflowSettings"]
+__all__ = ["FrameResult", "FrameState", "Placement", "Session", "Status", "TrackingSettings", "WorkflowSettings"]

@@ -22,6 +22,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Callable, Iterator, Sequence
 
+from fluorogui.core.status import Status
+
 
 @dataclass
 class ProjectSummary:
@@ -47,7 +49,7 @@ def track_project(path: str, frames: str | None = None, components="both", redo:
     """Track one project (a Dask task; also callable directly). ``frames`` is a frame spec
     ("A:B"); ``on_frame(path, frame)`` is called after each frame is saved."""
     from fluorogui.io.errors import InputError
-    from fluorogui.io.lock import ProjectLock
+    from fluorogui.io.project.lock import ProjectLock
     from fluorogui.workflow.session import Session
     from fluorogui.workflow.tracking import select_frames
 
@@ -62,13 +64,13 @@ def track_project(path: str, frames: str | None = None, components="both", redo:
             for r in session.track(chosen, components, redo=redo, autosave=True, run=run):
                 if r.kept:
                     summary.kept += 1
-                elif r.status == "matched":
+                elif r.status == Status.MATCHED:
                     summary.matched += 1
-                elif r.status == "needs_review":
+                elif r.status == Status.NEEDS_REVIEW:
                     summary.needs_review += 1
                 else:
                     summary.failed += 1
-                if not r.kept and r.status in ("needs_review", "failed"):
+                if not r.kept and r.status in (Status.NEEDS_REVIEW, Status.FAILED):
                     summary.flagged.append([r.frame, r.component, r.status, r.reason])
                 if on_frame is not None and r.frame != last:
                     on_frame(str(path), r.frame)

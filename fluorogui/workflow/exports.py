@@ -2,7 +2,7 @@
 ``.jts``, figures) and poses from other tools in; also kinematics of bare pose files.
 
 Every export names, in its header, the software version, the side, the units and the
-conventions (``fluorogui.core.kinematics.SIGN_CONVENTIONS``). Output paths are checked
+conventions (``fluorogui.core.knee.kinematics.SIGN_CONVENTIONS``). Output paths are checked
 before any work, and every file is written atomically.
 """
 from __future__ import annotations
@@ -13,16 +13,18 @@ from pathlib import Path
 import numpy as np
 
 from fluorogui import __version__
-from fluorogui.core.kinematics import (
+from fluorogui.core.knee.kinematics import (
     KINEMATICS_COLUMNS,
     SIGN_CONVENTIONS,
     KneeKinematics,
     check_side,
     knee_kinematics,
 )
-from fluorogui.core.pose import matrix_to_pose, pose_to_matrix
-from fluorogui.core.session import FAILED, NEEDS_REVIEW, PLACED, PoseRecord
-from fluorogui.io.errors import InputError, check_output_file, check_output_folder
+from fluorogui.core.projection.pose import matrix_to_pose, pose_to_matrix
+from fluorogui.core.records import PoseRecord
+from fluorogui.core.status import Status
+from fluorogui.io.errors import InputError
+from fluorogui.io.files import check_output_file, check_output_folder
 from fluorogui.io.pose_files import (
     POSE_KEYS,
     jointtrack_to_world_pose,
@@ -119,14 +121,14 @@ def unreviewed_matches(session) -> list[tuple[int, str, str]]:
     leave these out (NaN) unless asked to include them."""
     return [(frame, c, record.reason) for frame in session.frames for c in KNEE_COMPONENTS
             if (record := session.project.poses.get((frame, c))) is not None
-            and record.status == NEEDS_REVIEW and not record.reviewed]
+            and record.status == Status.NEEDS_REVIEW and not record.reviewed]
 
 
 def _exported(record: PoseRecord | None, include_unreviewed: bool) -> bool:
     """Whether a pose goes into a file without a status column (.tra, .jts)."""
-    if record is None or record.status == FAILED:
+    if record is None or record.status == Status.FAILED:
         return False
-    return include_unreviewed or record.status != NEEDS_REVIEW or record.reviewed
+    return include_unreviewed or record.status != Status.NEEDS_REVIEW or record.reviewed
 
 
 def export_tra(session, path, include_unreviewed: bool = False) -> Path:
@@ -216,7 +218,7 @@ def import_poses(session, path, component: str | None = None, view: int = 0) -> 
     session.history.begin_macro(f"Import poses from {name}")
     try:
         for (frame, c), pose in sorted(poses.items()):
-            session.set_record(c, frame, PoseRecord(pose, status=PLACED, reason=f"imported from {name}"),
+            session.set_record(c, frame, PoseRecord(pose, status=Status.PLACED, reason=f"imported from {name}"),
                                f"Import {c} pose")
     finally:
         session.history.end_macro()

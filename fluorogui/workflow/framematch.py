@@ -24,20 +24,22 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from fluorogui.core.geometry import View
-from fluorogui.core.mesh import PreparedMesh
-from fluorogui.core.pipeline import SegmentationError, segment_and_match
-from fluorogui.core.pose import angles_from_matrix, motion_between, rotation_matrix
-from fluorogui.core.quality import FAILED, MATCHED, NEEDS_REVIEW, assess, judge
-from fluorogui.core.rim import MAYBE_SOFT_BELOW_MU
-from fluorogui.core.shape_search import image_field
-from fluorogui.core.silhouette import projected_region
-from fluorogui.core.spline import OutlineSpline
+from fluorogui.core.cancel import check_cancel
+from fluorogui.core.matching.loop import SegmentationError, segment_and_match
+from fluorogui.core.matching.quality import assess, judge
+from fluorogui.core.outlines.field import field_of_view
+from fluorogui.core.outlines.rim import MAYBE_SOFT_BELOW_MU
+from fluorogui.core.outlines.spline import OutlineSpline
+from fluorogui.core.projection.geometry import View
+from fluorogui.core.projection.mesh import PreparedMesh
+from fluorogui.core.projection.pose import angles_from_matrix, motion_between, rotation_matrix
+from fluorogui.core.projection.silhouette import projected_region
+from fluorogui.core.status import Status
 from fluorogui.workflow import messages
 from fluorogui.workflow.results import FrameResult
 from fluorogui.workflow.settings import WorkflowSettings
 
-_RANK = {MATCHED: 0, NEEDS_REVIEW: 1, FAILED: 2}
+_RANK = {Status.MATCHED: 0, Status.NEEDS_REVIEW: 1, Status.FAILED: 2}
 
 #: a component's rim judgement (``core.rim``: per view, is the edge a soft rim, and its
 #: attenuation and blur) is the same for a whole sequence; unless its first matched frame
@@ -45,10 +47,6 @@ _RANK = {MATCHED: 0, NEEDS_REVIEW: 1, FAILED: 2}
 #: the first attempt alone (which may land at a wrong pose, and 4 of 106 real views fitted
 #: soft where their neighbours fit steps)
 RIM_JUDGE_FRAMES = 3
-
-
-class Cancelled(Exception):
-    """The caller's cancel flag was set."""
 
 
 @dataclass
@@ -134,7 +132,7 @@ class FrameMatcher:
         """The fields of view of this frame's images (computed once per set of images)."""
         state = self._frame_state(images)
         if "fields" not in state:
-            state["fields"] = [image_field(image, margin_px=2) for image in images]
+            state["fields"] = [field_of_view(image, margin_px=2) for image in images]
         return state["fields"]
 
     def _rims_for(self, images, component: str) -> list:
@@ -161,14 +159,12 @@ class FrameMatcher:
             out = segment_and_match(images, self.views, job.mesh, start, s.match, loop, job.given, occluded,
                                     step, cancel, rims)
         except SegmentationError as exc:
-            return FrameResult(0, job.component, None, FAILED, messages.segmentation_failed(job.component, exc),
+            return FrameResult(0, job.component, None, Status.FAILED, messages.segmentation_failed(job.component, exc),
                                seconds=time.perf_counter() - t0)
         except ValueError as exc:  # e.g. the model behind the source at this start
-            return FrameResult(0, job.component, None, FAILED, messages.match_failed(job.component, exc),
+            return FrameResult(0, job.component, None, Status.FAILED, messages.match_failed(job.component, exc),
                                seconds=time.perf_counter() - t0)
-        result = out.result
-        if result.cancelled:
-            raise Cancelled
+        result = out
         outlines = [sp.sample(max(64, int(sp.length_px)), skip_gaps=True) for sp in out.splines]
         quality = assess(images, self.views, job.mesh, result.pose, result.converged, result.per_view_mean_mm,
                          outlines, job.start if job.predicted else None, occluded, s.quality.tol_px,
@@ -176,10 +172,10 @@ class FrameMatcher:
         limits = replace(s.quality, max_jump_mm=s.quality.max_jump_mm * max(1, job.gap),
                          max_jump_deg=s.quality.max_jump_deg * max(1, job.gap))
         status, reason = judge(quality, limits, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))])
-        if status == MATCHED:
+        if status == Status.MATCHED:
             self._frame_state(images)["rims"][job.component] = list(rims)
         return FrameResult(0, job.component, result.pose, status, reason, result, quality,
-                           out.outlines, time.perf_counter() - t0, rim_models=rims, outline_weights=out.weights)
+                           out.image_outlines, time.perf_counter() - t0, rim_models=rims, outline_weights=out.outline_weights)
 
     # -- one component, with recovery ------------------------------------------------------------
     def match_component(self, frame: int, images, job: ComponentInput, occluded=None,
@@ -191,21 +187,20 @@ class FrameMatcher:
         tried = 0
         light = replace(self.settings.loop, max_passes=min(3, self.settings.loop.max_passes))
         for label, start in self._starts(images, job, cancel):
-            if cancel is not None and cancel():
-                raise Cancelled
+            check_cancel(cancel)
             # recovery starts get a shorter loop: most of them lead nowhere
             candidate = self.attempt(images, job, start, occluded, cancel, None if not label else light)
             tried += 1
             if best is None or _better(candidate, best):
                 best = candidate
                 best.recovered = label
-            if best.status == MATCHED:
+            if best.status == Status.MATCHED:
                 break
-            if job.given is not None and all(g is not None for g in job.given) and best.status == FAILED:
+            if job.given is not None and all(g is not None for g in job.given) and best.status == Status.FAILED:
                 break  # reviewed outlines that cannot be matched: other starts will not help
-        if best.status == MATCHED and job.probe and self.settings.tracking.probe:
+        if best.status == Status.MATCHED and job.probe and self.settings.tracking.probe:
             best, tried = self._probe(images, job, best, occluded, cancel, tried)
-        if best.status == MATCHED:  # one vote per frame, from its best result only
+        if best.status == Status.MATCHED:  # one vote per frame, from its best result only
             self.rim_judgements[job.component].add(best.rim_models)
         best.frame, best.attempts, best.seconds = frame, tried, time.perf_counter() - t0
         if best.pose is None:
@@ -227,7 +222,7 @@ class FrameMatcher:
             start = turned(start_pose, job.mesh.centroid, axis, sign * t.probe_deg)
             other = self.attempt(images, job, start, occluded, cancel, light)
             tried += 1
-            if other.status != MATCHED:
+            if other.status != Status.MATCHED:
                 continue
             turn = motion_between(other.pose, best.pose, job.mesh.centroid)[1]
             if turn < 2.0:
@@ -236,7 +231,7 @@ class FrameMatcher:
                 best, other = other, best  # the probe found the better fit
                 best.recovered = "probe"
             if other.match.objective_mm <= t.probe_ratio * best.match.objective_mm:
-                best.status = NEEDS_REVIEW
+                best.status = Status.NEEDS_REVIEW
                 best.reason = (f"ambiguous: another orientation {turn:.0f}° away fits almost as well "
                                f"(outline distance {other.match.objective_mm:.2f} vs "
                                f"{best.match.objective_mm:.2f} mm) — check which is right")
@@ -285,14 +280,14 @@ class FrameMatcher:
         masked_with: dict[str, dict[str, np.ndarray]] = {}
         for job in jobs:
             results[job.component] = self._match_masked(frame, images, job, known, masked_with, cancel)
-            if results[job.component].pose is not None and results[job.component].status != FAILED:
+            if results[job.component].pose is not None and results[job.component].status != Status.FAILED:
                 known[job.component] = (job.mesh, results[job.component].pose)
         if self.settings.tracking.occlusion and len(jobs) > 1:
             for job in jobs:  # a second round where a mask was placed far from where the other ended up
                 used = masked_with.get(job.component, {})
                 if any(_moved(known[o][0], used[o], known[o][1]) for o in used):
                     results[job.component] = self._match_masked(frame, images, job, known, masked_with, cancel)
-                    if results[job.component].status != FAILED:
+                    if results[job.component].status != Status.FAILED:
                         known[job.component] = (job.mesh, results[job.component].pose)
         return results
 

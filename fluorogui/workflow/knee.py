@@ -8,7 +8,7 @@ Kept in ``project.settings["kinematics"]``::
      "frames": {"femoral": {"matrix": [[4 rows of 4]], "source": "user"}, ...}}
 
 A component without a stored frame uses the default from its mesh
-(``fluorogui.core.anatomy``), computed when first needed and not written into the project
+(``fluorogui.core.knee.anatomy``), computed when first needed and not written into the project
 until the user sets one.
 """
 from __future__ import annotations
@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fluorogui.core.anatomy import default_frame
-from fluorogui.core.kinematics import (
+from fluorogui.core.knee.anatomy import default_frame
+from fluorogui.core.knee.kinematics import (
     KinematicsError,
     KneeKinematics,
     check_frame,
@@ -26,9 +26,10 @@ from fluorogui.core.kinematics import (
     kinematics_sd,
     knee_kinematics,
 )
-from fluorogui.core.pose import pose_to_matrix
-from fluorogui.core.session import FAILED, MATCHED, NEEDS_REVIEW, PLACED, PoseRecord
-from fluorogui.workflow.commands import Command
+from fluorogui.core.projection.pose import pose_to_matrix
+from fluorogui.core.records import PoseRecord
+from fluorogui.core.status import Status
+from fluorogui.workflow.history import Command
 
 KNEE_KEY = "kinematics"
 KNEE_COMPONENTS = ("femoral", "tibial")
@@ -63,19 +64,19 @@ def row_status(records: dict) -> tuple[str, str]:
     missing = [c for c in KNEE_COMPONENTS if records.get(c) is None]
     if missing:
         return "missing", f"no {' or '.join(missing)} pose"
-    failed = [c for c in KNEE_COMPONENTS if records[c].status == FAILED]
+    failed = [c for c in KNEE_COMPONENTS if records[c].status == Status.FAILED]
     if failed:
         return "missing", f"the {' and '.join(failed)} match failed"
     reasons = []
     for c in KNEE_COMPONENTS:
         record: PoseRecord = records[c]
-        if record.status == NEEDS_REVIEW and not record.reviewed:
+        if record.status == Status.NEEDS_REVIEW and not record.reviewed:
             reasons.append(f"{c} needs review" + (f" ({record.reason})" if record.reason else ""))
-        elif record.status == PLACED and not record.reviewed:
+        elif record.status == Status.PLACED and not record.reviewed:
             reasons.append(f"{c} placed by hand, not matched")
     if reasons:
         return "needs_review", "; ".join(reasons)
-    return MATCHED, ""
+    return Status.MATCHED, ""
 
 
 class KneeMixin:
@@ -128,7 +129,7 @@ class KneeMixin:
         return self.default_anatomical_frame(component)
 
     def default_anatomical_frame(self, component: str) -> np.ndarray:
-        """The frame ``fluorogui.core.anatomy`` finds on the component's mesh (cached)."""
+        """The frame ``fluorogui.core.knee.anatomy`` finds on the component's mesh (cached)."""
         cache = self.__dict__.setdefault("_default_frames", {})
         if component not in cache:
             vertices, faces = self.raw_mesh(component)
@@ -177,4 +178,4 @@ class KneeMixin:
         return self.knee_rows([frame])[0]
 
 
-__all__ = ["KNEE_COMPONENTS", "KNEE_KEY", "KneeMixin", "KneeRow", "row_status", "MATCHED", "NEEDS_REVIEW"]
+__all__ = ["KNEE_COMPONENTS", "KNEE_KEY", "KneeMixin", "KneeRow", "row_status"]

@@ -8,7 +8,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
-from fluorogui.core.kinematics import KINEMATICS_COLUMNS, KINEMATICS_LABELS
+from fluorogui.core.knee.kinematics import KINEMATICS_COLUMNS, KINEMATICS_LABELS
 
 UNITS = ("°", "°", "°", "mm", "mm", "mm")
 REVIEW_COLOUR = "#d62728"

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import re
 
-from fluorogui.core.pipeline import SegmentationError
+from fluorogui.core.matching.loop import SegmentationError
 
 _PLAIN = (
     (re.compile(r"crosses itself"), "it crosses itself"),

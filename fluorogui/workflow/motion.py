@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from fluorogui.core.pose import angles_from_matrix, rotation_matrix
+from fluorogui.core.projection.pose import angles_from_matrix, rotation_matrix
 
 
 class MotionModel:

@@ -13,11 +13,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fluorogui.core.matching import MatchResult
-from fluorogui.core.quality import Quality
-from fluorogui.core.session import FAILED, MATCHED, NEEDS_REVIEW, PLACED, MatchRecord, PoseRecord
+from fluorogui.core.matching.problem import MatchResult
+from fluorogui.core.matching.quality import Quality
+from fluorogui.core.records import MatchRecord, PoseRecord
+from fluorogui.core.status import Status
 
-__all__ = ["FAILED", "MATCHED", "NEEDS_REVIEW", "PLACED", "FrameResult", "Placement"]
+__all__ = ["FrameResult"]
+
 
 
 @dataclass
@@ -43,7 +45,7 @@ class FrameResult:
 
     @property
     def is_matched(self) -> bool:
-        return self.status == MATCHED
+        return self.status == Status.MATCHED
 
     @property
     def sd(self) -> list[float | None] | None:
@@ -80,22 +82,3 @@ class FrameResult:
             "reason": self.reason,
             "seconds": round(float(self.seconds), 4),
         }
-
-
-@dataclass
-class Placement:
-    """Where *find implants* put one component in one frame (``found`` only when confident)."""
-
-    component: str
-    frame: int
-    pose: np.ndarray | None
-    found: bool
-    iou: list[float] = field(default_factory=list)
-    reason: str = ""
-    seconds: float = 0.0
-
-    def describe(self) -> str:
-        overlap = f"overlap {100 * float(np.mean(self.iou)):.0f} %" if self.iou else "no overlap"
-        if self.found:
-            return f"{self.component}: found ({overlap})"
-        return f"{self.component}: not placed ({self.reason}; {overlap})"

@@ -28,20 +28,19 @@ from typing import Callable, Iterable
 
 import numpy as np
 
-from fluorogui.core.geometry import triangulate
-from fluorogui.core.mesh import MeshError, PreparedMesh, prepare_mesh
-from fluorogui.core.pose import as_pose, rotation_matrix
-from fluorogui.core.session import OutlineRecord, PoseRecord, Project
-from fluorogui.core.spline import OutlineError, OutlineSpline
+from fluorogui.core.outlines.spline import OutlineError, OutlineSpline
+from fluorogui.core.projection.geometry import triangulate
+from fluorogui.core.projection.mesh import MeshError, PreparedMesh, check_plausible_mm, prepare_mesh
+from fluorogui.core.projection.pose import as_pose, rotation_matrix
+from fluorogui.core.records import ImageSequence, ModelEntry, OutlineRecord, PoseRecord, Project
+from fluorogui.io.corrections import read_view_image
 from fluorogui.io.errors import InputError
-from fluorogui.io.corrections import correct_view_image
-from fluorogui.io.images import read_image
-from fluorogui.io.meshes import load_mesh
-from fluorogui.io.project import load_project, save_project
-from fluorogui.workflow.commands import Command, CommandStack
+from fluorogui.io.meshes.read import load_mesh
+from fluorogui.io.project.document import load_project, save_project
+from fluorogui.workflow.history import Command, CommandStack
+from fluorogui.workflow.knee import KneeMixin
 from fluorogui.workflow.results import FrameResult
 from fluorogui.workflow.settings import SETTINGS_KEY, WorkflowSettings
-from fluorogui.workflow.knee import KneeMixin
 from fluorogui.workflow.work import WorkMixin
 
 COMPONENT_ORDER = ("femoral", "tibial")
@@ -65,6 +64,28 @@ class FrameState(enum.IntEnum):
     MATCHED = 2  # every component matched and passing its checks
     REVIEWED = 3  # every component accepted by the user
     NEEDS_REVIEW = 4  # a component failed its checks (or could not be matched)
+
+
+def read_model(path, local_frame: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (mm, in the component's local frame) and faces of an implant mesh file: the
+    one reading of a model for the app, the command line and scripts. A mesh whose size
+    cannot be an implant in millimetres is refused; raises InputError naming the file."""
+    vertices, faces = load_mesh(path)
+    try:
+        check_plausible_mm(vertices)
+    except MeshError as exc:
+        raise InputError(path, str(exc)) from None
+    if local_frame is not None and not np.allclose(local_frame, np.eye(4)):
+        vertices = vertices @ local_frame[:3, :3].T + local_frame[:3, 3]
+    return vertices, faces
+
+
+def prepared_model(path, vertices: np.ndarray, faces: np.ndarray) -> PreparedMesh:
+    """A model read by ``read_model`` prepared for matching; raises InputError naming ``path``."""
+    try:
+        return prepare_mesh(vertices, faces)
+    except MeshError as exc:
+        raise InputError(path, str(exc)) from None
 
 
 def fitted_outline(points: np.ndarray, weights: np.ndarray | None = None) -> OutlineSpline | None:
@@ -95,6 +116,15 @@ class Session(WorkMixin, KneeMixin):
     def open(cls, path) -> "Session":
         """A session on a project file; raises InputError naming the file."""
         return cls(load_project(path), Path(path))
+
+    @classmethod
+    def of_images(cls, views, image_paths, models: dict) -> "Session":
+        """A session of one frame (numbered 0): one image file per view (``FILE@N`` for a
+        frame of a multi-frame file) and the models (component name -> mesh file). What
+        ``fluorogui match`` works on; nothing is saved unless asked."""
+        project = Project(views=list(views), sequences=[ImageSequence([Path(p)]) for p in image_paths], frames=[0],
+                          models=[ModelEntry(name, Path(path)) for name, path in models.items()])
+        return cls(project)
 
     def replace_project(self, project: Project, path=None) -> None:
         """Put another project in this session (after it loaded); clears caches and history."""
@@ -192,7 +222,7 @@ class Session(WorkMixin, KneeMixin):
                 self._images.move_to_end(path)
                 return self._images[path]
         views = self.project.views
-        image = correct_view_image(read_image(path), views[view] if view < len(views) else None)
+        image = read_view_image(path, views[view] if view < len(views) else None)
         with self._cache_lock:
             self._images[path] = image
             while len(self._images) > IMAGE_CACHE_FRAMES * max(1, self.n_views):
@@ -209,11 +239,7 @@ class Session(WorkMixin, KneeMixin):
             entry = self.project.model(component)
             if entry is None:
                 raise KeyError(component)
-            vertices, faces = load_mesh(entry.mesh_path)
-            frame = entry.local_frame
-            if not np.allclose(frame, np.eye(4)):
-                vertices = vertices @ frame[:3, :3].T + frame[:3, 3]
-            self._raw_meshes[component] = (vertices, faces)
+            self._raw_meshes[component] = read_model(entry.mesh_path, entry.local_frame)
         return self._raw_meshes[component]
 
     def relink_mesh(self, component: str, path) -> None:
@@ -236,11 +262,8 @@ class Session(WorkMixin, KneeMixin):
     def mesh(self, component: str) -> PreparedMesh:
         """The prepared mesh of a component (cached); raises InputError naming the file."""
         if component not in self._meshes:
-            vertices, faces = self.raw_mesh(component)
-            try:
-                self._meshes[component] = prepare_mesh(vertices, faces)
-            except MeshError as exc:
-                raise InputError(self.project.model(component).mesh_path, str(exc)) from None
+            self._meshes[component] = prepared_model(self.project.model(component).mesh_path,
+                                                     *self.raw_mesh(component))
         return self._meshes[component]
 
     # -- poses ---------------------------------------------------------------------------------

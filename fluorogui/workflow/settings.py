@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, fields
 
-from fluorogui.core.matching import MatchSettings
-from fluorogui.core.pipeline import LoopSettings
-from fluorogui.core.quality import QualityThresholds
+from fluorogui.core.matching.loop import LoopSettings
+from fluorogui.core.matching.problem import MatchSettings
+from fluorogui.core.matching.quality import QualityThresholds
 
 SETTINGS_KEY = "workflow"
 

@@ -25,16 +25,17 @@ from typing import Callable, Iterator, Sequence
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from fluorogui.core.geometry import View
-from fluorogui.core.mesh import PreparedMesh
-from fluorogui.core.pose import rotation_matrix
-from fluorogui.core.quality import FAILED, MATCHED
-from fluorogui.core.session import PoseRecord
-from fluorogui.core.spline import OutlineSpline
+from fluorogui.core.cancel import check_cancel
+from fluorogui.core.outlines.spline import OutlineSpline
+from fluorogui.core.projection.geometry import View
+from fluorogui.core.projection.mesh import PreparedMesh
+from fluorogui.core.projection.pose import rotation_matrix
+from fluorogui.core.records import PoseRecord
+from fluorogui.core.status import Status
+from fluorogui.io.corrections import read_view_image
 from fluorogui.io.errors import InputError
-from fluorogui.io.corrections import correct_view_image
-from fluorogui.io.images import read_image
-from fluorogui.workflow.framematch import Cancelled, ComponentInput, FrameMatcher
+from fluorogui.workflow.finding import find_in_frame, near_search
+from fluorogui.workflow.framematch import ComponentInput, FrameMatcher
 from fluorogui.workflow.motion import MotionModel
 from fluorogui.workflow.results import FrameResult
 from fluorogui.workflow.settings import WorkflowSettings
@@ -63,10 +64,11 @@ class TrackJob:
 
     def run(self, progress: TrackProgress | None = None,
             cancel: Callable[[], bool] | None = None) -> Iterator[FrameResult]:
-        """Yield one FrameResult per frame and component, frame by frame; stops quietly
-        when ``cancel()`` turns true (the frame in progress is not yielded)."""
+        """Yield one FrameResult per frame and component, frame by frame; raises
+        ``Cancelled`` when ``cancel()`` turns true (the frame in progress is not yielded,
+        the frames before it were)."""
         s = self.settings
-        matcher = FrameMatcher(self.views, s, _near_search(self.views) if s.tracking.find_near else None)
+        matcher = FrameMatcher(self.views, s, near_search(self.views, s))
         motion = {c: MotionModel(self.meshes[c].centroid) for c in self.components}
         for c, poses in self.anchors.items():
             for frame, pose in poses:
@@ -76,15 +78,11 @@ class TrackJob:
         total = len(self.frames)
         t0 = time.perf_counter()
         for done, frame in enumerate(self.frames):
-            if cancel is not None and cancel():
-                return
-            try:
-                results = self._frame(frame, matcher, motion, residuals, starts, cancel)
-            except Cancelled:
-                return
+            check_cancel(cancel)
+            results = self._frame(frame, matcher, motion, residuals, starts, cancel)
             for c in self.components:
                 r = results[c]
-                if r.status == MATCHED or (r.kept and r.pose is not None and self._kept_is_matched(frame, c)):
+                if r.status == Status.MATCHED or (r.kept and r.pose is not None and self._kept_is_matched(frame, c)):
                     motion[c].add(frame, r.pose)
                     if r.match is not None and not r.kept:
                         residuals[c] = (residuals[c] + list(r.match.per_view_mean_mm))[-2 * s.tracking.typical_window:]
@@ -130,27 +128,21 @@ class TrackJob:
             images = self._images(frame)
         except InputError as exc:
             for c in todo:
-                results[c] = FrameResult(frame, c, self._predicted(c, frame, motion, starts), FAILED,
+                results[c] = FrameResult(frame, c, self._predicted(c, frame, motion, starts), Status.FAILED,
                                          f"{exc.path}: {exc.problem}", seconds=time.perf_counter() - t0)
             return results
         # components with nothing to start from: find them in this frame
         lost = [c for c in todo if len(motion[c]) == 0 and c not in starts]
         found_here: set[str] = set()
         if lost and self.find:
-            from fluorogui.workflow.finding import SearchCancelled, find_in_frame
-
-            try:
-                placements = find_in_frame(frame, images, self.views, {c: self.meshes[c] for c in lost},
-                                           cancel=cancel)
-            except SearchCancelled:
-                raise Cancelled from None
+            placements = find_in_frame(frame, images, self.views, {c: self.meshes[c] for c in lost}, cancel=cancel)
             for c in lost:
                 p = placements[c]
                 if p.found and p.pose is not None:
                     starts[c] = p.pose
                     found_here.add(c)
                 else:
-                    results[c] = FrameResult(frame, c, p.pose, FAILED, "find implants could not place it: "
+                    results[c] = FrameResult(frame, c, p.pose, Status.FAILED, "find implants could not place it: "
                                              f"{p.reason}", seconds=time.perf_counter() - t0)
             todo = [c for c in todo if c not in results]
         fixed = {c: (self.meshes[c], r.pose) for c, r in results.items() if r.kept and r.pose is not None}
@@ -195,15 +187,8 @@ def read_frame_images(frame: int, paths: Sequence[Path | None], n_views: int,
         if path is None:
             count = f" (this camera has {counts[view]} images)" if view < len(counts) else ""
             raise InputError(f"view {view + 1}", f"no image for frame {frame}{count}")
-        image = read_image(path)
-        out.append(correct_view_image(image, views[view]) if views is not None and view < len(views) else image)
+        out.append(read_view_image(path, views[view] if views is not None and view < len(views) else None))
     return out
-
-
-def _near_search(views):
-    from fluorogui.workflow.finding import near_search
-
-    return near_search(views)
 
 
 def _recent_axis(m: MotionModel, frame: int) -> np.ndarray | None:

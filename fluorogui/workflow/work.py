@@ -15,11 +15,13 @@ from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
-from fluorogui.core.geometry import View
-from fluorogui.core.mesh import PreparedMesh
+from fluorogui.core.projection.geometry import View
+from fluorogui.core.projection.mesh import PreparedMesh
 from fluorogui.io.errors import InputError
-from fluorogui.workflow.framematch import Cancelled, ComponentInput, FrameMatcher
-from fluorogui.workflow.results import FrameResult, Placement
+from fluorogui.workflow.finding import find_in_frame, near_search
+from fluorogui.workflow.framematch import ComponentInput, FrameMatcher
+from fluorogui.workflow.results import FrameResult
+from fluorogui.core.search.find import Placement
 from fluorogui.workflow.settings import WorkflowSettings
 from fluorogui.workflow.tracking import TrackJob, TrackProgress, frames_between, read_frame_images
 
@@ -35,16 +37,13 @@ class MatchJob:
     fixed: dict = field(default_factory=dict)  # other components (mesh, pose) to mask
     settings: WorkflowSettings = field(default_factory=WorkflowSettings)
 
-    def run(self, live: Callable | None = None,
-            cancel: Callable[[], bool] | None = None) -> list[FrameResult] | None:
-        """The results, or None when cancelled. ``live(component, calls, objective_mm, pose)``
-        follows every step of the matcher. Raises InputError for a missing image."""
+    def run(self, live: Callable | None = None, cancel: Callable[[], bool] | None = None) -> list[FrameResult]:
+        """The results, one per component. ``live(component, calls, objective_mm, pose)``
+        follows every step of the matcher. Raises InputError for a missing image and
+        ``Cancelled`` when ``cancel()`` turns true."""
         images = read_frame_images(self.frame, self.image_paths, len(self.views), views=self.views)
-        matcher = FrameMatcher(self.views, self.settings, _near_search(self.views, self.settings), live)
-        try:
-            found = matcher.match_frame(self.frame, images, self.inputs, self.fixed, cancel)
-        except Cancelled:
-            return None
+        matcher = FrameMatcher(self.views, self.settings, near_search(self.views, self.settings), live)
+        found = matcher.match_frame(self.frame, images, self.inputs, self.fixed, cancel)
         return [found[j.component] for j in self.inputs]
 
 
@@ -58,22 +57,10 @@ class FindJob:
     meshes: dict[str, PreparedMesh]
 
     def run(self, progress: Callable[[float, str], None] | None = None,
-            cancel: Callable[[], bool] | None = None) -> dict[str, Placement] | None:
-        from fluorogui.workflow.finding import SearchCancelled, find_in_frame
-
+            cancel: Callable[[], bool] | None = None) -> dict[str, Placement]:
+        """The placements by component; raises ``Cancelled`` when ``cancel()`` turns true."""
         images = read_frame_images(self.frame, self.image_paths, len(self.views), views=self.views)
-        try:
-            return find_in_frame(self.frame, images, self.views, self.meshes, progress=progress, cancel=cancel)
-        except SearchCancelled:
-            return None
-
-
-def _near_search(views, settings: WorkflowSettings):
-    if not settings.tracking.find_near:
-        return None
-    from fluorogui.workflow.finding import near_search
-
-    return near_search(views)
+        return find_in_frame(self.frame, images, self.views, self.meshes, progress=progress, cancel=cancel)
 
 
 class WorkMixin:
@@ -131,11 +118,11 @@ class WorkMixin:
         return MatchJob(self.views, frame, self.image_paths(frame), inputs, fixed, settings)
 
     def match(self, frame: int, components=None, live=None, cancel=None) -> list[FrameResult]:
-        """Match and store (one undoable step); returns the results ([] when cancelled)."""
+        """Match and store (one undoable step); returns the results. Raises ``Cancelled``
+        (nothing stored) when ``cancel()`` turns true."""
         results = self.match_job(frame, components).run(live, cancel)
-        if results:
-            self.store(results)
-        return results or []
+        self.store(results)
+        return results
 
     # -- find --------------------------------------------------------------------------------------
     def find_job(self, frame: int, components=None) -> FindJob:
@@ -155,11 +142,11 @@ class WorkMixin:
             self.history.end_macro()
 
     def find(self, frame: int, components=None, progress=None, cancel=None) -> dict[str, Placement]:
-        """Find and store the confident placements; returns every placement ({} when cancelled)."""
+        """Find and store the confident placements; returns every placement. Raises
+        ``Cancelled`` (nothing stored) when ``cancel()`` turns true."""
         placements = self.find_job(frame, components).run(progress, cancel)
-        if placements:
-            self.store_placements(placements)
-        return placements or {}
+        self.store_placements(placements)
+        return placements
 
     # -- track -------------------------------------------------------------------------------------
     def track_job(self, frames: Sequence[int] | None = None, components=None, redo: bool = False,

@@ -7,16 +7,17 @@ import numpy as np
 import pytest
 
 from fluorogui.cli import main
-from fluorogui.core.matching import MatchProblem, match
-from fluorogui.core.mesh import prepare_mesh
-from fluorogui.core.phantoms import tibial_component_mesh
-from fluorogui.core.pipeline import splines_from_images
-from fluorogui.core.pose import pose_error, transform_points
-from fluorogui.core.validation import flexion_pose, two_views
+from fluorogui.core.matching.loop import splines_from_images
+from fluorogui.core.matching.matcher import match
+from fluorogui.core.matching.problem import MatchProblem
+from fluorogui.core.projection.mesh import prepare_mesh
+from fluorogui.core.projection.pose import pose_error, transform_points
 from fluorogui.io.calibration import save_view_json
-from fluorogui.io.demo import write_stl
 from fluorogui.io.images import write_image
-from fluorogui.validation.xray import Body, XrayModel, xray_image
+from fluorogui.reference.xray import Body, XrayModel, xray_image
+from fluorogui.simulation.demo import write_stl
+from fluorogui.simulation.phantoms import tibial_component_mesh
+from fluorogui.simulation.protocols import flexion_pose, two_views
 
 
 @pytest.fixture(scope="module")

@@ -79,9 +79,9 @@ CORRECTION = {"format": "fluorogui-distortion", "version": 1, "summary": {},
 
 
 def test_import_stores_corrections_and_the_session_applies_them(tmp_path, capsys):
-    from fluorogui.core.distortion import correction_from_dict
-    from fluorogui.io.demo import build_demo_project
-    from fluorogui.io.project import load_project
+    from fluorogui.core.calibration.distortion import correction_from_dict
+    from fluorogui.io.project.document import load_project
+    from fluorogui.simulation.demo import build_demo_project
     from fluorogui.workflow.session import Session
 
     data = tmp_path / "demo"

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 
 from fluorogui.cli import main
-from fluorogui.core.mesh import prepare_mesh
-from fluorogui.core.phantoms import femoral_component_mesh
-from fluorogui.core.pose import transform_points
-from fluorogui.core.render import render_fluoro
-from fluorogui.core.validation import dual_orthogonal_views, flexion_pose
+from fluorogui.core.projection.mesh import prepare_mesh
+from fluorogui.core.projection.pose import transform_points
 from fluorogui.io.calibration import save_view_json
 from fluorogui.io.images import write_image
+from fluorogui.simulation.phantoms import femoral_component_mesh
+from fluorogui.simulation.protocols import dual_orthogonal_views, flexion_pose
+from fluorogui.simulation.render import render_fluoro
 
 PY = sys.executable
 
@@ -72,8 +72,8 @@ def test_match_json_contract(scene, capsys):
 
 
 def test_match_with_outline_files(scene, capsys, tmp_path):
-    from fluorogui.core.pose import rotation_matrix
-    from fluorogui.core.silhouette import mesh_silhouette
+    from fluorogui.core.projection.pose import rotation_matrix
+    from fluorogui.core.projection.silhouette import mesh_silhouette
     from fluorogui.io.outlines import write_outline_csv
 
     mesh = prepare_mesh(*femoral_component_mesh())

@@ -5,14 +5,14 @@ import numpy as np
 import pytest
 
 from fluorogui.cli import main
-from fluorogui.core.mesh import prepare_mesh
-from fluorogui.core.phantoms import tibial_component_mesh
-from fluorogui.core.pose import transform_points
-from fluorogui.core.render import render_fluoro
-from fluorogui.core.validation import dual_orthogonal_views, flexion_pose
+from fluorogui.core.projection.mesh import prepare_mesh
+from fluorogui.core.projection.pose import transform_points
 from fluorogui.io.calibration import save_view_json
-from fluorogui.io.demo import write_stl
 from fluorogui.io.images import write_image
+from fluorogui.simulation.demo import write_stl
+from fluorogui.simulation.phantoms import tibial_component_mesh
+from fluorogui.simulation.protocols import dual_orthogonal_views, flexion_pose
+from fluorogui.simulation.render import render_fluoro
 
 
 @pytest.fixture(scope="module")
@@ -82,7 +82,7 @@ def test_component_missing_from_one_view_is_never_converged(scene, capsys):
 
 
 def test_rim_refinement_removes_the_edge_bias_of_thinning_metal_by_default(scene, tmp_path, capsys):
-    from fluorogui.validation.xray import Body, XrayModel, xray_image
+    from fluorogui.reference.xray import Body, XrayModel, xray_image
 
     v, f = tibial_component_mesh()
     world = transform_points(scene["truth"], np.asarray(v, dtype=float))

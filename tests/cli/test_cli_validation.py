@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from fluorogui.cli import main
-from fluorogui.core.phantoms import tibial_component_mesh
-from fluorogui.io.demo import write_stl
+from fluorogui.simulation.demo import write_stl
+from fluorogui.simulation.phantoms import tibial_component_mesh
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +75,7 @@ def test_small_idealized_case_on_silhouette_images_lands_every_start(tray, tmp_p
 
 @pytest.fixture(scope="module")
 def femur(tmp_path_factory):
-    from fluorogui.core.phantoms import femoral_component_mesh
+    from fluorogui.simulation.phantoms import femoral_component_mesh
 
     v, f = femoral_component_mesh()
     model = tmp_path_factory.mktemp("mesh") / "femur.stl"
@@ -110,9 +110,9 @@ def test_single_view_case_judges_depth_apart(femur, tmp_path, capsys):
 
 def test_photons_0_images_without_noise(tray, tmp_path, capsys):
     from fluorogui.cli import build_parser
-    from fluorogui.commands.validate import _xray_renderer
-    from fluorogui.core.validation import flexion_pose, two_views
-    from fluorogui.io.meshes import load_mesh
+    from fluorogui.cli.validate import _xray_renderer
+    from fluorogui.io.meshes.read import load_mesh
+    from fluorogui.simulation.protocols import flexion_pose, two_views
 
     v, f = load_mesh(tray)
     world = v + flexion_pose(v, 45.0)[:3]
@@ -134,9 +134,9 @@ def test_photons_0_images_without_noise(tray, tmp_path, capsys):
 
 def test_background_none_images_the_component_in_air(tray):
     from fluorogui.cli import build_parser
-    from fluorogui.commands.validate import _xray_renderer
-    from fluorogui.core.validation import flexion_pose, two_views
-    from fluorogui.io.meshes import load_mesh
+    from fluorogui.cli.validate import _xray_renderer
+    from fluorogui.io.meshes.read import load_mesh
+    from fluorogui.simulation.protocols import flexion_pose, two_views
 
     v, f = load_mesh(tray)
     world = v + flexion_pose(v, 45.0)[:3]

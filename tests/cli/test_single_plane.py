@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from fluorogui.cli import main
-from fluorogui.core.mesh import prepare_mesh
-from fluorogui.core.phantoms import femoral_component_mesh
-from fluorogui.core.pose import transform_points
-from fluorogui.core.render import render_fluoro
-from fluorogui.core.validation import dual_orthogonal_views, flexion_pose
+from fluorogui.core.projection.mesh import prepare_mesh
+from fluorogui.core.projection.pose import transform_points
 from fluorogui.io.calibration import jointtrack_to_pose, load_jointtrack_poses, save_view_json
+from fluorogui.simulation.phantoms import femoral_component_mesh
+from fluorogui.simulation.protocols import dual_orthogonal_views, flexion_pose
+from fluorogui.simulation.render import render_fluoro
 from fluorogui.workflow.messages import SINGLE_PLANE_NOTE
 
 
@@ -86,7 +86,7 @@ def test_real_single_plane_against_jointtrack(shared_data, capsys, component, me
 
 
 def test_import_single_plane_explicit_files(shared_data, tmp_path, capsys):
-    from fluorogui.io.project import load_project
+    from fluorogui.io.project.document import load_project
 
     folder = shared_data / "single-plane-tka"
     out = tmp_path / "single.fluoro"

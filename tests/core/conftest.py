@@ -1,10 +1,10 @@
 """Shared fixtures of the core tests: the phantom tibial tray posed at 45 degrees."""
 import pytest
 
-from fluorogui.core.mesh import prepare_mesh
-from fluorogui.core.phantoms import tibial_component_mesh
-from fluorogui.core.pose import transform_points
-from fluorogui.core.validation import flexion_pose
+from fluorogui.core.projection.mesh import prepare_mesh
+from fluorogui.core.projection.pose import transform_points
+from fluorogui.simulation.phantoms import tibial_component_mesh
+from fluorogui.simulation.protocols import flexion_pose
 
 
 @pytest.fixture(scope="module")

@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fluorogui.core.anatomy import default_frame
-from fluorogui.core.kinematics import KinematicsError, check_frame
-from fluorogui.io.meshes import load_mesh
+from fluorogui.core.knee.anatomy import default_frame
+from fluorogui.core.knee.kinematics import KinematicsError, check_frame
+from fluorogui.io.meshes.read import load_mesh
 
 
 def angle_deg(a, b):

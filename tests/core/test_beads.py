@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fluorogui.core.beads import BeadError, calibrate_view, detect_beads
-from fluorogui.core.geometry import View
+from fluorogui.core.calibration.beads import BeadError, calibrate_view, detect_beads
+from fluorogui.core.projection.geometry import View
 
 SIZE = (512, 512)
 PITCH = 0.6

@@ -9,13 +9,15 @@ outline here is the true silhouette with 0.15 px of noise per point (the test is
 the cost's shape, not about accuracy)."""
 import numpy as np
 
-from fluorogui.core.matching import MatchProblem, MatchSettings, _FastEvaluation, _image_samples, _to_state, match
-from fluorogui.core.mesh import prepare_mesh
-from fluorogui.core.phantoms import tibial_component_mesh
-from fluorogui.core.pose import rotation_matrix
-from fluorogui.core.silhouette import mesh_silhouette
-from fluorogui.core.spline import OutlineSpline
-from fluorogui.core.validation import dual_orthogonal_views, flexion_pose
+from fluorogui.core.matching.fast import _FastEvaluation, _image_samples
+from fluorogui.core.matching.matcher import match
+from fluorogui.core.matching.problem import MatchProblem, MatchSettings, _to_state
+from fluorogui.core.outlines.spline import OutlineSpline
+from fluorogui.core.projection.mesh import prepare_mesh
+from fluorogui.core.projection.pose import rotation_matrix
+from fluorogui.core.projection.silhouette import mesh_silhouette
+from fluorogui.simulation.phantoms import tibial_component_mesh
+from fluorogui.simulation.protocols import dual_orthogonal_views, flexion_pose
 
 
 def _ripple(problem, centre, direction, settings) -> float:

@@ -10,7 +10,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parent))
 from plate_phantom import KnownDistortion, plate_image  # noqa: E402
 
-from fluorogui.core.distortion import (  # noqa: E402
+from fluorogui.core.calibration.distortion import (  # noqa: E402
     DistortionError,
     OpenCVCorrection,
     correction_from_dict,
@@ -122,12 +122,12 @@ def test_opencv_model_both_ways():
 
 
 def test_match_after_correction_reaches_undistorted_accuracy(square_plate, distortion):
-    from fluorogui.core.mesh import prepare_mesh
-    from fluorogui.core.phantoms import femoral_component_mesh
-    from fluorogui.core.pipeline import segment_and_match
-    from fluorogui.core.pose import transform_points
-    from fluorogui.core.render import render_fluoro
-    from fluorogui.core.validation import dual_orthogonal_views, flexion_pose
+    from fluorogui.core.matching.loop import segment_and_match
+    from fluorogui.core.projection.mesh import prepare_mesh
+    from fluorogui.core.projection.pose import transform_points
+    from fluorogui.simulation.phantoms import femoral_component_mesh
+    from fluorogui.simulation.protocols import dual_orthogonal_views, flexion_pose
+    from fluorogui.simulation.render import render_fluoro
 
     fit = fit_plate(square_plate[0], 2.0, "square", "global")
     vertices, faces = femoral_component_mesh()
@@ -142,7 +142,7 @@ def test_match_after_correction_reaches_undistorted_accuracy(square_plate, disto
     start = truth + np.array([1.5, -1.0, 1.0, 2.0, -1.5, 1.0])
     errors = {}
     for name, images in (("clean", clean), ("distorted", distorted), ("corrected", corrected)):
-        result = segment_and_match(images, views, mesh, start).result
+        result = segment_and_match(images, views, mesh, start)
         assert result.converged
         errors[name] = result.pose - truth
     assert np.all(np.abs(errors["corrected"][:3] - errors["clean"][:3]) < 0.01)  # measured 0.003 mm

@@ -1,9 +1,9 @@
-"""Canny edge chains, sub-pixel edge localisation and outline selection (fluorogui.core.edges)."""
+"""Canny edge chains, sub-pixel edge localisation and outline selection (fluorogui.core.outlines.edges)."""
 import cv2
 import numpy as np
 import pytest
 
-from fluorogui.core.edges import (
+from fluorogui.core.outlines.edges import (
     EdgeError,
     canny_edges,
     component_outline,
@@ -12,9 +12,9 @@ from fluorogui.core.edges import (
     select_outline,
     uncovered_arc,
 )
-from fluorogui.core.geometry import View
-from fluorogui.core.render import render_fluoro
-from fluorogui.core.spline import OutlineSpline, validate_outline
+from fluorogui.core.outlines.spline import OutlineSpline, validate_outline
+from fluorogui.core.projection.geometry import View
+from fluorogui.simulation.render import render_fluoro
 
 VIEW = View.looking_at([0, 0, -1000], [0, 0, 0], [0, -1, 0], 1000.0, (256, 256), 0.25)  # z=0 at 0.25 mm/px
 
@@ -194,7 +194,7 @@ def test_uncovered_arc_finds_runs_longer_than_the_minimum():
 def test_subpixel_edges_takes_more_points_than_remap_allows_in_a_row():
     rng = np.random.default_rng(0)
     image = cv2.GaussianBlur(rng.normal(100, 20, (300, 300)).astype(np.float32), (0, 0), 2.0)
-    from fluorogui.core.edges import smoothed_gradients, subpixel_edges
+    from fluorogui.core.outlines.edges import smoothed_gradients, subpixel_edges
     _, gx, gy = smoothed_gradients(image)
     v, u = np.mgrid[0:300, 0:300]
     pixels = np.column_stack([u.ravel(), v.ravel()]).astype(float)  # 90 000 > 32 767

@@ -5,8 +5,8 @@ themselves (bit for bit where the arithmetic is the same), so a speed-up cannot 
 matched pose."""
 import numpy as np
 
-from fluorogui.core.matching import _polyline_normals, _times_skew
-from fluorogui.core.silhouette import _band_samples, _edge_samples, _segments_near_band
+from fluorogui.core.matching.fast import _polyline_normals, _times_skew
+from fluorogui.core.projection.silhouette import _band_samples, _edge_samples, _segments_near_band
 
 
 def _random_segments(rng, n, size):
@@ -67,10 +67,10 @@ def test_times_skew_is_the_row_times_the_cross_product_matrix():
 def test_facing_references_give_the_silhouette_edges_of_a_fresh_computation():
     import dataclasses
 
-    from fluorogui.core.mesh import prepare_mesh
-    from fluorogui.core.phantoms import femoral_component_mesh
-    from fluorogui.core.pose import rotation_matrix
-    from fluorogui.core.silhouette import FACING_REFERENCES, silhouette_edges
+    from fluorogui.core.projection.mesh import prepare_mesh
+    from fluorogui.core.projection.pose import rotation_matrix
+    from fluorogui.core.projection.silhouette import FACING_REFERENCES, silhouette_edges
+    from fluorogui.simulation.phantoms import femoral_component_mesh
 
     mesh = prepare_mesh(*femoral_component_mesh())
     rng = np.random.default_rng(2)
@@ -91,9 +91,9 @@ def test_facing_references_give_the_silhouette_edges_of_a_fresh_computation():
 
 
 def test_no_facing_reference_for_a_source_close_to_the_mesh():
-    from fluorogui.core.mesh import prepare_mesh
-    from fluorogui.core.phantoms import sphere_mesh
-    from fluorogui.core.silhouette import silhouette_edges
+    from fluorogui.core.projection.mesh import prepare_mesh
+    from fluorogui.core.projection.silhouette import silhouette_edges
+    from fluorogui.simulation.phantoms import sphere_mesh
 
     mesh = prepare_mesh(*sphere_mesh(40.0, subdivisions=3))
     near_source = np.array([0.0, -45.0, 0.0])  # 25 mm off a 20 mm sphere: most planes pass within the margin

@@ -6,15 +6,20 @@ import cv2
 import numpy as np
 import pytest
 
-from fluorogui.core import shape_search as ss
-from fluorogui.core.find import Placement, find_components
-from fluorogui.core.initialise import SearchCancelled
-from fluorogui.core.initialise import find_components as reexported
-from fluorogui.core.mesh import prepare_mesh
-from fluorogui.core.phantoms import femoral_component_mesh, tibial_component_mesh
-from fluorogui.core.pose import angles_from_matrix, pose_error, rotation_matrix, rotvec_matrix, transform_points
-from fluorogui.core.render import render_fluoro
-from fluorogui.io.demo import anatomy_meshes, demo_views, knee_bend_poses, posed_anatomy, render_view
+from fluorogui.core.cancel import Cancelled
+from fluorogui.core.projection.mesh import prepare_mesh
+from fluorogui.core.projection.pose import (
+    angles_from_matrix,
+    pose_error,
+    rotation_matrix,
+    rotvec_matrix,
+    transform_points,
+)
+from fluorogui.core.search import shape_search as ss
+from fluorogui.core.search.find import Placement, find_components
+from fluorogui.simulation.demo import anatomy_meshes, demo_views, knee_bend_poses, posed_anatomy, render_view
+from fluorogui.simulation.phantoms import femoral_component_mesh, tibial_component_mesh
+from fluorogui.simulation.render import render_fluoro
 
 
 @pytest.fixture(scope="module")
@@ -98,7 +103,7 @@ def test_says_so_when_nothing_is_there(scene, found):
 
 def test_can_be_cancelled(scene, found):
     images, views, meshes, _, _ = scene
-    with pytest.raises(SearchCancelled):
+    with pytest.raises(Cancelled):
         find_components(images, views, meshes, cancel=lambda: True)
     polls = []
 
@@ -106,7 +111,7 @@ def test_can_be_cancelled(scene, found):
         polls.append(time.perf_counter())
         return len(polls) >= 5
 
-    with pytest.raises(SearchCancelled):
+    with pytest.raises(Cancelled):
         find_components(images, views, meshes, cancel=cancel_later)
     assert len(polls) == 5 and time.perf_counter() - polls[-1] < 0.2  # stops at once
     assert np.diff(polls).max() < 1.0  # polled often
@@ -124,9 +129,6 @@ def test_a_symmetric_part_is_ambiguous():
     assert not p.found and "apart fit equally well" in p.reason, p.reason
     assert p.pose is not None
 
-
-def test_reexported_from_initialise():
-    assert reexported is find_components
 
 
 # -- the pieces -----------------------------------------------------------------------------------

@@ -4,8 +4,8 @@ components from nothing in one frame, and tracking recovery near a perturbed pos
 import numpy as np
 import pytest
 
-from fluorogui.core.find import find_components
-from fluorogui.core.pose import angles_from_matrix, pose_error, rotation_matrix, rotvec_matrix
+from fluorogui.core.projection.pose import angles_from_matrix, pose_error, rotation_matrix, rotvec_matrix
+from fluorogui.core.search.find import find_components
 
 
 @pytest.fixture(scope="module")

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from fluorogui.core.geometry import GeometryError, View, closest_point_between_rays, triangulate
+from fluorogui.core.projection.geometry import GeometryError, View, closest_point_between_rays, triangulate
 
 
 def _view():

@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from fluorogui.core.geometry import View
-from fluorogui.core.implant_variants import box_mesh, ps_box_bounds
-from fluorogui.core.mesh import prepare_mesh
-from fluorogui.core.phantoms import femoral_component_mesh, signed_volume, tibial_component_mesh
-from fluorogui.core.silhouette import mesh_silhouette
-from fluorogui.core.validation import mesh_variant
+from fluorogui.core.projection.geometry import View
+from fluorogui.core.projection.mesh import prepare_mesh
+from fluorogui.core.projection.silhouette import mesh_silhouette
+from fluorogui.simulation.implant_variants import box_mesh, ps_box_bounds
+from fluorogui.simulation.phantoms import femoral_component_mesh, signed_volume, tibial_component_mesh
+from fluorogui.simulation.protocols import mesh_variant
 
 
 def _edge_use(faces) -> np.ndarray:

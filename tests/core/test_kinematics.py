@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from fluorogui.core.kinematics import (
+from fluorogui.core.knee.kinematics import (
     KinematicsError,
     check_frame,
     joint_kinematics,
@@ -147,8 +147,8 @@ def test_a_rotation_within_tolerance_is_accepted():
 
 
 def test_sd_propagation_matches_a_monte_carlo_spread():
-    from fluorogui.core.kinematics import kinematics_sd
-    from fluorogui.core.pose import matrix_to_pose, pose_to_matrix
+    from fluorogui.core.knee.kinematics import kinematics_sd
+    from fluorogui.core.projection.pose import matrix_to_pose, pose_to_matrix
 
     femur = np.array([10.0, -20.0, 30.0, 40.0, 50.0, 20.0])
     tibia = matrix_to_pose(pose_to_matrix(femur) @ relative_pose_from_kinematics([60, 2, 8, 1, 3, 35]))

@@ -2,13 +2,15 @@
 import numpy as np
 import pytest
 
-from fluorogui.core.matching import MatchProblem, MatchSettings, match
-from fluorogui.core.mesh import prepare_mesh
-from fluorogui.core.phantoms import femoral_component_mesh, tibial_component_mesh
-from fluorogui.core.pose import pose_difference, rotation_matrix
-from fluorogui.core.silhouette import mesh_silhouette
-from fluorogui.core.spline import OutlineSpline
-from fluorogui.core.validation import dual_orthogonal_views, perturbed_starts
+from fluorogui.core.cancel import Cancelled
+from fluorogui.core.matching.matcher import match
+from fluorogui.core.matching.problem import MatchProblem, MatchSettings
+from fluorogui.core.outlines.spline import OutlineSpline
+from fluorogui.core.projection.mesh import prepare_mesh
+from fluorogui.core.projection.pose import pose_difference, rotation_matrix
+from fluorogui.core.projection.silhouette import mesh_silhouette
+from fluorogui.simulation.phantoms import femoral_component_mesh, tibial_component_mesh
+from fluorogui.simulation.protocols import dual_orthogonal_views, perturbed_starts
 
 TRUTH = np.array([2.0, 3.0, -4.0, 10.0, 20.0, -30.0])
 
@@ -49,12 +51,19 @@ def test_paper_method_improves_on_the_start_and_reports_its_record():
         assert res.message
 
 
-def test_cancel_stops_at_once_and_is_reported():
+@pytest.mark.parametrize("method", ["fast", "paper"])
+def test_cancel_stops_at_once_and_is_reported(method):
     problem = _problem()
-    seen = []
-    res = match(problem, TRUTH + 5.0, MatchSettings(method="fast"), progress=lambda *a: seen.append(a),
-                cancel=lambda: len(seen) >= 1)
-    assert res.cancelled and not res.converged and res.calls <= 3
+    seen, asked = [], []
+
+    def cancel():
+        asked.append(len(seen))
+        return len(seen) >= 1
+
+    with pytest.raises(Cancelled):
+        match(problem, TRUTH + 5.0, MatchSettings(method=method, model_points=2000), progress=lambda *a: seen.append(a),
+              cancel=cancel)
+    assert len(seen) == 1 and asked[-1] == 1  # stopped at the first check after the first step
 
 
 def test_unknown_method_is_refused():

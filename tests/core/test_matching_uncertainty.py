@@ -1,6 +1,6 @@
 """The per-pose uncertainty (``MatchResult.sd``) against the spread over noise realisations.
 
-The outlines are made without the matcher's code (``fluorogui.validation.outlines``: the
+The outlines are made without the matcher's code (``fluorogui.reference.hull_outlines``: the
 convex hull of a bent ellipsoid's projected vertices, with noise correlated over a few
 pixels along it). The SD is a jackknife over stretches of outline (``pose_covariance``).
 Measured over 100 realisations (``packaging/bench_uncertainty.py``): SD / observed spread
@@ -12,13 +12,14 @@ in biplane, 0.74-1.13 in a single view.
 """
 import numpy as np
 
-from fluorogui.core.geometry import View
-from fluorogui.core.matching import MatchProblem, MatchSettings, match
-from fluorogui.core.mesh import prepare_mesh
-from fluorogui.core.pose import pose_difference, rotation_matrix
-from fluorogui.core.spline import OutlineSpline
-from fluorogui.core.validation import dual_orthogonal_views
-from fluorogui.validation.outlines import bent_ellipsoid, noisy_hull_outline
+from fluorogui.core.matching.matcher import match
+from fluorogui.core.matching.problem import MatchProblem, MatchSettings
+from fluorogui.core.outlines.spline import OutlineSpline
+from fluorogui.core.projection.geometry import View
+from fluorogui.core.projection.mesh import prepare_mesh
+from fluorogui.core.projection.pose import pose_difference, rotation_matrix
+from fluorogui.reference.hull_outlines import bent_ellipsoid, noisy_hull_outline
+from fluorogui.simulation.protocols import dual_orthogonal_views
 
 TRUTH = np.array([3.0, -2.0, 5.0, 20.0, -15.0, 30.0])
 

@@ -4,15 +4,16 @@ import cv2
 import numpy as np
 import pytest
 
-from fluorogui.core.matching import visible_points
-from fluorogui.core.mesh import prepare_mesh
-from fluorogui.core.phantoms import femoral_component_mesh
-from fluorogui.core.pipeline import SegmentationError, predicted_outline, segment_and_match
-from fluorogui.core.pose import motion_between, pose_error, transform_points
-from fluorogui.core.quality import MATCHED, NEEDS_REVIEW, Quality, QualityThresholds, assess, judge
-from fluorogui.core.render import render_fluoro
-from fluorogui.core.spline import first_self_intersection, untangle_outline
-from fluorogui.core.validation import dual_orthogonal_views
+from fluorogui.core.matching.loop import SegmentationError, predicted_outline, segment_and_match
+from fluorogui.core.matching.problem import visible_points
+from fluorogui.core.matching.quality import Quality, QualityThresholds, assess, judge
+from fluorogui.core.outlines.spline import first_self_intersection, untangle_outline
+from fluorogui.core.projection.mesh import prepare_mesh
+from fluorogui.core.projection.pose import motion_between, pose_error, transform_points
+from fluorogui.core.status import Status
+from fluorogui.simulation.phantoms import femoral_component_mesh
+from fluorogui.simulation.protocols import dual_orthogonal_views
+from fluorogui.simulation.render import render_fluoro
 
 TRUTH = np.array([2.0, 3.0, -4.0, 10.0, 20.0, -30.0])
 
@@ -50,8 +51,8 @@ def test_occluded_outline_is_ignored_and_matters(scene):
     overlap = [visible_points(m, predicted_outline(mesh, TRUTH, v)) for m, v in zip(masks, views)]
     assert all(0.05 < 1 - o.mean() < 0.6 for o in overlap)  # the block hides part of the outline in each view
     start = TRUTH + np.array([1.5, -1.0, 1.0, 2.0, -1.5, 1.0])
-    aware = segment_and_match(images, views, mesh, start, occluded=masks).result
-    naive = segment_and_match(images, views, mesh, start).result
+    aware = segment_and_match(images, views, mesh, start, occluded=masks)
+    naive = segment_and_match(images, views, mesh, start)
     e_aware, e_naive = pose_error(aware.pose, TRUTH), pose_error(naive.pose, TRUTH)
     assert aware.converged
     assert np.abs(e_aware[:3]).max() < 0.01 and np.abs(e_aware[3:]).max() < 0.015, e_aware  # measured 0.002 / 0.005
@@ -62,28 +63,28 @@ def test_occluded_outline_is_ignored_and_matters(scene):
 def test_quality_passes_the_right_pose_and_flags_a_wrong_one(scene):
     mesh, views, images, masks = scene
     right = segment_and_match(images, views, mesh, TRUTH + 0.5, occluded=masks)
-    q = assess(images, views, mesh, right.result.pose, right.result.converged, right.result.per_view_mean_mm,
-               right.outlines, TRUTH + 0.5, masks)
+    q = assess(images, views, mesh, right.pose, right.converged, right.per_view_mean_mm,
+               right.image_outlines, TRUTH + 0.5, masks)
     assert min(q.edge_support) > 0.98 and min(q.outline_support) > 0.98, q
-    assert judge(q) == (MATCHED, "")
+    assert judge(q) == (Status.MATCHED, "")
     wrong = TRUTH + np.array([0.0, 0.0, 0.0, 12.0, 0.0, 0.0])  # a pose turned 12 degrees off
     q_wrong = assess(images, views, mesh, wrong, True, [0.15, 0.15], None, TRUTH, masks)
     assert max(q_wrong.edge_support) < 0.5, q_wrong  # measured 0.42
     status, reason = judge(q_wrong)
-    assert status == NEEDS_REVIEW and "image edges" in reason and "predicted pose" not in reason
+    assert status == Status.NEEDS_REVIEW and "image edges" in reason and "predicted pose" not in reason
 
 
 def test_judge_names_every_failed_check():
     q = Quality(False, [0.9, 0.12], [0.97, 0.6], [0.95, 0.95], jump_mm=30.0, jump_deg=3.0)
     status, reason = judge(q, QualityThresholds(), typical_view_mm=0.12)
-    assert status == NEEDS_REVIEW
+    assert status == Status.NEEDS_REVIEW
     for piece in ("did not converge", "0.90 mm in view 1", "60 % of the model outline", "30.0 mm"):
         assert piece in reason
     assert "view 2 (" not in reason  # view 2's residual 0.12 is typical
     # the typical residual sets the limit between the floor and the ceiling
     q_ok = Quality(True, [0.29, 0.2], [0.99, 0.99], [0.99, 0.99])
-    assert judge(q_ok, typical_view_mm=0.12)[0] == MATCHED  # limit 0.30
-    assert judge(q_ok, typical_view_mm=0.05)[0] == NEEDS_REVIEW  # limit 0.25 (floor)
+    assert judge(q_ok, typical_view_mm=0.12)[0] == Status.MATCHED  # limit 0.30
+    assert judge(q_ok, typical_view_mm=0.05)[0] == Status.NEEDS_REVIEW  # limit 0.25 (floor)
 
 
 def test_segmentation_error_names_the_view(scene):
@@ -117,7 +118,7 @@ def test_motion_between_measures_centroid_travel_and_turn():
 
 
 def test_spline_knows_the_chords_it_draws_across_gaps():
-    from fluorogui.core.spline import OutlineSpline
+    from fluorogui.core.outlines.spline import OutlineSpline
 
     th = np.linspace(0, 2 * np.pi, 400, endpoint=False)
     circle = 100 + 40 * np.column_stack([np.cos(th), np.sin(th)])  # points ~0.63 px apart

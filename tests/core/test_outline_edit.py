@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from fluorogui.core.outline_edit import (
+from fluorogui.core.outlines.editing import (
     close_gap,
     delete_points,
     erase_in_disc,

@@ -4,20 +4,21 @@ The rim refinement finds the boundary three times less precisely where the metal
 gently than on a steep rim (``core.profile_fit.precision_weights``); the outline's spline carries
 each point's inverse variance (``OutlineSpline.weight_at``) and the fast matcher's
 residual blocks share their weight by it. The outlines here are made without the
-matcher's code (``fluorogui.validation.outlines``: the convex hull of a bent ellipsoid's
+matcher's code (``fluorogui.reference.hull_outlines``: the convex hull of a bent ellipsoid's
 projected vertices), with noise of a known SD per point.
 """
 import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter1d
 
-from fluorogui.core.matching import MatchProblem, MatchSettings, match
-from fluorogui.core.mesh import prepare_mesh
-from fluorogui.core.pose import pose_difference, rotation_matrix
-from fluorogui.core.profile_fit import PRECISION_FLOOR_PX, precision_weights
-from fluorogui.core.spline import OutlineError, OutlineSpline
-from fluorogui.core.validation import dual_orthogonal_views
-from fluorogui.validation.outlines import bent_ellipsoid, noisy_hull_outline
+from fluorogui.core.matching.matcher import match
+from fluorogui.core.matching.problem import MatchProblem, MatchSettings
+from fluorogui.core.outlines.profile_fit import PRECISION_FLOOR_PX, precision_weights
+from fluorogui.core.outlines.spline import OutlineError, OutlineSpline
+from fluorogui.core.projection.mesh import prepare_mesh
+from fluorogui.core.projection.pose import pose_difference, rotation_matrix
+from fluorogui.reference.hull_outlines import bent_ellipsoid, noisy_hull_outline
+from fluorogui.simulation.protocols import dual_orthogonal_views
 
 TRUTH = np.array([3.0, -2.0, 5.0, 20.0, -15.0, 30.0])
 

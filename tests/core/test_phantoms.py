@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from fluorogui.core.phantoms import (
+from fluorogui.simulation.phantoms import (
     femoral_component_mesh,
     signed_volume,
     sphere_mesh,

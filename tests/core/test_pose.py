@@ -1,8 +1,16 @@
 import numpy as np
 import pytest
 
-from fluorogui.core.pose import (angles_from_matrix, as_pose, matrix_to_pose, paper_eq2_matrix, pose_difference,
-                                 pose_to_matrix, rotation_matrix, transform_points)
+from fluorogui.core.projection.pose import (
+    angles_from_matrix,
+    as_pose,
+    matrix_to_pose,
+    paper_eq2_matrix,
+    pose_difference,
+    pose_to_matrix,
+    rotation_matrix,
+    transform_points,
+)
 
 
 def _rx(a):
@@ -65,7 +73,7 @@ def test_pose_difference_wraps_angles():
 
 
 def test_pose_error_is_the_body_fixed_rotation_even_at_gimbal_lock():
-    from fluorogui.core.pose import pose_error, rotvec_matrix
+    from fluorogui.core.projection.pose import pose_error, rotvec_matrix
 
     truth = np.array([1.0, 2.0, 3.0, 20.0, 30.0, 89.9])
     R = rotation_matrix(*truth[3:]) @ rotvec_matrix(np.radians([0.0, 0.01, 0.0]))

@@ -7,7 +7,7 @@ and that tracking is not pulled onto the soft-tissue edge beside it."""
 import numpy as np
 import pytest
 
-from fluorogui.core.pipeline import match_images
+from fluorogui.core.matching.loop import match_images
 
 
 @pytest.fixture(scope="module")

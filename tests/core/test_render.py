@@ -1,12 +1,12 @@
-"""Silhouette coverage and pseudo-fluoroscopic images (fluorogui.core.render)."""
+"""Silhouette coverage and pseudo-fluoroscopic images (fluorogui.simulation.render)."""
 import time
 
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from fluorogui.core.geometry import View
-from fluorogui.core.pose import transform_points
-from fluorogui.core.render import render_fluoro, render_silhouette
+from fluorogui.core.projection.geometry import View
+from fluorogui.core.projection.pose import transform_points
+from fluorogui.simulation.render import render_fluoro, render_silhouette
 
 
 def overhead_view(size=128, pitch=0.25):

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from fluorogui.core.edges import component_outline
-from fluorogui.core import rim
-from fluorogui.core.pipeline import LoopSettings, predicted_outline, segment_and_match
-from fluorogui.core.rim import RimModel, path_lengths, refine_outline, smooth_along
-from fluorogui.core.spline import first_self_intersection, simple_or_plain
-from fluorogui.core.validation import two_views
-from fluorogui.validation.xray import Body, XrayModel, path_length, xray_image
+from fluorogui.core.matching.loop import LoopSettings, predicted_outline, segment_and_match
+from fluorogui.core.outlines import rim
+from fluorogui.core.outlines.edges import component_outline
+from fluorogui.core.outlines.rim import RimModel, path_lengths, refine_outline, smooth_along
+from fluorogui.core.outlines.spline import first_self_intersection, simple_or_plain
+from fluorogui.reference.xray import Body, XrayModel, path_length, xray_image
+from fluorogui.simulation.protocols import two_views
 
 VIEWS = two_views(image_size=(512, 512), pitch=315.0 / 512)
 SUPER = 8  # samples per pixel for the true silhouette
@@ -164,7 +164,7 @@ def test_the_loop_fits_rim_models_once_and_reuses_them(tray):
     segment_and_match(images, VIEWS, mesh, start, loop=LoopSettings(rim=True), rim_models=kept)
     assert kept[0] is given[0] and kept[1] is given[1]
     plain = segment_and_match(images, VIEWS, mesh, start, loop=LoopSettings(rim=False))
-    assert not np.allclose(plain.result.pose, out.result.pose, atol=1e-4)
+    assert not np.allclose(plain.pose, out.pose, atol=1e-4)
 
 
 def _darken_outside(image, outline, stretch, reach_px=4.0):
@@ -187,7 +187,7 @@ def _darken_outside(image, outline, stretch, reach_px=4.0):
 def test_a_stretch_pulled_by_another_edge_is_left_out(tray, monkeypatch):
     # the stray rule on its own: the bone model (core.second_edge, tested apart) would take
     # this ramp for a bone's edge and keep up to 13 of its points, 0.3-0.66 px inside
-    monkeypatch.setattr("fluorogui.core.rim.second_edges", lambda image, points, *a: (np.full(len(points), np.nan),) * 2)
+    monkeypatch.setattr("fluorogui.core.outlines.rim.second_edges", lambda image, points, *a: (np.full(len(points), np.nan),) * 2)
     mesh, pose, world = tray
     view = VIEWS[0]
     image = xray_image(view, [Body(world, mesh.faces, 1.0)], XrayModel(), np.random.default_rng(6))
@@ -199,7 +199,7 @@ def test_a_stretch_pulled_by_another_edge_is_left_out(tray, monkeypatch):
         return cKDTree(canny[stretch]).query(points)[0] < 1.0
 
     kept, _ = refine_outline(spoiled, view, mesh, pose, canny)
-    monkeypatch.setattr("fluorogui.core.rim.MAX_DROPPED", -1.0)  # leave nothing out
+    monkeypatch.setattr("fluorogui.core.outlines.rim.MAX_DROPPED", -1.0)  # leave nothing out
     every, _ = refine_outline(spoiled, view, mesh, pose, canny)
     pulled = signed_distance_to_truth(view, world, mesh.faces, every[near_stretch(every)])
     print(f"stretch of {len(stretch)}: {near_stretch(kept).sum()} kept near it of {len(kept)} "

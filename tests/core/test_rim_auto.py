@@ -4,11 +4,11 @@ where Canny puts it, judging each view once per sequence."""
 import numpy as np
 import pytest
 
-from fluorogui.core.pipeline import LoopSettings, segment_and_match
-from fluorogui.core.pose import pose_difference
-from fluorogui.core.rim import is_soft
-from fluorogui.core.validation import two_views
-from fluorogui.validation.xray import Body, XrayModel, xray_image
+from fluorogui.core.matching.loop import LoopSettings, segment_and_match
+from fluorogui.core.outlines.rim import is_soft
+from fluorogui.core.projection.pose import pose_difference
+from fluorogui.reference.xray import Body, XrayModel, xray_image
+from fluorogui.simulation.protocols import two_views
 
 VIEWS = two_views(image_size=(512, 512), pitch=315.0 / 512)
 OFFSET = np.array([1.0, -1.0, 0.5, 1.0, -1.0, 1.0])
@@ -31,29 +31,29 @@ def test_auto_refines_a_soft_rim_and_leaves_a_step_edge_alone(tray, monkeypatch)
     models = [None, None]
     auto = segment_and_match(soft, VIEWS, mesh, start, loop=LoopSettings(rim="auto"), rim_models=models)
     off = segment_and_match(soft, VIEWS, mesh, start, loop=LoopSettings(rim="off"))
-    assert auto.result.settings["rim_refined"] == [True, True]
-    assert off.result.settings["rim_refined"] == [False, False]
+    assert auto.settings["rim_refined"] == [True, True]
+    assert off.settings["rim_refined"] == [False, False]
     assert all(m is not None and is_soft(m) and 0.7 < m.mu < 1.5 for m in models)  # measured 1.09, 1.40
-    print("soft: auto", _error(auto.result, truth), "off", _error(off.result, truth))
+    print("soft: auto", _error(auto, truth), "off", _error(off, truth))
     # the refinement removes most of Canny's inward bias (measured 0.035 mm / 0.063 deg
     # against 0.116 mm / 0.151 deg)
-    assert _error(auto.result, truth)[1] < 0.5 * _error(off.result, truth)[1]
+    assert _error(auto, truth)[1] < 0.5 * _error(off, truth)[1]
 
     step = _images(tray, 50.0)  # a step edge, as real images fit
     models = [None, None]
     auto = segment_and_match(step, VIEWS, mesh, start, loop=LoopSettings(rim="auto"), rim_models=models)
     off = segment_and_match(step, VIEWS, mesh, start, loop=LoopSettings(rim="off"))
-    assert auto.result.settings["rim_refined"] == [False, False]
+    assert auto.settings["rim_refined"] == [False, False]
     assert all(m is not None and not is_soft(m) for m in models)  # judged, and kept for the next frame
-    np.testing.assert_array_equal(auto.result.pose, off.result.pose)
+    np.testing.assert_array_equal(auto.pose, off.pose)
 
     # the next frame reuses the judgement: no fit, and no pass spent on judging again
     def no_fit(*args, **kwargs):
         raise AssertionError("the edge was judged again")
-    monkeypatch.setattr("fluorogui.core.pipeline.edge_model", no_fit)
-    monkeypatch.setattr("fluorogui.core.pipeline.refine_outlines", no_fit)
-    again = segment_and_match(step, VIEWS, mesh, auto.result.pose, loop=LoopSettings(rim="auto"), rim_models=models)
-    assert again.passes == 1 and again.result.settings["rim_refined"] == [False, False]
+    monkeypatch.setattr("fluorogui.core.matching.loop.edge_model", no_fit)
+    monkeypatch.setattr("fluorogui.core.matching.loop.refine_outlines", no_fit)
+    again = segment_and_match(step, VIEWS, mesh, auto.pose, loop=LoopSettings(rim="auto"), rim_models=models)
+    assert again.passes == 1 and again.settings["rim_refined"] == [False, False]
 
 
 def test_loop_settings_rim_modes_and_older_projects():

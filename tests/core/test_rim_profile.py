@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter1d
 
-from fluorogui.core import rim
-from fluorogui.core.profile_fit import outline_curvature
-from fluorogui.core.spline import outward_normals
+from fluorogui.core.outlines import rim
+from fluorogui.core.outlines.profile_fit import outline_curvature
+from fluorogui.core.outlines.spline import outward_normals
 
 
 @pytest.mark.parametrize("slope", [-0.05, 0.0, 0.05])

@@ -6,14 +6,13 @@ import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter
 from scipy.spatial import cKDTree
-
-from fluorogui.core import rim
-from fluorogui.core.edges import component_outline
-from fluorogui.core.pipeline import predicted_outline
-from fluorogui.core.second_edge import second_edges
-from fluorogui.validation.xray import Body, XrayModel, xray_image
-
 from test_rim import VIEWS, signed_distance_to_truth
+
+from fluorogui.core.matching.loop import predicted_outline
+from fluorogui.core.outlines import rim
+from fluorogui.core.outlines.edges import component_outline
+from fluorogui.core.outlines.second_edge import second_edges
+from fluorogui.reference.xray import Body, XrayModel, xray_image
 
 
 def _straight_rim(k: float, edge_px: float, with_bone: bool = True):

@@ -1,13 +1,13 @@
 import numpy as np
 import pytest
 
-from fluorogui.core.geometry import View
-from fluorogui.core.mesh import MeshError, prepare_mesh, sample_surface
-from fluorogui.core.outline import grid_outline
-from fluorogui.core.spline import resample_closed_polyline
-from fluorogui.core.phantoms import femoral_component_mesh, sphere_mesh
-from fluorogui.core.pose import rotation_matrix
-from fluorogui.core.silhouette import mesh_silhouette
+from fluorogui.core.outlines.spline import resample_closed_polyline
+from fluorogui.core.projection.geometry import View
+from fluorogui.core.projection.mesh import MeshError, prepare_mesh, sample_surface
+from fluorogui.core.projection.point_outline import grid_outline
+from fluorogui.core.projection.pose import rotation_matrix
+from fluorogui.core.projection.silhouette import mesh_silhouette
+from fluorogui.simulation.phantoms import femoral_component_mesh, sphere_mesh
 
 
 def _view():

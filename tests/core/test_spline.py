@@ -5,7 +5,7 @@ import time
 import numpy as np
 import pytest
 
-from fluorogui.core.spline import (
+from fluorogui.core.outlines.spline import (
     OutlineError,
     OutlineSpline,
     first_self_intersection,

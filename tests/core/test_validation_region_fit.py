@@ -1,4 +1,4 @@
-"""The region-overlap reference fitter (``fluorogui.validation.region_fit``): its own pose
+"""The region-overlap reference fitter (``fluorogui.reference.region_fit``): its own pose
 convention and rasteriser against hand computations and the X-ray model's independent
 ray casting, its accuracy on an X-ray model image pair with a known pose, and one real
 frame (skips without ../shared/data)."""
@@ -7,10 +7,19 @@ import csv
 import numpy as np
 import pytest
 
-from fluorogui.core.geometry import View
-from fluorogui.validation.region_fit import (EdgeMesh, angles, coverage, field_of_view, fit_pose,
-                                             pose_difference, project, rotation, rotation_angle)
-from fluorogui.validation.xray import Body, XrayModel, path_length, xray_image
+from fluorogui.core.projection.geometry import View
+from fluorogui.reference.region_fit import (
+    EdgeMesh,
+    angles,
+    coverage,
+    field_of_view,
+    fit_pose,
+    pose_difference,
+    project,
+    rotation,
+    rotation_angle,
+)
+from fluorogui.reference.xray import Body, XrayModel, path_length, xray_image
 
 VIEW = View.looking_at([-1000.0, 0, 0], [0, 0, 0], [0, 0, 1], 1200.0, (128, 128), 0.5)
 
@@ -66,8 +75,8 @@ def test_field_of_view_is_the_lit_disc_with_its_dark_metal():
 
 @pytest.fixture(scope="module")
 def tray_scene():
-    from fluorogui.core.phantoms import tibial_component_mesh
-    from fluorogui.core.validation import flexion_pose, two_views
+    from fluorogui.simulation.phantoms import tibial_component_mesh
+    from fluorogui.simulation.protocols import flexion_pose, two_views
 
     mesh = tibial_component_mesh()
     v, f = np.asarray(mesh[0], dtype=float), np.asarray(mesh[1])
@@ -98,7 +107,7 @@ def test_fit_on_x_ray_model_images_recovers_the_pose(tray_scene):
 def test_one_real_frame_from_a_moved_start(shared_data):
     from fluorogui.io.calibration import load_view
     from fluorogui.io.images import read_image
-    from fluorogui.io.meshes import load_mesh
+    from fluorogui.io.meshes.read import load_mesh
 
     d = shared_data / "biplane-tka"
     views = [load_view(d / "calibration" / f"cam{k}_mayacam2.txt") for k in (1, 2)]
@@ -122,7 +131,7 @@ def test_the_fitter_imports_nothing_of_fluorogui():
     import ast
     import inspect
 
-    from fluorogui.validation import region_fit
+    from fluorogui.reference import region_fit
 
     tree = ast.parse(inspect.getsource(region_fit))
     names = [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]

@@ -3,9 +3,17 @@ sphere and a cylinder, Beer-Lambert attenuation, quantum noise, bit depth, disto
 import numpy as np
 import pytest
 
-from fluorogui.core.geometry import View
-from fluorogui.validation.xray import (Body, Cylinder, XrayModel, cylinder_chord, distort, path_length,
-                                       undistort_points, xray_image)
+from fluorogui.core.projection.geometry import View
+from fluorogui.reference.xray import (
+    Body,
+    Cylinder,
+    XrayModel,
+    cylinder_chord,
+    distort,
+    path_length,
+    undistort_points,
+    xray_image,
+)
 
 # looking along +x from x = -1000; the detector 1200 mm from the source, 0.5 mm pixels
 VIEW = View.looking_at([-1000.0, 0, 0], [0, 0, 0], [0, 0, 1], 1200.0, (128, 128), 0.5)

@@ -11,7 +11,6 @@ import shutil
 from pathlib import Path
 
 import numpy as np
-
 from loader_worker import mutate
 
 CORPUS = Path(__file__).resolve().parent / "corpus"
@@ -23,7 +22,7 @@ def make_scene(folder: Path) -> dict:
     """Two calibrations, two 64x48 images, a sphere mesh, two outlines, pairs and poses."""
     import pyvista as pv
 
-    from fluorogui.core.geometry import View
+    from fluorogui.core.projection.geometry import View
     from fluorogui.io.calibration import save_view_json
     from fluorogui.io.images import write_image
     from fluorogui.io.outlines import write_outline_csv

@@ -7,7 +7,6 @@ whose ``sum`` checks its ``pad``: a file that parses and checks is whole."""
 from __future__ import annotations
 
 import json
-import os
 import random
 import signal
 import subprocess
@@ -20,7 +19,8 @@ REPO = Path(__file__).resolve().parents[2]
 _SAVER = r"""
 import json, os, signal, sys, resource
 sys.path.insert(0, {repo!r})
-from fluorogui.io.errors import InputError, atomic_write_text
+from fluorogui.io.errors import InputError
+from fluorogui.io.files import atomic_write_text
 path, first, limit = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
 if limit:
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # EFBIG instead of death, like a full disk
@@ -66,7 +66,7 @@ def kill_trials(folder: Path, trials: int, seed: int = 0) -> dict:
 
     After each kill the project and its backup must both be whole (the backup at most one
     version behind), and the next save must leave no temp file behind."""
-    from fluorogui.io.errors import atomic_write_text, clean_stale_temps
+    from fluorogui.io.files import atomic_write_text, clean_stale_temps
 
     rng = random.Random(seed)
     path = folder / "killed.fluoro"
@@ -101,7 +101,7 @@ def kill_trials(folder: Path, trials: int, seed: int = 0) -> dict:
 def full_disk_trials(folder: Path, limits) -> dict:
     """Save with each file-size limit in ``limits`` (bytes); the save must fail with one line
     naming the file, and leave the project, its backup and no temp files behind."""
-    from fluorogui.io.errors import atomic_write_text
+    from fluorogui.io.files import atomic_write_text
 
     path = folder / "full.fluoro"
     counts = {"trials": 0, "lost_or_truncated_project": 0, "lost_or_truncated_backup": 0,

@@ -20,10 +20,10 @@ def _loaders():
     from fluorogui.io.calibration import load_view
     from fluorogui.io.images import read_image
     from fluorogui.io.importer import read_pairs_csv
-    from fluorogui.io.meshes import load_mesh
+    from fluorogui.io.meshes.read import load_mesh
     from fluorogui.io.outlines import read_outline_csv
-    from fluorogui.io.project import load_project
-    from fluorogui.io.tables import read_reference_poses
+    from fluorogui.io.pose_files import read_reference_poses
+    from fluorogui.io.project.document import load_project
 
     return {"calibration": load_view, "image": read_image, "mesh": load_mesh, "outline": read_outline_csv,
             "pairs": read_pairs_csv, "reference": read_reference_poses, "project": load_project}
@@ -50,7 +50,7 @@ def main(argv: list[str]) -> int:
 def _round_trip(project, name: str) -> tuple[str, str]:
     """An accepted project must save and reopen unchanged: else "unsaveable"."""
     from fluorogui.io.errors import InputError
-    from fluorogui.io.project import load_project, save_project
+    from fluorogui.io.project.document import load_project, save_project
 
     again = Path(name).with_name(Path(name).stem + ".again.fluoro")
     try:

@@ -29,7 +29,7 @@ def make_seeds(folder: Path) -> dict[str, list[Path]]:
     """Write the seed files into ``folder``; loader name -> files."""
     import pyvista as pv
 
-    from fluorogui.core.geometry import View
+    from fluorogui.core.projection.geometry import View
     from fluorogui.io.calibration import save_view_json
     from fluorogui.io.images import write_image
 

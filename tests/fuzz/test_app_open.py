@@ -4,10 +4,9 @@ from __future__ import annotations
 import pytest
 
 pytest.importorskip("pytestqt")
+from nasty_projects import FIXTURE, nasty_projects  # noqa: E402
 from PySide6.QtCore import QSettings  # noqa: E402
 from PySide6.QtWidgets import QMessageBox  # noqa: E402
-
-from nasty_projects import FIXTURE, nasty_projects  # noqa: E402
 
 
 @pytest.fixture()

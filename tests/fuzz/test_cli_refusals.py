@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from fluorogui import cli
-from fluorogui.core.geometry import View
+from fluorogui.core.projection.geometry import View
 from fluorogui.io.calibration import save_view_json
 from fluorogui.io.images import write_image
 
@@ -139,7 +139,7 @@ def test_internal_error_names_the_log_and_keeps_the_traceback(files, capsys, mon
     def broken(args):
         raise RuntimeError("a bug\nover two lines")
 
-    monkeypatch.setattr(cli, "cmd_match", broken)
+    monkeypatch.setattr("fluorogui.cli.match.run", broken)
     line = one_line(capsys, match_args(files), code=1)
     assert line == f"fluorogui: internal error: RuntimeError: a bug over two lines; details in {log_folder}"
     log = log_folder.read_text()
@@ -152,7 +152,7 @@ def test_native_chatter_goes_to_the_log_unless_verbose(files, capfd, monkeypatch
         os.write(2, b"libpng warning: iCCP: known incorrect sRGB profile\n")
         return 0
 
-    monkeypatch.setattr(cli, "cmd_match", noisy)
+    monkeypatch.setattr("fluorogui.cli.match.run", noisy)
     assert cli.main(match_args(files)) == 0
     assert "libpng" not in capfd.readouterr().err
     assert "libpng warning" in log_folder.read_text()

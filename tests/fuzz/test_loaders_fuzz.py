@@ -13,7 +13,7 @@ from seeds import make_seeds
 
 from fluorogui.io.errors import InputError
 from fluorogui.io.outlines import read_outline_csv
-from fluorogui.io.tables import read_reference_poses
+from fluorogui.io.pose_files import read_reference_poses
 
 
 def test_mutated_files_of_every_loader(tmp_path):

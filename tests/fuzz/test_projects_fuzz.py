@@ -10,11 +10,10 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
 from nasty_projects import FIXTURE, nasty_projects
 
 from fluorogui.io.errors import InputError
-from fluorogui.io.project import load_project, save_project
+from fluorogui.io.project.document import load_project, save_project
 
 JSON_LEAVES = st.one_of(st.none(), st.booleans(), st.integers(-10**40, 10**40),
                         st.floats(allow_nan=False, allow_infinity=False), st.text(max_size=8))

@@ -1,16 +1,14 @@
 """Saves that lose nothing: kills during a save, a full disk, symlinks, file modes, temps."""
 from __future__ import annotations
 
-import json
 import os
 import stat
-import sys
 
 import pytest
-
 from fuzz_harness import full_disk_trials, kill_trials, leftover_temps
 
-from fluorogui.io.errors import InputError, atomic_write_text, clean_stale_temps
+from fluorogui.io.errors import InputError
+from fluorogui.io.files import atomic_write_text, clean_stale_temps
 
 posix_only = pytest.mark.skipif(os.name != "posix", reason="kills and RLIMIT_FSIZE are POSIX")
 
@@ -103,7 +101,7 @@ def test_save_after_a_kill_between_the_renames_leaves_no_temp(tmp_path):
 
 
 def test_opening_a_project_removes_temps_of_dead_saves(tmp_path):
-    from fluorogui.io.project import load_project
+    from fluorogui.io.project.document import load_project
 
     path = tmp_path / "p.fluoro"
     path.write_text("{}")

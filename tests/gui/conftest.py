@@ -8,7 +8,7 @@ pytest.importorskip("pytestqt")
 from PySide6.QtCore import QSettings  # noqa: E402
 from PySide6.QtWidgets import QMessageBox  # noqa: E402
 
-from fluorogui.io.demo import build_demo_project  # noqa: E402
+from fluorogui.simulation.demo import build_demo_project  # noqa: E402
 
 
 @pytest.fixture(scope="session")

@@ -12,12 +12,12 @@ pytest.importorskip("pytestqt")
 
 import pyvista as pv  # noqa: E402
 
-from fluorogui.core.phantoms import femoral_component_mesh  # noqa: E402
-from fluorogui.core.session import MATCHED, NEEDS_REVIEW, ImageSequence, MatchRecord, ModelEntry, PoseRecord, \
-    Project  # noqa: E402
-from fluorogui.core.validation import dual_orthogonal_views  # noqa: E402
+from fluorogui.core.records import ImageSequence, MatchRecord, ModelEntry, PoseRecord, Project
+from fluorogui.core.status import Status
 from fluorogui.gui.controller import SessionController  # noqa: E402
-from fluorogui.io.lock import ProjectLocked, lock_path, read_holder  # noqa: E402
+from fluorogui.io.project.lock import ProjectLocked, lock_path, read_holder  # noqa: E402
+from fluorogui.simulation.phantoms import femoral_component_mesh  # noqa: E402
+from fluorogui.simulation.protocols import dual_orthogonal_views  # noqa: E402
 from fluorogui.workflow.session import FrameState  # noqa: E402
 
 SQUARE = np.array([[10, 10], [50, 10], [50, 50], [10, 50.0]])
@@ -121,9 +121,9 @@ def test_a_panel_edit_is_one_reviewed_step_with_the_panels_own_state(controller)
 def test_frame_states_never_show_a_flagged_pose_as_matched(controller):
     s = controller.session
     record = MatchRecord(0.2, [0.1, 0.1], 30, 0.1, True, "fast")
-    s.set_record("femoral", 0, PoseRecord(np.zeros(6), record, status=MATCHED), "Match")
+    s.set_record("femoral", 0, PoseRecord(np.zeros(6), record, status=Status.MATCHED), "Match")
     assert s.frame_state(0) == FrameState.MATCHED
-    s.set_record("femoral", 5, PoseRecord(np.zeros(6), record, status=NEEDS_REVIEW, reason="view 1: too far"),
+    s.set_record("femoral", 5, PoseRecord(np.zeros(6), record, status=Status.NEEDS_REVIEW, reason="view 1: too far"),
                  "Match")
     assert s.frame_state(5) == FrameState.NEEDS_REVIEW
     s.set_reviewed("femoral", 5)
@@ -147,7 +147,7 @@ def test_open_locks_the_file_and_save_reopen_gives_the_same_session(controller, 
 
 
 def test_a_file_another_program_holds_is_refused_or_opened_read_only(controller, project, tmp_path):
-    from fluorogui.io.project import save_project
+    from fluorogui.io.project.document import save_project
 
     path = tmp_path / "held.fluoro"
     save_project(project, path)

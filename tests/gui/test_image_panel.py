@@ -7,7 +7,7 @@ pytest.importorskip("pytestqt")
 from PySide6.QtCore import QPoint, QPointF, Qt  # noqa: E402
 from PySide6.QtGui import QColor  # noqa: E402
 
-from fluorogui.core.outline_edit import points_near_path  # noqa: E402
+from fluorogui.core.outlines.editing import points_near_path  # noqa: E402
 from fluorogui.gui.image_panel import ImagePanel, Tool  # noqa: E402
 
 SIZE = 200

@@ -7,7 +7,7 @@ pytest.importorskip("pytestqt")
 from PySide6.QtWidgets import QDialog, QFileDialog  # noqa: E402
 
 from fluorogui.gui.import_dialog import FIELD_KEYS, ImportDialog  # noqa: E402
-from fluorogui.io.demo import build_demo_project  # noqa: E402
+from fluorogui.simulation.demo import build_demo_project  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -12,9 +12,9 @@ from PySide6.QtTest import QTest  # noqa: E402
 from PySide6.QtWidgets import QApplication, QMessageBox  # noqa: E402
 
 from fluorogui import __version__  # noqa: E402
+from fluorogui.core.records import PoseRecord  # noqa: E402
 from fluorogui.gui.pixel_value import RawPixels, format_value  # noqa: E402
 from fluorogui.logs import log_file_path  # noqa: E402
-from fluorogui.core.session import PoseRecord  # noqa: E402
 
 
 def _hover(qtbot, panel, u, v):

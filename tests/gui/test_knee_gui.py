@@ -7,7 +7,7 @@ import pytest
 pytest.importorskip("pytestqt")
 from PySide6.QtWidgets import QDialog  # noqa: E402
 
-from fluorogui.core.session import PoseRecord  # noqa: E402
+from fluorogui.core.records import PoseRecord  # noqa: E402
 from fluorogui.gui.knee_actions import ExportDialog  # noqa: E402
 
 

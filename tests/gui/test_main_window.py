@@ -7,7 +7,7 @@ pytest.importorskip("pytestqt")
 from PySide6.QtCore import QSettings, Qt  # noqa: E402
 from PySide6.QtWidgets import QMessageBox  # noqa: E402
 
-from fluorogui.core.pose import pose_error  # noqa: E402
+from fluorogui.core.projection.pose import pose_error  # noqa: E402
 from fluorogui.gui.image_panel import Tool  # noqa: E402
 from fluorogui.gui.main_window import MainWindow  # noqa: E402
 from fluorogui.workflow.session import FrameState  # noqa: E402
@@ -121,7 +121,7 @@ def test_point_and_click_places_the_model(window, demo):
     c, s = window.controller, window.controller.session
     name = c.component
     truth = np.array(c.project.settings["demo_truth"]["0"][name])
-    from fluorogui.core.pose import rotation_matrix
+    from fluorogui.core.projection.pose import rotation_matrix
 
     centre = rotation_matrix(*truth[3:]) @ s.mesh(name).centroid + truth[:3]
     window.set_tool(Tool.PLACE)
@@ -176,7 +176,7 @@ def test_close_asks_about_unsaved_changes(window, demo, dialogs):
     dialogs["answers"].append(QMessageBox.StandardButton.Discard)
     window.close()
     assert not window.isVisible()
-    from fluorogui.io.lock import lock_path
+    from fluorogui.io.project.lock import lock_path
 
     assert not lock_path(demo).exists()  # closing lets go of the file
 

@@ -5,8 +5,9 @@ import pytest
 pytest.importorskip("pytestqt")
 from PySide6.QtCore import QPoint, Qt  # noqa: E402
 
-from fluorogui.core.matching import MatchSettings  # noqa: E402
-from fluorogui.core.session import FAILED, MATCHED, NEEDS_REVIEW, MatchRecord, PoseRecord  # noqa: E402
+from fluorogui.core.matching.problem import MatchSettings
+from fluorogui.core.records import MatchRecord, PoseRecord  # noqa: E402
+from fluorogui.core.status import Status
 from fluorogui.gui.matcher_panel import MatcherPanel, describe_pose  # noqa: E402
 from fluorogui.gui.pose_editor import PoseEditor  # noqa: E402
 from fluorogui.gui.timeline import STATE_COLOURS, Timeline, TimelineLegend  # noqa: E402
@@ -71,14 +72,14 @@ def test_matcher_panel_settings_and_buttons(qtbot):
 def test_pose_status_in_plain_words():
     match = MatchRecord(0.2, [0.1, 0.1], 30, 0.5, True, "fast")
     assert describe_pose("femoral", None)[0] == "femoral: not placed or matched in this frame"
-    text, level = describe_pose("tibial", PoseRecord(np.zeros(6), match, status=MATCHED))
+    text, level = describe_pose("tibial", PoseRecord(np.zeros(6), match, status=Status.MATCHED))
     assert text == "tibial: matched, 0.200 mm (30 calls, 0.5 s)" and level == "ok"
     reason = "view 1: the tibial outline could not be traced, it crosses itself — edit it or re-run Find implants"
-    text, level = describe_pose("tibial", PoseRecord(np.zeros(6), match, status=NEEDS_REVIEW, reason=reason))
+    text, level = describe_pose("tibial", PoseRecord(np.zeros(6), match, status=Status.NEEDS_REVIEW, reason=reason))
     assert text.startswith("tibial: needs review — " + reason) and level == "bad"
-    text, level = describe_pose("tibial", PoseRecord(np.zeros(6), None, status=FAILED, reason=reason))
+    text, level = describe_pose("tibial", PoseRecord(np.zeros(6), None, status=Status.FAILED, reason=reason))
     assert text == "tibial: failed — " + reason and level == "bad"
-    text, level = describe_pose("tibial", PoseRecord(np.zeros(6), match, reviewed=True, status=NEEDS_REVIEW,
+    text, level = describe_pose("tibial", PoseRecord(np.zeros(6), match, reviewed=True, status=Status.NEEDS_REVIEW,
                                                      reason="too far"))
     assert text.startswith("tibial: accepted") and "flagged: too far" in text and level == "ok"
     assert "Error" not in text and "placed" in describe_pose("femoral", PoseRecord(np.zeros(6)))[0]

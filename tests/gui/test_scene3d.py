@@ -13,8 +13,8 @@ import pytest
 pv = pytest.importorskip("pyvista")
 from vtkmodules.vtkRenderingCore import vtkCoordinate  # noqa: E402
 
-from fluorogui.core.geometry import View  # noqa: E402
-from fluorogui.core.pose import pose_to_matrix, transform_points  # noqa: E402
+from fluorogui.core.projection.geometry import View  # noqa: E402
+from fluorogui.core.projection.pose import pose_to_matrix, transform_points  # noqa: E402
 from fluorogui.gui.scene3d import FluoroScene, window_image  # noqa: E402
 
 REFERENCE_POSES = Path(__file__).resolve().parents[1] / "data" / "biplane_reference_poses.csv"
@@ -265,7 +265,7 @@ def _reference_pose(frame=0, component="femoral"):
 def test_real_data_scene_matches_the_xray_from_view1(shared_data, gl_context):
     from fluorogui.io.calibration import load_view
     from fluorogui.io.images import read_image
-    from fluorogui.io.meshes import load_mesh
+    from fluorogui.io.meshes.read import load_mesh
 
     root = shared_data / "biplane-tka"
     views = [load_view(root / "calibration" / f"cam{c}_mayacam2.txt") for c in (1, 2)]

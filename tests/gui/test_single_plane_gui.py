@@ -7,7 +7,7 @@ import pytest
 pytest.importorskip("pytestqt")
 
 from fluorogui.io.importer import import_folder  # noqa: E402
-from fluorogui.io.project import save_project  # noqa: E402
+from fluorogui.io.project.document import save_project  # noqa: E402
 from fluorogui.workflow.messages import SINGLE_PLANE_NOTE  # noqa: E402
 
 

@@ -90,13 +90,13 @@ def test_an_exception_becomes_a_failure_message(qtbot):
 
 
 def test_error_messages_never_name_a_class():
-    from fluorogui.core.spline import OutlineError
+    from fluorogui.core.outlines.spline import OutlineError
     from fluorogui.gui.worker import describe_error
     from fluorogui.io.errors import InputError
 
     assert describe_error(OutlineError("outline crosses itself at point 5")) == "Outline crosses itself at point 5."
     assert describe_error(InputError("a.tif", "not an image")) == "a.tif: not an image"
-    text = describe_error(ImportError("cannot import name 'find_components'", name="fluorogui.core.initialise"))
+    text = describe_error(ImportError("cannot import name 'find_components'", name="fluorogui.core.search.find"))
     assert "ImportError" not in text and "not available" in text
 
 

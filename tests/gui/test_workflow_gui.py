@@ -13,10 +13,11 @@ import pytest
 pytest.importorskip("pytestqt")
 from PySide6.QtWidgets import QFileDialog, QMessageBox  # noqa: E402
 
-from fluorogui.core.pose import pose_error  # noqa: E402
-from fluorogui.core.session import MATCHED, PoseRecord  # noqa: E402
+from fluorogui.core.projection.pose import pose_error  # noqa: E402
+from fluorogui.core.records import PoseRecord  # noqa: E402
+from fluorogui.core.status import Status
 from fluorogui.gui.timeline import STATE_COLOURS  # noqa: E402
-from fluorogui.io.lock import lock_path  # noqa: E402
+from fluorogui.io.project.lock import lock_path  # noqa: E402
 from fluorogui.workflow.session import FrameState, Session  # noqa: E402
 
 TOL = 0.05  # mm and degrees
@@ -30,7 +31,7 @@ def start_from_truth(session, frame, reviewed=False):
     """Frame ``frame`` matched at the truth (as a finished match would leave it)."""
     for name in session.components():
         session.set_record(name, frame, PoseRecord(truth(session, frame, name), None, reviewed=reviewed,
-                                                   status=MATCHED), "Match")
+                                                   status=Status.MATCHED), "Match")
 
 
 def test_match_both_lands_on_the_demo_truth_and_undoes_in_one_step(window, fine_demo, qtbot):
@@ -172,17 +173,18 @@ def test_match_both_skips_an_accepted_pose(window, demo, qtbot):
     assert "accepted" in window.statusBar().currentMessage() and len(s.history) == entries
 
 
-class FakePlacement:
-    def __init__(self, pose, found):
-        self.pose, self.found, self.iou, self.reason, self.seconds = pose, found, [0.9, 0.8], \
-            "" if found else "no dark region", 0.1
+def FakePlacement(name, pose, found):
+    """What find_components returns: a placement of the engine's one Placement type."""
+    from fluorogui.core.search.find import Placement
+
+    return Placement(name, pose, found, [0.9, 0.8], float("nan"), [], "" if found else "no dark region", 0.1)
 
 
 @pytest.fixture()
 def fake_find(monkeypatch):
     """find_components replaced (the engine is being rewritten): it reports progress, may
     wait for a cancel, places the femoral component at the truth and not the tibial."""
-    import fluorogui.core.initialise as initialise
+    from fluorogui.core.cancel import Cancelled
 
     calls = {"wait": False, "seen_cancel": False, "truth": None}
 
@@ -193,11 +195,10 @@ def fake_find(monkeypatch):
         while calls["wait"]:
             if cancel is not None and cancel():
                 calls["seen_cancel"] = True
-                raise initialise.SearchCancelled()
+                raise Cancelled()
         t = calls["truth"]
-        return {name: FakePlacement(t[name] if name == "femoral" else None, name == "femoral") for name in meshes}
+        return {name: FakePlacement(name, t[name] if name == "femoral" else None, name == "femoral") for name in meshes}
 
-    monkeypatch.setattr(initialise, "find_components", find_components, raising=False)
     import fluorogui.workflow.finding as finding
 
     monkeypatch.setattr(finding, "find_components", find_components, raising=False)
@@ -233,13 +234,10 @@ def test_find_implants_can_be_cancelled(window, demo, qtbot, fake_find):
 
 
 def test_task_errors_reach_the_user_as_plain_sentences(window, demo, qtbot, dialogs, monkeypatch):
-    from fluorogui.core.spline import OutlineError
-    import fluorogui.core.initialise as initialise
-
+    from fluorogui.core.outlines.spline import OutlineError
     def broken(*args, **kwargs):
         raise OutlineError("outline crosses itself at point 5")
 
-    monkeypatch.setattr(initialise, "find_components", broken, raising=False)
     import fluorogui.workflow.finding as finding
 
     monkeypatch.setattr(finding, "find_components", broken, raising=False)
@@ -273,13 +271,14 @@ def test_a_project_another_program_holds_is_not_opened_behind_its_back(window, d
 def test_a_match_whose_outline_was_moved_for_the_rim_says_so(window, demo):
     from types import SimpleNamespace
 
-    from fluorogui.workflow import MATCHED, FrameResult
+    from fluorogui.core.status import Status
+    from fluorogui.workflow import FrameResult
 
     window.open_project(demo)
     refined = SimpleNamespace(objective_mm=0.031, history=[0.5, 0.031], settings={"rim_refined": [False, True]})
     plain = SimpleNamespace(objective_mm=0.029, history=[0.4, 0.029], settings={"rim_refined": [False, False]})
-    window._show_results([FrameResult(0, "femoral", np.zeros(6), MATCHED, "", refined, seconds=1.0),
-                          FrameResult(0, "tibial", np.zeros(6), MATCHED, "", plain, seconds=1.0)])
+    window._show_results([FrameResult(0, "femoral", np.zeros(6), Status.MATCHED, "", refined, seconds=1.0),
+                          FrameResult(0, "tibial", np.zeros(6), Status.MATCHED, "", plain, seconds=1.0)])
     summary = window.matcher.summary.text()
     assert "femoral matched in 1.0 s, objective 0.031 mm (outline moved for the metal's soft rim in view 2)" in summary
     assert "tibial matched in 1.0 s, objective 0.029 mm." in summary and summary.count("soft rim") == 1

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fluorogui.core.geometry import DEFAULT_PITCH_MM, View
-from fluorogui.core.pose import rotation_matrix
+from fluorogui.core.projection.geometry import DEFAULT_PITCH_MM, View
+from fluorogui.core.projection.pose import rotation_matrix
 from fluorogui.io.calibration import (
     check_image_size,
     jointtrack_matrix,

@@ -8,15 +8,15 @@ import cv2
 import numpy as np
 import pytest
 
-from fluorogui.core.phantoms import femoral_component_mesh
-from fluorogui.core.pose import transform_points
-from fluorogui.core.render import render_silhouette
-from fluorogui.io import demo
+from fluorogui.core.projection.pose import transform_points
 from fluorogui.io.calibration import load_view
-from fluorogui.io.demo import build_demo_project, demo_project_path
 from fluorogui.io.images import read_image
-from fluorogui.io.meshes import load_mesh
-from fluorogui.io.project import load_project
+from fluorogui.io.meshes.read import load_mesh
+from fluorogui.io.project.document import load_project
+from fluorogui.simulation import demo
+from fluorogui.simulation.demo import build_demo_project, demo_project_path
+from fluorogui.simulation.phantoms import femoral_component_mesh
+from fluorogui.simulation.render import render_silhouette
 
 FRAMES = 4
 

@@ -10,8 +10,6 @@ import cv2
 import numpy as np
 import pytest
 
-from fluorogui.core.phantoms import tibial_component_mesh
-from fluorogui.io.demo import build_demo_project, write_stl
 from fluorogui.io.errors import InputError
 from fluorogui.io.images import read_image, write_image
 from fluorogui.io.importer import (
@@ -23,7 +21,9 @@ from fluorogui.io.importer import (
     list_image_files,
     read_pairs_csv,
 )
-from fluorogui.io.project import load_project, save_project
+from fluorogui.io.project.document import load_project, save_project
+from fluorogui.simulation.demo import build_demo_project, write_stl
+from fluorogui.simulation.phantoms import tibial_component_mesh
 
 SIZE = 96  # small demo images keep these tests fast
 

@@ -8,7 +8,7 @@ import pytest
 import pyvista as pv
 
 from fluorogui.io.errors import InputError
-from fluorogui.io.meshes import load_mesh
+from fluorogui.io.meshes.read import load_mesh
 
 DATA = Path(__file__).resolve().parents[2].parent / "shared" / "data"
 

@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fluorogui.core.pose import pose_to_matrix
+from fluorogui.core.projection.pose import pose_to_matrix
 from fluorogui.io.calibration import load_view
-from fluorogui.io.errors import InputError, check_output_file
+from fluorogui.io.errors import InputError
+from fluorogui.io.files import check_output_file
 from fluorogui.io.pose_files import (
     jointtrack_to_world_pose,
     pose_to_jointtrack,
@@ -62,7 +63,7 @@ def test_jointtrack_camera_frame_round_trip(tmp_path, shared_data):
 
 
 def test_jointtrack_rows_in_a_tilted_view_map_back_to_the_same_pose():
-    from fluorogui.core.geometry import View
+    from fluorogui.core.projection.geometry import View
 
     c, s = np.cos(0.4), np.sin(0.4)
     view = View(source=(100.0, -20.0, 900.0), normal=(s, 0.0, -c), e_u=(c, 0.0, s), e_v=(0.0, -1.0, 0.0),
@@ -102,8 +103,8 @@ def test_long_and_wide_pose_csvs(tmp_path):
 @pytest.mark.parametrize("text, words", [
     ("frame,component,x,y,z,alpha,beta\n", "lacks the column gamma"),
     ("frame,component,x,y,z,alpha,beta,gamma\n0,femur,1,2,3,4,5,6\n", "component 'femur'"),
-    ("frame,component,x,y,z,alpha,beta,gamma\n0,femoral,1,2,3,4,5\n", "data row 1 has 7 columns"),
-    ("frame,component,x,y,z,alpha,beta,gamma\n0,femoral,1,2,x,4,5,6\n", "data row 1, z: 'x' is not a number"),
+    ("frame,component,x,y,z,alpha,beta,gamma\n0,femoral,1,2,3,4,5\n", "line 2 has 7 values"),
+    ("frame,component,x,y,z,alpha,beta,gamma\n0,femoral,1,2,x,4,5,6\n", "line 2, z: 'x' is not a number"),
     ("frame,component,x,y,z,alpha,beta,gamma\n0,femoral,1,2,3,4,5,6\n0,femoral,1,2,3,4,5,6\n", "second femoral"),
 ])
 def test_bad_long_pose_csvs_are_refused_by_row(tmp_path, text, words):

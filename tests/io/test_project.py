@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fluorogui.core.geometry import View
-from fluorogui.core.session import (
+from fluorogui.core.projection.geometry import View
+from fluorogui.core.records import (
     ImageSequence,
     MatchRecord,
     ModelEntry,
@@ -19,9 +19,9 @@ from fluorogui.core.session import (
     Project,
     SplineRecord,
 )
-from fluorogui.io import project as project_io
 from fluorogui.io.errors import InputError
-from fluorogui.io.project import MIGRATIONS, SCHEMA_VERSION, load_project, save_project
+from fluorogui.io.project import document as project_io
+from fluorogui.io.project.document import MIGRATIONS, SCHEMA_VERSION, load_project, save_project
 
 FIXTURES = Path(__file__).resolve().parent / "data"
 

@@ -9,10 +9,10 @@ from pathlib import Path
 
 import pytest
 
-from fluorogui.core.session import POSE_STATUSES
+from fluorogui.core.status import Status
 from fluorogui.io import schema
 from fluorogui.io.errors import InputError
-from fluorogui.io.project import SCHEMA_VERSION, load_project, save_project
+from fluorogui.io.project.document import SCHEMA_VERSION, load_project, save_project
 
 FIXTURES = Path(__file__).resolve().parent / "data"
 
@@ -115,7 +115,7 @@ def _message(path) -> str:
 
 def test_folder_and_huge_file(tmp_path, monkeypatch):
     assert str(pytest.raises(InputError, load_project, tmp_path).value) == f"{tmp_path}: is a folder, not a project file"
-    monkeypatch.setattr("fluorogui.io.project.MAX_PROJECT_BYTES", 100)
+    monkeypatch.setattr("fluorogui.io.project.document.MAX_PROJECT_BYTES", 100)
     path = tmp_path / "big.fluoro"
     path.write_text(" " * 2_000_000)
     assert str(pytest.raises(InputError, load_project, path).value) == \
@@ -123,7 +123,7 @@ def test_folder_and_huge_file(tmp_path, monkeypatch):
 
 
 def test_schema_knows_the_statuses_of_the_engine():
-    assert set(schema.POSE_STATUSES) == set(POSE_STATUSES)
+    assert set(schema.POSE_STATUSES) == {s.value for s in Status}
 
 
 def test_nesting_depth_skips_brackets_in_strings():

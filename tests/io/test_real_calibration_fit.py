@@ -4,11 +4,11 @@ from pathlib import Path
 
 import numpy as np
 
-from fluorogui.core.mesh import prepare_mesh
-from fluorogui.core.pipeline import match_images
+from fluorogui.core.matching.loop import match_images
+from fluorogui.core.projection.mesh import prepare_mesh
 from fluorogui.io.calibration import load_view
 from fluorogui.io.images import read_image
-from fluorogui.io.meshes import load_mesh
+from fluorogui.io.meshes.read import load_mesh
 
 REFERENCE = Path(__file__).resolve().parents[1] / "data" / "biplane_reference_poses.csv"
 

@@ -2,7 +2,7 @@
 
 The image checks project the mesh vertices with our own pinhole arithmetic and fill the
 projected triangles with OpenCV, so they share nothing with the renderer under test
-(``fluorogui.core.render``) or the matcher's silhouette code.
+(``fluorogui.simulation.render``) or the matcher's silhouette code.
 """
 from __future__ import annotations
 
@@ -12,16 +12,22 @@ import cv2
 import numpy as np
 import pytest
 
-from fluorogui.core.phantoms import femoral_component_mesh, tibial_component_mesh
-from fluorogui.core.pose import pose_to_matrix
-from fluorogui.core.render import coverage_of_meshes
-from fluorogui.io import synthetic
-from fluorogui.io.demo import FIELD_RADIUS_FRACTION, write_stl
+from fluorogui.core.projection.pose import pose_to_matrix
 from fluorogui.io.images import read_image
 from fluorogui.io.importer import detect_biplane_folder
-from fluorogui.io.meshes import load_mesh
-from fluorogui.io.project import load_project
-from fluorogui.io.synthetic import MeshTopology, build_knee_sequence, flexion_schedule, knee_bend_truth, metal_coverage
+from fluorogui.io.meshes.read import load_mesh
+from fluorogui.io.project.document import load_project
+from fluorogui.simulation import knee_bend as synthetic
+from fluorogui.simulation.demo import FIELD_RADIUS_FRACTION, write_stl
+from fluorogui.simulation.knee_bend import (
+    MeshTopology,
+    build_knee_sequence,
+    flexion_schedule,
+    knee_bend_truth,
+    metal_coverage,
+)
+from fluorogui.simulation.phantoms import femoral_component_mesh, tibial_component_mesh
+from fluorogui.simulation.render import coverage_of_meshes
 
 REAL_MODELS = Path(__file__).resolve().parents[3] / "shared" / "data" / "biplane-tka" / "models"
 FRAMES = 3

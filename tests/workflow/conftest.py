@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fluorogui.io.demo import build_demo_project
+from fluorogui.simulation.demo import build_demo_project
 from fluorogui.workflow import Session
 
 

@@ -6,7 +6,7 @@ import os
 import shutil
 
 from fluorogui.cli import main
-from fluorogui.io.project import load_project
+from fluorogui.io.project.document import load_project
 from fluorogui.workflow.batch import run_batch, summary_table
 
 
@@ -49,7 +49,7 @@ def test_batch_command_prints_a_summary_and_exit_status(demo, capsys):
 
 
 def test_batch_skips_a_project_open_elsewhere_and_says_who_holds_it(demo):
-    from fluorogui.io.lock import ProjectLock
+    from fluorogui.io.project.lock import ProjectLock
 
     with ProjectLock(demo, "fluorogui (desktop)"):  # this test process plays the desktop app
         rows = list(run_batch([demo], workers=1, frames="1:1"))

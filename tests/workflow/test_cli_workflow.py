@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from fluorogui.cli import main
-from fluorogui.io.lock import ProjectLock
-from fluorogui.io.project import load_project
+from fluorogui.io.project.document import load_project
+from fluorogui.io.project.lock import ProjectLock
 from fluorogui.workflow import Session
 
 JSON_FIELDS = {"frame", "component", "pose", "objective_mm", "per_view_mean_mm", "converged", "status", "reason",
@@ -28,7 +28,8 @@ def _cli(*args, cwd=None):
 
 def test_public_api_imports_as_documented():
     import fluorogui
-    from fluorogui import FrameResult, FrameState, Placement, Session as S, WorkflowSettings  # noqa: F401
+    from fluorogui import FrameResult, FrameState, Placement, WorkflowSettings  # noqa: F401
+    from fluorogui import Session as S
 
     assert S is Session and "Session" in fluorogui.__all__
     with pytest.raises(AttributeError):
@@ -122,7 +123,7 @@ def test_import_of_unequal_cameras_warns_and_flags_later(tmp_path, capsys):
 
 
 def test_find_places_both_components_and_reports_json(demo, capsys):
-    from fluorogui.core.pose import pose_error
+    from fluorogui.core.projection.pose import pose_error
 
     assert main(["find", str(demo), "--frames", "2", "--json"]) == 0
     lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
@@ -137,7 +138,7 @@ def test_find_places_both_components_and_reports_json(demo, capsys):
 
 
 def test_engine_problems_become_sentences():
-    from fluorogui.core.pipeline import SegmentationError
+    from fluorogui.core.matching.loop import SegmentationError
     from fluorogui.workflow import messages
 
     text = messages.segmentation_failed("tibial", SegmentationError(0, "outline crosses itself at point 5"))

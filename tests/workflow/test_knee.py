@@ -9,9 +9,10 @@ import sys
 import numpy as np
 import pytest
 
-from fluorogui.core.kinematics import knee_kinematics, relative_pose_from_kinematics
-from fluorogui.core.pose import matrix_to_pose, pose_to_matrix
-from fluorogui.core.session import NEEDS_REVIEW, PoseRecord
+from fluorogui.core.knee.kinematics import knee_kinematics, relative_pose_from_kinematics
+from fluorogui.core.projection.pose import matrix_to_pose, pose_to_matrix
+from fluorogui.core.records import PoseRecord
+from fluorogui.core.status import Status
 from fluorogui.io.errors import InputError
 from fluorogui.io.pose_files import read_jts, read_tra
 from fluorogui.workflow import Session
@@ -49,7 +50,7 @@ def test_missing_and_flagged_frames(demo):
     assert rows[1].status == "missing" and "femoral or tibial" in rows[1].reason
     assert np.all(np.isnan(rows[1].values.values()))
     record = session.pose_record("tibial", 0)
-    session.project.poses[(0, "tibial")] = PoseRecord(record.pose, record.match, status=NEEDS_REVIEW,
+    session.project.poses[(0, "tibial")] = PoseRecord(record.pose, record.match, status=Status.NEEDS_REVIEW,
                                                       reason="residual 3x typical")
     row = session.knee_at(0)
     assert row.status == "needs_review" and "tibial needs review (residual 3x typical)" in row.reason
@@ -164,7 +165,7 @@ def test_tra_and_jts_leave_out_poses_flagged_for_review_unless_asked(demo, truth
     session = Session.open(demo)
     put_truth(session, truth, frames=[0, 1, 2])
     flagged_pose = np.asarray(truth(session)[1]["femoral"], dtype=float) + [2.0, 0, 0, 0, 0, 0]
-    session.project.poses[(1, "femoral")] = PoseRecord(flagged_pose, status=NEEDS_REVIEW, reason="residual too high")
+    session.project.poses[(1, "femoral")] = PoseRecord(flagged_pose, status=Status.NEEDS_REVIEW, reason="residual too high")
     assert unreviewed_matches(session) == [(1, "femoral", "residual too high")]
 
     def tra_rows(**kwargs):
@@ -218,7 +219,7 @@ def test_figure_export_formats(demo, truth, tmp_path, suffix, magic):
 
 
 def test_match_sds_become_kinematics_sds_and_export_columns(demo, truth, tmp_path):
-    from fluorogui.core.session import MatchRecord
+    from fluorogui.core.records import MatchRecord
 
     session = Session.open(demo)
     for c, pose in truth(session)[1].items():

@@ -7,9 +7,9 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from fluorogui.core.quality import MATCHED, NEEDS_REVIEW
-from fluorogui.core.rim import STEP, RimModel, is_soft
-from fluorogui.core.validation import two_views
+from fluorogui.core.outlines.rim import STEP, RimModel, is_soft
+from fluorogui.core.status import Status
+from fluorogui.simulation.protocols import two_views
 from fluorogui.workflow import framematch
 from fluorogui.workflow.framematch import RIM_JUDGE_FRAMES, ComponentInput, FrameMatcher, RimJudgement
 from fluorogui.workflow.settings import WorkflowSettings
@@ -43,8 +43,8 @@ def test_frame_matcher_reuses_the_models_only_after_three_matched_frames(monkeyp
     fit, the second matches soft, the next two match with steps; from the fifth on the
     loop is handed the settled (step) model and fits nothing. View 2 is a clear step
     from the first matched frame on, and is not judged again."""
-    script = {1: (SOFT, NEEDS_REVIEW), 2: (SOFT, MATCHED), 3: (STEP, MATCHED), 4: (STEP, MATCHED),
-              5: (SOFT, MATCHED), 6: (SOFT, MATCHED)}
+    script = {1: (SOFT, Status.NEEDS_REVIEW), 2: (SOFT, Status.MATCHED), 3: (STEP, Status.MATCHED), 4: (STEP, Status.MATCHED),
+              5: (SOFT, Status.MATCHED), 6: (SOFT, Status.MATCHED)}
     handed: dict[int, list] = {}
     state = {"frame": 0}
 
@@ -54,9 +54,8 @@ def test_frame_matcher_reuses_the_models_only_after_three_matched_frames(monkeyp
         for k in range(len(rims)):
             if rims[k] is None:  # judged here, as segment_and_match fills the list
                 rims[k] = script[frame][0] if k == 0 else STEP
-        result = SimpleNamespace(cancelled=False, pose=np.zeros(6), converged=True, per_view_mean_mm=[0.05, 0.05],
-                                 outlines_px=None)
-        return SimpleNamespace(result=result, splines=[], outlines=None, weights=None)
+        return SimpleNamespace(pose=np.zeros(6), converged=True, per_view_mean_mm=[0.05, 0.05], outlines_px=None,
+                               splines=[], image_outlines=None, outline_weights=None)
 
     monkeypatch.setattr(framematch, "segment_and_match", fake_loop)
     monkeypatch.setattr(framematch, "assess", lambda *a, **k: None)
@@ -69,7 +68,7 @@ def test_frame_matcher_reuses_the_models_only_after_three_matched_frames(monkeyp
     for frame in sorted(script):
         state["frame"] = frame
         statuses.append(matcher.match_component(frame, [np.zeros((512, 512))] * 2, job).status)
-    assert statuses == [NEEDS_REVIEW] + [MATCHED] * 5
+    assert statuses == [Status.NEEDS_REVIEW] + [Status.MATCHED] * 5
     assert handed[1] == handed[2] == [None, None]  # judged in each frame itself
     assert handed[3] == handed[4] == [None, STEP]  # view 2: frame 2's clear step
     assert handed[5] == handed[6] == [STEP, STEP]  # view 1: the median of frames 2-4, not frame 1's soft fit
@@ -80,17 +79,16 @@ def test_the_attempts_of_a_frame_after_a_matched_one_start_from_its_models(monke
     than judging the same images again; an attempt that fails its checks hands nothing on,
     and the next frame judges afresh (its models are not settled yet)."""
     handed: list[list] = []
-    statuses = iter([NEEDS_REVIEW, MATCHED, MATCHED, MATCHED, MATCHED, MATCHED, MATCHED])
+    statuses = iter([Status.NEEDS_REVIEW, Status.MATCHED, Status.MATCHED, Status.MATCHED, Status.MATCHED, Status.MATCHED, Status.MATCHED])
 
     def fake_loop(images, views, mesh, start, settings, loop, given, occluded, step, cancel, rims):
         handed.append(list(rims))
         for k in range(len(rims)):
             if rims[k] is None:
                 rims[k] = RimModel(1.0 + len(handed), 1.2)  # a model per judging attempt
-        result = SimpleNamespace(cancelled=False, pose=np.zeros(6), converged=True, per_view_mean_mm=[0.05, 0.05],
-                                 outlines_px=None, objective_mm=0.05,
-                                 weakest_rotation_axis=lambda: np.array([0.0, 0.0, 1.0]))
-        return SimpleNamespace(result=result, splines=[], outlines=None, weights=None)
+        return SimpleNamespace(pose=np.zeros(6), converged=True, per_view_mean_mm=[0.05, 0.05], outlines_px=None,
+                               objective_mm=0.05, weakest_rotation_axis=lambda: np.array([0.0, 0.0, 1.0]),
+                               splines=[], image_outlines=None, outline_weights=None)
 
     monkeypatch.setattr(framematch, "segment_and_match", fake_loop)
     monkeypatch.setattr(framematch, "assess", lambda *a, **k: None)
@@ -99,7 +97,7 @@ def test_the_attempts_of_a_frame_after_a_matched_one_start_from_its_models(monke
     job = ComponentInput("femoral", SimpleNamespace(centroid=np.zeros(3)), np.zeros(6))
     first = matcher.match_component(0, [np.zeros((512, 512))] * 2, job)
     # the start fails its checks, a turned start matches, then the two probes (the same pose)
-    assert first.status == MATCHED and len(handed) == 4
+    assert first.status == Status.MATCHED and len(handed) == 4
     assert handed[0] == handed[1] == [None, None]  # each judges: the failed one hands nothing on
     assert handed[2] == handed[3] == [RimModel(3.0, 1.2)] * 2  # the matched attempt's models
     matcher.match_component(1, [np.zeros((512, 512))] * 2, job)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fluorogui.core.pose import pose_error, rotation_matrix
-from fluorogui.core.session import PoseRecord
+from fluorogui.core.projection.pose import pose_error, rotation_matrix
+from fluorogui.core.records import PoseRecord
 from fluorogui.workflow import FrameState, Session
 from fluorogui.workflow.framematch import turned
 
@@ -122,7 +122,7 @@ def test_store_never_overwrites_accepted_poses_or_reviewed_outlines(demo):
 
 
 def test_session_addresses_frames_by_number_and_places_models(tmp_path):
-    from fluorogui.io.demo import build_demo_project
+    from fluorogui.simulation.demo import build_demo_project
 
     path = build_demo_project(tmp_path, frames=2, image_size=256)
     session = Session.open(path)
@@ -136,7 +136,7 @@ def test_session_addresses_frames_by_number_and_places_models(tmp_path):
     target = np.array([5.0, -3.0, 8.0])
     miss = session.place_at("tibial", 10, [view1.project(target[None])[0], view2.project(target[None])[0]])
     pose = session.pose("tibial", 10)
-    from fluorogui.core.pose import rotation_matrix
+    from fluorogui.core.projection.pose import rotation_matrix
 
     centroid = rotation_matrix(*pose[3:]) @ session.mesh("tibial").centroid + pose[:3]
     assert miss < 1e-6 and np.allclose(centroid, target, atol=1e-6)

@@ -1,0 +1,90 @@
+"""``fluorogui export``: a project's poses, kinematics, .tra, .jts or figure, over
+``fluorogui.workflow.exports``."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from fluorogui.cli.common import UsageError, warn
+
+
+def add_parser(sub):
+    e = sub.add_parser("export", help="write a project's poses, kinematics, .tra, .jts or figure")
+    e.add_argument("project", metavar="PROJECT.fluoro")
+    e.add_argument("--poses", metavar="OUT.csv", help="both poses (6 numbers and the 4x4), residuals, status, SDs "
+                                                      "and kinematics, one row per frame")
+    e.add_argument("--kinematics", metavar="OUT.csv", help="knee kinematics, one row per frame")
+    e.add_argument("--tra", metavar="OUT.tra", help="Autoscoper: femoral then tibial 4x4, row by row, per frame")
+    e.add_argument("--jts", metavar="DIR", help="JointTrack femoral.jts and tibial.jts (needs --view)")
+    e.add_argument("--view", type=int, metavar="K", help="the view (1 = first) whose camera frame --jts uses")
+    e.add_argument("--include-unreviewed", action="store_true",
+                   help="--tra/--jts: also write poses the matcher flagged for review (those files carry no status; "
+                        "by default such poses are left out as NaN)")
+    e.add_argument("--plot", metavar="OUT.png|svg|pdf", help="the kinematics figure")
+    e.add_argument("--against", choices=("frame", "flexion"), default="frame", help="x axis of --plot")
+    e.add_argument("--side", choices=("right", "left"), help="the knee's side, if the project does not say")
+    return e
+
+
+def run(args) -> int:
+    from fluorogui.io.files import check_output_file, check_output_folder
+    from fluorogui.workflow import exports
+
+    wanted = [args.poses, args.kinematics, args.tra, args.jts, args.plot]
+    if not any(wanted):
+        raise UsageError("fluorogui: export: say what to write (--poses, --kinematics, --tra, --jts or --plot)")
+    if (args.jts is None) != (args.view is None):
+        raise UsageError("fluorogui: export: --jts and --view go together")
+    if args.plot and Path(args.plot).suffix.lower() not in (".png", ".svg", ".pdf"):
+        raise UsageError(f"fluorogui: export: --plot {args.plot}: the figure must be .png, .svg or .pdf")
+    for path in (args.poses, args.kinematics, args.tra, args.plot):  # before any work
+        if path:
+            check_output_file(path)
+    if args.jts:
+        check_output_folder(args.jts)
+    from fluorogui.io.errors import InputError
+    from fluorogui.workflow.session import Session
+
+    path = Path(args.project)
+    if not path.exists():
+        raise InputError(path, "file not found")
+    session = Session.open(path)
+    if args.view is not None and not 1 <= args.view <= session.n_views:
+        raise UsageError(f"fluorogui: export: --view {args.view}: the project has {session.n_views} "
+                         f"view{'s' if session.n_views != 1 else ''} (1 = first)")
+    if args.side:
+        session.set_side(args.side)  # for this export only: the project is not saved
+    elif session.side is None and (args.poses or args.kinematics or args.plot):
+        warn("the project does not say which knee this is; right assumed (use --side)")
+    rows = session.knee_rows() if (args.poses or args.kinematics or args.plot) else []
+    written = []
+    if args.poses:
+        written.append(exports.export_poses_csv(session, args.poses, rows))
+    if args.kinematics:
+        written.append(exports.export_kinematics_csv(session, args.kinematics, rows))
+    if args.tra:
+        written.append(exports.export_tra(session, args.tra, args.include_unreviewed))
+    if args.jts:
+        written += exports.export_jts(session, args.jts, args.view - 1, args.include_unreviewed)
+    flagged = exports.unreviewed_matches(session) if (args.tra or args.jts) else []
+    if flagged:
+        frames = sorted({frame for frame, _, _ in flagged})
+        what = ("written although flagged for review" if args.include_unreviewed else
+                "flagged for review and left out of --tra/--jts as NaN (accept them in the app, or --include-unreviewed)")
+        warn(f"{len(flagged)} pose{'s' if len(flagged) > 1 else ''} {what}: frame{'s' if len(frames) > 1 else ''} "
+             f"{frame_list(frames)}")
+    if args.plot:
+        written.append(exports.export_plot(session, args.plot, args.against, rows))
+    review = [r.frame for r in rows if r.status == "needs_review"]
+    missing = [r.frame for r in rows if r.status == "missing"]
+    if review:
+        warn(f"{len(review)} frame{'s' if len(review) > 1 else ''} need review: {frame_list(review)}")
+    if missing:
+        warn(f"{len(missing)} frame{'s' if len(missing) > 1 else ''} lack a pose (NaN): {frame_list(missing)}")
+    for p in written:
+        print(f"wrote {p}")
+    return 0
+
+
+def frame_list(frames: list[int]) -> str:
+    text = ", ".join(str(f) for f in frames[:12])
+    return text + (f" and {len(frames) - 12} more" if len(frames) > 12 else "")

@@ -1,0 +1,1 @@
+"""The knee: anatomical frames of the components and Grood-Suntay joint kinematics."""

@@ -1,0 +1,225 @@
+"""The fast method.
+
+``method="fast"`` keeps the objective family (distances from projected model outline
+points to the image splines) but: the outline is the exact mesh silhouette, each outline
+point carries the model point it images, so the residuals have analytic derivatives with
+correspondences frozen within an evaluation; residuals are signed point-to-curve
+distances in both directions (model to image, and image to model, which stops the
+outline from sliding onto part of the image outline) with a Huber loss against occluded
+or mis-segmented outline parts, each view's residuals weighted alike or, where the
+outline carries point weights (``OutlineSpline.weight_at``: the rim refinement's
+precision), by them; the pose is parametrised about the model centroid with
+rotations scaled by the model radius, so rotation and translation steps are equally
+conditioned; Levenberg–Marquardt steps; an initial translation from the outline
+centroids in both views; optional restarts.
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from fluorogui.core.cancel import check_cancel
+from fluorogui.core.matching.problem import (
+    MIN_VISIBLE_POINTS,
+    MatchProblem,
+    MatchResult,
+    MatchSettings,
+    _to_pose,
+    _to_state,
+    visible_points,
+)
+from fluorogui.core.projection.pose import rotvec_matrix
+from fluorogui.core.projection.silhouette import mesh_silhouette
+
+
+# -- the fast method ----------------------------------------------------------------------------
+def _times_skew(a: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rows a_i^T [v_i]x (N, 3), i.e. a_i x v_i, written out (no (N, 3, 3) matrices)."""
+    out = np.empty_like(a)
+    out[:, 0] = a[:, 1] * v[:, 2] - a[:, 2] * v[:, 1]
+    out[:, 1] = a[:, 2] * v[:, 0] - a[:, 0] * v[:, 2]
+    out[:, 2] = a[:, 0] * v[:, 1] - a[:, 1] * v[:, 0]
+    return out
+
+def _polyline_normals(points: np.ndarray, at: np.ndarray | None = None) -> np.ndarray:
+    """Unit normals of a closed polyline from its central differences (at the indices ``at``)."""
+    at = np.arange(len(points)) if at is None else np.asarray(at)
+    t = points[(at + 1) % len(points)] - points[at - 1]
+    n = np.column_stack([t[:, 1], -t[:, 0]])
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+
+class _FastEvaluation:
+    """Residuals and Jacobian of the fast objective at one pose (correspondences frozen)."""
+
+    def __init__(self, problem: MatchProblem, R, c, settings: MatchSettings, image_samples, image_params=None):
+        mesh = problem.mesh
+        t = c - R @ mesh.centroid
+        rho = mesh.radius
+        self.per_view_mm: list[float] = []
+        self.outlines_px: list[np.ndarray] = []
+        self.r, self.J, self.w = [], [], []
+        # per residual block: its view and where along the image outline (px of chord
+        # length) each residual sits, for the covariance's clusters of neighbours
+        self.view_of: list[int] = []
+        self.where: list[np.ndarray | None] = []
+        for k, (view, spline, g) in enumerate(zip(problem.views, problem.splines, image_samples)):
+            mask = problem.occluder(k)
+            if settings.outline_points:
+                sil = mesh_silhouette(mesh, R, t, view, spacing_px=1.0)
+                fwd = sil.resample(n=settings.outline_points)
+            else:
+                sil = fwd = mesh_silhouette(mesh, R, t, view, spacing_px=settings.model_spacing_px)
+            # model outline points to the image spline: signed distance along the spline normal
+            X = fwd.model_points @ R.T + t
+            uv, Jp = view.project_jacobian(X)
+            self.outlines_px.append(sil.points_px)
+            if mask is not None:
+                seen = visible_points(mask, uv)
+                X, uv, Jp = X[seen], uv[seen], Jp[seen]
+            dist, closest_pt, normal, t_near = spline.closest(uv)
+            if settings.skip_gaps and len(spline.gaps):
+                # a model point whose nearest image outline is a chord across missing or
+                # hidden edges has nothing to be measured against
+                on_edge = ~spline.in_gap(t_near)
+                if on_edge.sum() >= MIN_VISIBLE_POINTS:
+                    X, uv, Jp = X[on_edge], uv[on_edge], Jp[on_edge]
+                    dist, closest_pt, normal = dist[on_edge], closest_pt[on_edge], normal[on_edge]
+                    t_near = t_near[on_edge]
+            self.per_view_mm.append(float(np.mean(dist)) * view.mm_per_px())
+            self._add(np.einsum("ij,ij->i", normal, uv - closest_pt), np.einsum("ij,ijk->ik", normal, Jp), X, c, rho,
+                      spline.weight_at(t_near))
+            self.view_of.append(k)
+            self.where.append(t_near)
+            if settings.symmetric:
+                # image outline samples to the model outline (the dense silhouette polyline)
+                _, idx = cKDTree(sil.points_px).query(g)
+                n_model = _polyline_normals(sil.points_px, idx)
+                Xm = sil.model_points[idx] @ R.T + t
+                uvm, Jm = view.project_jacobian(Xm)
+                self._add(np.einsum("ij,ij->i", n_model, uvm - g), np.einsum("ij,ijk->ik", n_model, Jm), Xm, c, rho,
+                          None if image_params is None else spline.weight_at(image_params[k]))
+                self.view_of.append(k)
+                self.where.append(None if image_params is None else image_params[k])
+        self.objective_mm = float(sum(self.per_view_mm))
+
+    def _add(self, r: np.ndarray, nJ: np.ndarray, X: np.ndarray, c: np.ndarray, rho: float,
+             weights: np.ndarray | None = None) -> None:
+        """Residual rows with d/d(delta_c [mm], omega*rho [mm]) for X' = exp(w)(X - c) + c + delta;
+        each block (one view, one direction) sums to weight 1, shared by the outline's
+        ``weight_at`` where it has weights."""
+        dw = -_times_skew(nJ, X - c) / rho
+        self.r.append(r)
+        self.J.append(np.hstack([nJ, dw]))
+        self.w.append(np.full(len(r), 1.0 / len(r)) if weights is None else weights / np.sum(weights))
+
+    def robust_cost(self, huber: float) -> float:
+        total = 0.0
+        for r, w in zip(self.r, self.w):
+            a = np.abs(r)
+            rho = np.where(a <= huber, 0.5 * a * a, huber * (a - 0.5 * huber))
+            total += float(np.sum(w * rho))
+        return total
+
+    def normal_equations(self, huber: float):
+        H = np.zeros((6, 6))
+        g = np.zeros(6)
+        for r, J, w in zip(self.r, self.J, self.w):
+            a = np.abs(r)
+            irls = np.where(a <= huber, 1.0, huber / np.maximum(a, 1e-12))
+            ww = w * irls
+            H += J.T @ (J * ww[:, None])
+            g += J.T @ (ww * r)
+        return H, g
+
+def _initial_translation(problem: MatchProblem, R, c, image_samples, iterations: int = 3) -> np.ndarray:
+    """Shift the centroid so the silhouette centroids meet the image-outline centroids."""
+    mesh = problem.mesh
+    for _ in range(iterations):
+        A, b = [], []
+        for view, g in zip(problem.views, image_samples):
+            sil = mesh_silhouette(mesh, R, c - R @ mesh.centroid, view, scale=1.0, spacing_px=2.0)  # a centroid: coarse is enough
+            shift = _polygon_centroid(g) - _polygon_centroid(sil.points_px)
+            _, Jc = view.project_jacobian(c[None, :])
+            A.append(Jc[0])
+            b.append(shift)
+        delta = np.linalg.lstsq(np.vstack(A), np.concatenate(b), rcond=None)[0]
+        c = c + delta
+        if np.linalg.norm(delta) < 0.5:  # the optimiser does the rest
+            break
+    return c
+
+def _polygon_centroid(p: np.ndarray) -> np.ndarray:
+    x, y = p[:, 0], p[:, 1]
+    x1, y1 = np.roll(x, -1), np.roll(y, -1)
+    cross = x * y1 - x1 * y
+    a = cross.sum() / 2.0
+    if abs(a) < 1e-9:
+        return p.mean(0)
+    return np.array([((x + x1) * cross).sum(), ((y + y1) * cross).sum()]) / (6.0 * a)
+
+def _image_samples(problem: MatchProblem, settings: MatchSettings, whole: bool = False) -> list[np.ndarray]:
+    """Image outline samples per view (about ``spacing_px`` apart, or ``outline_points``);
+    unless ``whole``, without chords across gaps and without occluded points."""
+    n_samples = [settings.outline_points or max(16, int(s.length_px / settings.spacing_px)) for s in problem.splines]
+    if whole:
+        return [s.sample(n) for s, n in zip(problem.splines, n_samples)]
+    samples = [s.sample(n, skip_gaps=settings.skip_gaps and len(s.gaps) > 0) for s, n in zip(problem.splines, n_samples)]
+    return [g[visible_points(problem.occluder(k), g)] for k, g in enumerate(samples)]
+
+def match_fast(problem, start, settings, progress, cancel) -> MatchResult:
+    mesh = problem.mesh
+    R, c = _to_state(start, mesh.centroid)
+    if settings.centre_first:  # whole outlines: centroids of closed curves
+        c = _initial_translation(problem, R, c, _image_samples(problem, settings, whole=True))
+    image_samples = _image_samples(problem, settings)
+    # where each image sample sits along its outline (for the covariance's stretches)
+    image_params = [sp.closest(g)[3] if len(g) else np.zeros(0) for sp, g in zip(problem.splines, image_samples)]
+    calls = 0
+    history: list[float] = []
+    lam = 1e-3
+    huber = settings.huber_px
+    ev = _FastEvaluation(problem, R, c, settings, image_samples, image_params)
+    calls += 1
+    cost = ev.robust_cost(huber)
+    history.append(ev.objective_mm)
+    converged = False
+    while calls < settings.max_calls:
+        check_cancel(cancel)
+        H, g = ev.normal_equations(huber)
+        step = np.linalg.solve(H + lam * np.diag(np.diag(H) + 1e-9), -g)
+        dc, w = step[:3], step[3:] / mesh.radius
+        R_new = rotvec_matrix(w) @ R
+        c_new = c + dc
+        try:
+            ev_new = _FastEvaluation(problem, R_new, c_new, settings, image_samples, image_params)
+        except ValueError:
+            ev_new = None
+        calls += 1
+        new_cost = ev_new.robust_cost(huber) if ev_new is not None else np.inf
+        if new_cost <= cost:
+            pose_new = _to_pose(R_new, c_new, mesh.centroid)
+            R, c, ev, cost = R_new, c_new, ev_new, new_cost
+            lam = max(lam / 3.0, 1e-7)
+            history.append(ev.objective_mm)
+            if progress is not None:
+                progress(calls, ev.objective_mm, pose_new)
+            # the change of the variables we move: centroid (mm) and rotation (deg)
+            move = np.r_[np.abs(dc), np.degrees(np.abs(w))]
+            if np.all(move < settings.xtol):
+                converged = True
+                break
+        else:
+            # a rejected step this small is the objective's noise floor (the outline point
+            # set changes from pose to pose): more damping would only spend evaluations
+            move = np.r_[np.abs(dc), np.degrees(np.abs(w))]
+            if np.all(move < 10 * settings.xtol):
+                converged = True
+                break
+            lam *= 10.0
+            if lam > 1e8:
+                converged = bool(np.all(np.abs(step) < 10 * settings.xtol))
+                break
+    pose = _to_pose(R, c, mesh.centroid)
+    return MatchResult(pose, ev.objective_mm, ev.per_view_mm, calls, 0.0, converged,
+                       "fast", settings.to_dict(), "" if converged else "did not converge", history,
+                       ev.normal_equations(huber)[0], ev.outlines_px, _evaluation=(pose, ev))

@@ -1,0 +1,68 @@
+"""Pose of one component from its outlines in two views (paper Eq. 4–6 and a fast variant):
+``match`` runs a method from one or more starts and judges the result. The methods are
+``paper`` (``matching.paper``) and ``fast`` (``matching.fast``); the settings, problem
+and result are in ``matching.problem``, the uncertainty in ``matching.uncertainty``.
+
+Every result is then judged on its own evidence (``core.matching.quality.check_match``) and gets
+its uncertainty (``pose_covariance``, six SDs in ``MatchResult.sd``): ``converged`` means
+the optimiser stopped and the checks passed; otherwise ``message`` says what failed.
+
+Poses in and out follow the DESIGN.md convention (mm, degrees). The objective is in mm
+on the intensifier plane (pixels times pixel pitch), as in the paper.
+"""
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+import numpy as np
+
+from fluorogui.core.matching.fast import match_fast
+from fluorogui.core.matching.paper import match_paper
+from fluorogui.core.matching.problem import MatchProblem, MatchResult, MatchSettings, ProgressCallback
+from fluorogui.core.matching.quality import check_match
+from fluorogui.core.matching.uncertainty import pose_covariance, pose_sd
+from fluorogui.core.projection.pose import as_pose
+
+
+def match(problem: MatchProblem, start, settings: MatchSettings | None = None,
+          progress: ProgressCallback | None = None, cancel: Callable[[], bool] | None = None) -> MatchResult:
+    """Find the pose of ``problem``'s component from ``start`` (mm, degrees); raises
+    ``Cancelled`` when ``cancel()`` turns true."""
+    settings = settings or MatchSettings()
+    start = as_pose(start)
+    if settings.method not in ("fast", "paper"):
+        raise ValueError(f"unknown method {settings.method!r} (use 'fast' or 'paper')")
+    settings.validate()
+    runner = match_fast if settings.method == "fast" else match_paper
+    t0 = time.perf_counter()
+    rng = np.random.default_rng(settings.seed)
+    best: MatchResult | None = None
+    total_calls = 0
+    for k in range(max(1, settings.starts)):
+        s = start.copy()
+        if k > 0:
+            s[:3] += rng.normal(0, settings.restart_sd[0], 3)
+            s[3:] += rng.normal(0, settings.restart_sd[1], 3)
+        res = runner(problem, s, settings, progress, cancel)
+        total_calls += res.calls
+        if best is None or res.objective_mm < best.objective_mm:
+            best = res
+    best.calls = total_calls
+    best.optimiser_converged = best.converged
+    _judge(problem, best, settings)
+    best.seconds = time.perf_counter() - t0
+    return best
+
+
+def _judge(problem: MatchProblem, result: MatchResult, settings: MatchSettings) -> None:
+    """The result's uncertainty and its own evidence (``core.matching.quality.check_match``): a
+    result that fails a check is not converged, and says why in ``message``."""
+    try:
+        result.sd = pose_sd(pose_covariance(problem, result.pose, settings, evaluation=result._evaluation))
+    except ValueError:  # the model behind a source at this pose
+        result.sd = [float("inf")] * 6
+    problems = check_match(problem, result)
+    if problems:
+        result.converged = False
+        result.message = "; ".join(([result.message] if result.message else []) + problems)

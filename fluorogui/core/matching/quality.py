@@ -1,0 +1,238 @@
+"""Quality checks of a matched pose, so that a converged wrong pose is never shown as matched.
+
+A match can converge in a false minimum with a small residual: the image outline was
+segmented along the (wrong) prediction, so it follows the model where it should not.
+The checks here look at the result from several sides:
+
+* ``per_view_mean_mm``: the matcher's mean outline distance per view, judged against an
+  absolute ceiling and against the sequence's typical residual;
+* ``edge_support``: the share of the projected model outline (visible parts) that lies
+  within ``tol_px`` of an image edge in a Canny map made independently of the outline
+  that was matched (with low thresholds, so a faint keel still counts);
+* ``outline_support``: the share of the image outline lying within ``tol_px`` of the
+  projected model outline (a chord across a gap, or a piece of another edge, shows here);
+* ``jump``: how far the result lies from the predicted pose (centroid mm and rotation
+  degrees), against what the motion so far makes plausible.
+
+``judge`` turns these into a status, ``matched`` or ``needs_review``, and a reason in
+plain words. ``check_match`` is the matcher's own verdict on a single result, from what
+the match itself holds (residual per view, outline coverage both ways, the pose's
+standard deviations), applied to every match. Pure numpy / OpenCV.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Sequence
+
+import cv2
+import numpy as np
+from scipy.spatial import cKDTree
+
+from fluorogui.core.matching.problem import mask_at, visible_points
+from fluorogui.core.outlines.edges import canny_edges
+from fluorogui.core.outlines.spline import resample_closed_polyline
+from fluorogui.core.projection.geometry import View
+from fluorogui.core.projection.mesh import PreparedMesh
+from fluorogui.core.projection.pose import motion_between, rotation_matrix
+from fluorogui.core.projection.silhouette import mesh_silhouette
+from fluorogui.core.status import Status
+
+
+@dataclass
+class QualityThresholds:
+    """Limits a matched frame must meet; the defaults come from the real biplane data
+    (right poses: 0.11-0.21 mm per view, edge support >= 0.9) and the demo."""
+
+    max_view_mm: float = 0.6  # a view's mean outline distance above this always fails
+    floor_view_mm: float = 0.25  # ... and below this passes while the typical residual is unknown
+    typical_factor: float = 3.0  # with a typical residual: fails above factor x typical
+    typical_margin_mm: float = 0.05  # ... or above typical + margin, whichever is larger
+    min_edge_support: float = 0.85
+    min_outline_support: float = 0.85
+    max_outside_field: float = 0.02  # share of the model outline allowed beyond the field of view
+    tol_px: float = 1.5
+    max_jump_mm: float = 15.0  # centroid distance from the prediction
+    max_jump_deg: float = 25.0
+    max_sd_mm: float = 2.0  # a pose whose outlines leave a translation this uncertain (1 SD) fails
+    max_sd_deg: float = 2.0  # ... or a rotation
+    single_view_depth_factor: float = 10.0  # one view: the translation along the beam may be this much looser
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict | None) -> "QualityThresholds":
+        d = d or {}
+        return cls(**{k: float(d[k]) for k in cls.__dataclass_fields__ if k in d})
+
+
+@dataclass
+class Quality:
+    """Measured quality of one component's pose in one frame."""
+
+    converged: bool
+    per_view_mean_mm: list[float]
+    edge_support: list[float] = field(default_factory=list)
+    outline_support: list[float] = field(default_factory=list)
+    jump_mm: float = 0.0
+    jump_deg: float = 0.0
+    outside_field: list[float] = field(default_factory=list)  # share of the outline off the field of view
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        return {k: (round(v, 5) if isinstance(v, float) else [round(x, 5) for x in v] if isinstance(v, list) else v)
+                for k, v in d.items()}
+
+
+def model_outline(mesh: PreparedMesh, pose, view: View, spacing_px: float = 2.0) -> np.ndarray:
+    pose = np.asarray(pose, dtype=float)
+    sil = mesh_silhouette(mesh, rotation_matrix(*pose[3:]), pose[:3], view, spacing_px=spacing_px)
+    return sil.points_px
+
+
+def edge_support(image: np.ndarray, outline_px: np.ndarray, occluded: np.ndarray | None = None,
+                 tol_px: float = 1.5, thresholds: tuple[float, float] = (0.04, 0.12), sigma: float = 1.0) -> float:
+    """Share of the (visible) outline points lying within ``tol_px`` of a Canny edge of
+    ``image``, with Canny run on a crop around the outline."""
+    pts = np.asarray(outline_px, dtype=float)
+    pts = pts[visible_points(occluded, pts)]
+    if len(pts) == 0:
+        return 0.0
+    h, w = np.asarray(image).shape[:2]
+    pad = 12
+    u0, v0 = max(int(pts[:, 0].min()) - pad, 0), max(int(pts[:, 1].min()) - pad, 0)
+    u1, v1 = min(int(pts[:, 0].max()) + pad + 1, w), min(int(pts[:, 1].max()) + pad + 1, h)
+    if u1 - u0 < 4 or v1 - v0 < 4:
+        return 0.0
+    crop = np.asarray(image, dtype=np.float32)[v0:v1, u0:u1]
+    edges = canny_edges(crop, thresholds[0], thresholds[1], sigma)
+    distance = cv2.distanceTransform((~edges).astype(np.uint8), cv2.DIST_L2, 5)
+    local = pts - (u0, v0)
+    inside = (local[:, 0] >= 0) & (local[:, 0] < u1 - u0) & (local[:, 1] >= 0) & (local[:, 1] < v1 - v0)
+    col = np.clip(np.round(local[:, 0]).astype(int), 0, u1 - u0 - 1)
+    row = np.clip(np.round(local[:, 1]).astype(int), 0, v1 - v0 - 1)
+    near = (distance[row, col] <= tol_px) & inside
+    return float(np.mean(near))
+
+
+def outline_support(image_outline_px: np.ndarray, model_outline_px: np.ndarray, occluded: np.ndarray | None = None,
+                    tol_px: float = 1.5) -> float:
+    """Share of the (visible) image outline points - dense samples along the traced edges,
+    without the chords the outline draws across gaps - lying within ``tol_px`` of the
+    model outline."""
+    image_pts = np.asarray(image_outline_px, dtype=float).reshape(-1, 2)
+    image_pts = image_pts[visible_points(occluded, image_pts)]
+    model = resample_closed_polyline(np.asarray(model_outline_px, dtype=float), spacing=0.5)
+    if len(image_pts) == 0 or len(model) == 0:
+        return 0.0
+    d, _ = cKDTree(model).query(image_pts)
+    return float(np.mean(d <= tol_px))
+
+
+def outside_share(field_mask: np.ndarray, points_px: np.ndarray) -> float:
+    """Share of points (K, 2) off the field of view (off the image counts as off)."""
+    pts = np.asarray(points_px, dtype=float).reshape(-1, 2)
+    return float(1.0 - mask_at(field_mask, pts).mean()) if len(pts) else 0.0
+
+
+def pose_jump(mesh: PreparedMesh, pose, predicted) -> tuple[float, float]:
+    """Distance (mm) between the model centroids and rotation angle (deg) between two poses."""
+    return motion_between(pose, predicted, mesh.centroid)
+
+
+def assess(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMesh, pose, converged: bool,
+           per_view_mean_mm: Sequence[float], image_outlines: Sequence[np.ndarray] | None,
+           predicted=None, occluded: Sequence | None = None, tol_px: float = 1.5,
+           fields: Sequence[np.ndarray] | None = None, model_outlines: Sequence[np.ndarray] | None = None) -> Quality:
+    """Every check of a pose. ``image_outlines`` are the outlines it was matched to (dense
+    points per view, chords left out; None skips ``outline_support``); ``fields`` are the
+    intensifiers' fields of view (bool images): an outline reaching beyond one is cut off
+    by the rim, whose edge is not the implant's. ``model_outlines`` (per view, the model
+    outline at ``pose``, e.g. the matcher's last) saves projecting the model again."""
+    edge, support, outside = [], [], []
+    for k, (image, view) in enumerate(zip(images, views)):
+        mask = occluded[k] if occluded is not None and k < len(occluded) else None
+        model = model_outlines[k] if model_outlines is not None else model_outline(mesh, pose, view)
+        edge.append(edge_support(image, model, mask, tol_px))
+        if image_outlines is not None:
+            support.append(outline_support(image_outlines[k], model, mask, tol_px))
+        if fields is not None and k < len(fields) and fields[k] is not None:
+            outside.append(outside_share(fields[k], model))
+    jump = pose_jump(mesh, pose, predicted) if predicted is not None else (0.0, 0.0)
+    return Quality(bool(converged), [float(v) for v in per_view_mean_mm], edge, support, *jump, outside)
+
+
+def check_match(problem, result, thresholds: QualityThresholds | None = None) -> list[str]:
+    """What a match's own evidence says against it, in plain words (empty: nothing).
+
+    ``problem`` is the ``MatchProblem`` it was matched on, ``result`` its ``MatchResult``
+    (with ``outlines_px``, the model outline at the result, and ``sd``). Checks, per view:
+    the mean outline distance against the absolute ceiling ``max_view_mm`` (the
+    sequence-relative limits are ``judge``'s); the share of the model outline lying on
+    the image outline and of the image outline lying on the model (both ways, so neither
+    can slide onto part of the other); and the uncertainty the outlines leave (the
+    Gauss-Newton matrix's conditioning, as standard deviations of the pose)."""
+    t = thresholds or QualityThresholds()
+    problems = []
+    names = [v.name or f"view {k + 1}" for k, v in enumerate(problem.views)]
+    for name, value in zip(names, result.per_view_mean_mm):
+        if not np.isfinite(value) or value > t.max_view_mm:
+            problems.append(f"outline distance {value:.2f} mm in {name} (limit {t.max_view_mm:.2f} mm)")
+    model_outlines = result.outlines_px or []
+    for k, (name, spline, model) in enumerate(zip(names, problem.splines, model_outlines)):
+        mask = problem.occluder(k)
+        model = np.asarray(model, dtype=float).reshape(-1, 2)
+        pts = model[visible_points(mask, model)]
+        if len(pts) < 3:
+            problems.append(f"the model outline is not visible in {name}")
+            continue
+        dist, _, _, t_near = spline.closest(pts)
+        measured = ~spline.in_gap(t_near) if len(spline.gaps) else np.ones(len(pts), dtype=bool)
+        on_image = float(np.mean(dist[measured] <= t.tol_px)) if measured.any() else 0.0
+        if on_image < t.min_edge_support:
+            problems.append(f"only {100 * on_image:.0f} % of the model outline lies on the image outline in {name}")
+        image = spline.sample(max(64, int(spline.length_px)), skip_gaps=True)
+        on_model = outline_support(image, model, mask, t.tol_px)
+        if on_model < t.min_outline_support:
+            problems.append(f"only {100 * on_model:.0f} % of the image outline lies on the model in {name}")
+    if result.sd is not None:
+        sd = np.asarray(result.sd, dtype=float)
+        labels = ("x", "y", "z", "alpha", "beta", "gamma")
+        limits = np.array([t.max_sd_mm] * 3 + [t.max_sd_deg] * 3)
+        if len(problem.views) == 1:  # single plane: depth along the beam is weak by nature (stated, not failed)
+            limits[int(np.argmax(np.abs(problem.views[0].normal)))] *= t.single_view_depth_factor
+        loose = [f"{labels[j]} {sd[j]:.2g} {'mm' if j < 3 else 'deg'}" for j in range(6)
+                 if not np.isfinite(sd[j]) or sd[j] > limits[j]]
+        if loose:
+            problems.append("the outlines do not pin the pose down (SD " + ", ".join(loose) + ")")
+    return problems
+
+
+def judge(quality: Quality, thresholds: QualityThresholds | None = None,
+          typical_view_mm: float | None = None, view_names: Sequence[str] | None = None) -> tuple[str, str]:
+    """(status, reason): ``matched`` with an empty reason when every check passes, else
+    ``needs_review`` with every failed check in plain words."""
+    t = thresholds or QualityThresholds()
+    names = list(view_names or [f"view {k + 1}" for k in range(len(quality.per_view_mean_mm))])
+    problems = []
+    if not quality.converged:
+        problems.append("the match did not converge")
+    limit = min(t.max_view_mm, t.floor_view_mm)
+    if typical_view_mm is not None and np.isfinite(typical_view_mm):
+        limit = min(t.max_view_mm, max(t.typical_factor * typical_view_mm, typical_view_mm + t.typical_margin_mm))
+    for name, value in zip(names, quality.per_view_mean_mm):
+        if not np.isfinite(value) or value > limit:
+            typical = f", typical {typical_view_mm:.2f} mm" if typical_view_mm else ""
+            problems.append(f"outline distance {value:.2f} mm in {name} (limit {limit:.2f} mm{typical})")
+    for name, value in zip(names, quality.edge_support):
+        if value < t.min_edge_support:
+            problems.append(f"only {100 * value:.0f} % of the model outline lies on image edges in {name}")
+    for name, value in zip(names, quality.outline_support):
+        if value < t.min_outline_support:
+            problems.append(f"only {100 * value:.0f} % of the image outline lies on the model in {name}")
+    for name, value in zip(names, quality.outside_field):
+        if value > t.max_outside_field:
+            problems.append(f"{100 * value:.0f} % of the model outline lies beyond the field of view in {name}")
+    if quality.jump_mm > t.max_jump_mm or quality.jump_deg > t.max_jump_deg:
+        problems.append(f"moved {quality.jump_mm:.1f} mm / {quality.jump_deg:.1f}° from the predicted pose")
+    return (Status.NEEDS_REVIEW, "; ".join(problems)) if problems else (Status.MATCHED, "")

@@ -1,0 +1,75 @@
+"""Path lengths through a closed mesh along a view's rays: how much metal each pixel's ray
+crosses, the quantity the rim profile model (``core.rim``) turns into darkening."""
+from __future__ import annotations
+
+import numpy as np
+
+from fluorogui.core.projection.geometry import View
+from fluorogui.core.projection.mesh import PreparedMesh
+from fluorogui.core.projection.pose import rotation_matrix
+
+
+def path_lengths(mesh: PreparedMesh, pose, view: View, uv: np.ndarray, cell_px: float = 2.0) -> np.ndarray:
+    """Length (mm) of the ray from the source through each pixel position ``uv`` (K, 2)
+    inside the closed mesh at ``pose``: the sum over the triangles it crosses of the
+    distance from the source, + where it leaves and - where it enters."""
+    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+    pose = np.asarray(pose, dtype=float)
+    world = mesh.vertices @ rotation_matrix(*pose[3:]).T + pose[:3]
+    tri2 = view.project(world)[mesh.faces]  # (M, 3, 2)
+    lo, hi = tri2.min(1), tri2.max(1)
+    # keep the triangles whose box meets the queries' box, then bin them in cells
+    qlo, qhi = uv.min(0) - cell_px, uv.max(0) + cell_px
+    near = np.all(hi >= qlo, axis=1) & np.all(lo <= qhi, axis=1)
+    ncols = int(np.floor((qhi[0] - qlo[0]) / cell_px)) + 1
+    nrows = int(np.floor((qhi[1] - qlo[1]) / cell_px)) + 1
+    qcu = np.floor((uv[:, 0] - qlo[0]) / cell_px).astype(int)
+    qcv = np.floor((uv[:, 1] - qlo[1]) / cell_px).astype(int)
+    # only triangles whose box covers a cell with a query (the outline's band) matter:
+    # count the occupied cells in each box with a summed-area table
+    occupied = np.zeros((nrows + 1, ncols + 1))
+    occupied[qcv + 1, qcu + 1] = 1.0
+    table = occupied.cumsum(0).cumsum(1)
+    b0 = np.clip(np.floor((lo - qlo) / cell_px).astype(int), 0, [ncols - 1, nrows - 1])
+    b1 = np.clip(np.floor((hi - qlo) / cell_px).astype(int), 0, [ncols - 1, nrows - 1])
+    hits = (table[b1[:, 1] + 1, b1[:, 0] + 1] - table[b0[:, 1], b1[:, 0] + 1]
+            - table[b1[:, 1] + 1, b0[:, 0]] + table[b0[:, 1], b0[:, 0]])
+    faces = np.flatnonzero(near & (hits > 0))
+    c0, c1 = b0[faces], b1[faces]
+    span_u, span_v = c1[:, 0] - c0[:, 0] + 1, c1[:, 1] - c0[:, 1] + 1
+    count = span_u * span_v
+    face_rep = np.repeat(np.arange(len(faces)), count)
+    k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    cu = c0[face_rep, 0] + k % span_u[face_rep]
+    cv = c0[face_rep, 1] + k // span_u[face_rep]
+    cell_of_pair = cv * ncols + cu
+    order = np.argsort(cell_of_pair, kind="stable")
+    cell_sorted, face_sorted = cell_of_pair[order], faces[face_rep[order]]
+    qcell = qcv * ncols + qcu
+    first = np.searchsorted(cell_sorted, qcell, "left")
+    last = np.searchsorted(cell_sorted, qcell, "right")
+    n_cand = last - first
+    q_rep = np.repeat(np.arange(len(uv)), n_cand)
+    j = np.arange(n_cand.sum()) - np.repeat(np.cumsum(n_cand) - n_cand, n_cand)
+    f = face_sorted[first[q_rep] + j]
+    # 2D point in triangle (barycentric), then the 3D crossing along the ray
+    a, b, c = tri2[f, 0], tri2[f, 1], tri2[f, 2]
+    p = uv[q_rep]
+    v0, v1, v2 = b - a, c - a, p - a
+    den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
+    ok = np.abs(den) > 1e-12
+    den = np.where(ok, den, 1.0)
+    w1 = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
+    w2 = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
+    inside = ok & (w1 >= 0) & (w2 >= 0) & (w1 + w2 <= 1)
+    q_rep, f = q_rep[inside], f[inside]
+    _, directions = view.ray(uv)
+    d = directions[q_rep]
+    R = rotation_matrix(*pose[3:])
+    normals = mesh.face_normals[f] @ R.T
+    corner = world[mesh.faces[f, 0]]
+    dn = np.einsum("ij,ij->i", d, normals)
+    facing = np.abs(dn) > 1e-12
+    t = np.einsum("ij,ij->i", corner - view.source, normals) / np.where(facing, dn, 1.0)
+    signed = np.where(facing, np.sign(dn) * t, 0.0)  # + leaving (back face), - entering
+    return np.maximum(np.bincount(q_rep, weights=signed, minlength=len(uv)), 0.0)

@@ -1,1 +1,0 @@
-"""Validation tools that share no code with the matcher (``xray``: an X-ray image model)."""
