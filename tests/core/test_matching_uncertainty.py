@@ -3,7 +3,7 @@
 The outlines are made without the matcher's code (``fluorogui.reference.hull_outlines``: the
 convex hull of a bent ellipsoid's projected vertices, with noise correlated over a few
 pixels along it). The SD is a jackknife over stretches of outline (``pose_covariance``).
-Measured over 100 realisations (``packaging/bench_uncertainty.py``): SD / observed spread
+Measured over 100 realisations (``benchmarks/bench_uncertainty.py``): SD / observed spread
 1.06-1.23 in biplane, 0.91-1.18 in a single view started at the truth, 0.81-1.15 in a
 single view from perturbed starts; with every residual taken as independent the SD came
 out 0.2-0.4x the spread. 80 realisations here (their spread is itself uncertain by ~8 %;

@@ -1,6 +1,6 @@
 """Saves under attack: a child process saving a file is killed at a random moment, or
 saves with a file-size limit (``RLIMIT_FSIZE``, a full disk in miniature). Shared by
-the quick tests in this folder and the long run ``python packaging/fuzz.py``.
+the quick tests in this folder and the long run ``python tools/fuzz.py``.
 
 Every version a child writes is a JSON document ``{"version": n, "pad": "...", "sum": s}``
 whose ``sum`` checks its ``pad``: a file that parses and checks is whole."""

@@ -2,7 +2,7 @@
 ``{"path", "outcome": "accepted" | "refused" | "escaped", "message"}``.
 
 ``python loader_worker.py LOADER FILE...``; the parent (``fuzz_loaders`` below, the tests and
-``packaging/fuzz.py``) runs it as a child so that a crash or a hang of a C library (VTK,
+``tools/fuzz.py``) runs it as a child so that a crash or a hang of a C library (VTK,
 OpenCV, libtiff) is seen as such instead of killing the test run."""
 from __future__ import annotations
 

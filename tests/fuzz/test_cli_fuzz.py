@@ -1,4 +1,4 @@
-"""A quick run of the command-line fuzz (``python packaging/fuzz.py --cli N`` is the long one):
+"""A quick run of the command-line fuzz (``python tools/fuzz.py --cli N`` is the long one):
 bad option values and broken input files, every run one clean line or a clean result."""
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """Every loader on mutated files (flipped bytes, cuts, junk, repeated slices, odd numbers):
 a loader either accepts a file or refuses it with one line naming it; no crash, no hang,
 no other exception. The loaders run in a child process so a C library's crash is counted,
-not fatal. Quick here; ``python packaging/fuzz.py`` runs the long version."""
+not fatal. Quick here; ``python tools/fuzz.py`` runs the long version."""
 from __future__ import annotations
 
 import json

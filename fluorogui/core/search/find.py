@@ -34,7 +34,7 @@ segmented at the pose (half resolution), not with a thresholded dark region: tho
 too poor (a tibial tray is lost, a femoral component merges with soft tissue) and only
 propose positions here.
 
-Measured on the real biplane data (packaging/bench_find.py, 2 shared cores): both
+Measured on the real biplane data (benchmarks/bench_find.py, 2 shared cores): both
 components right and found in every frame with a reference (26 femoral, 27 tibial), none
 confidently wrong, about 1 s per frame for both (2.2 s at most); near a pose 5 mm and 15
 degrees off, about 0.3 s per component.

@@ -19,7 +19,7 @@ app, the command line and tracking use) and rewrites the file: after a change to
 segmentation or the matcher, the reference poses are where a careful single-frame match
 from the old reference lands today, independent of tracking, prediction and find.
 
-Usage: .venv/bin/python packaging/find_reference_poses.py [--data DIR] [--frames N] [--overlays DIR]
+Usage: .venv/bin/python tools/find_reference_poses.py [--data DIR] [--frames N] [--overlays DIR]
            [--components femoral tibial] [--no-reinit] [--max-view-px PX] [--refine]
 """
 from __future__ import annotations

@@ -16,7 +16,7 @@ Sections (all by default, or name some):
   knee kinematics curves and their jitter (``--figure`` saves their figure).
 
 Errors are body-fixed (``core.pose.pose_error``): translation mm, rotation angles deg.
-Usage: .venv/bin/python packaging/bench_tracking.py [demo] [synthetic] [real]
+Usage: .venv/bin/python benchmarks/bench_tracking.py [demo] [synthetic] [real]
            [--workers N] [--frames N] [--no-occlusion] [--json OUT] [--figure OUT.png]
 """
 from __future__ import annotations

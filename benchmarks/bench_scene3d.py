@@ -1,7 +1,7 @@
 """Benchmark the 3D scene on the real biplane data: frame rate while rotating, image and pose updates.
 
 Usage (no screen: under Xvfb):
-    xvfb-run -a -s "-screen 0 1920x1080x24" .venv/bin/python packaging/bench_scene3d.py [--data DIR]
+    xvfb-run -a -s "-screen 0 1920x1080x24" .venv/bin/python benchmarks/bench_scene3d.py [--data DIR]
 
 Runs three back ends, each in its own process: an off-screen ``pv.Plotter``, the panel's
 fallback (off-screen plotter + QLabel, ``QT_QPA_PLATFORM=offscreen``) and the interactive

@@ -1,6 +1,6 @@
 """How precisely could any method find the pose from the X-ray model's images?
 
-    python packaging/bench_information.py --xray MESH [--flexion 30 60] [--tilted] [--single-view] [--photons 3000]
+    python benchmarks/bench_information.py --xray MESH [--flexion 30 60] [--tilted] [--single-view] [--photons 3000]
 
 The Cramer-Rao bound: the smallest standard deviation an unbiased estimator of the six
 pose variables can have, given the images' quantum noise. It is computed from the image
@@ -11,7 +11,7 @@ differences of the rendered images over the pose variables (mm, degrees). The bo
 treats the attenuation, the blur and the background as known, so a real method, which
 must also estimate them, can only do worse.
 
-Beside ``packaging/bench_uncertainty.py --xray`` (the matcher's observed spread over noise
+Beside ``benchmarks/bench_uncertainty.py --xray`` (the matcher's observed spread over noise
 draws) it says how much of the spread the images themselves force and how much the
 method adds, and whether a target such as 0.01 deg mean error can be reached at this
 noise level at all.

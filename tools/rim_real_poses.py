@@ -1,5 +1,5 @@
 """Developer tool: the automatic loop's poses on the real biplane data with and without
-the rim refinement (``LoopSettings.rim``), for ``packaging/reference_poses.py --poses``.
+the rim refinement (``LoopSettings.rim``), for ``tools/reference_poses.py --poses``.
 
 Each frame of ``tests/data/biplane_reference_poses.csv`` (the matcher's own poses) is
 matched again from its listed pose by ``core.pipeline.segment_and_match``, the other
@@ -9,8 +9,8 @@ with the rim refinement (its rim models fitted on the first frame and kept, as
 the rim models, and writes ``<out>/<component>_plain.csv`` and ``<component>_rim.csv``
 (the other component's rows copied, for its mask in the reference fit).
 
-Usage: .venv/bin/python packaging/rim_real_poses.py [--component femoral|tibial] [--frames 8] [--out DIR]
-then:  .venv/bin/python packaging/reference_poses.py --frames 8 --components femoral --poses DIR/femoral_rim.csv
+Usage: .venv/bin/python tools/rim_real_poses.py [--component femoral|tibial] [--frames 8] [--out DIR]
+then:  .venv/bin/python tools/reference_poses.py --frames 8 --components femoral --poses DIR/femoral_rim.csv
 """
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 cancel latency. Prints a table; run under a display (xvfb-run) with QT_QPA_PLATFORM=xcb.
 
 Usage: xvfb-run -a -s "-screen 0 1920x1080x24" env QT_QPA_PLATFORM=xcb \\
-           .venv/bin/python packaging/bench_gui.py [--project FILE | --real DIR] [--repeats N]
+           .venv/bin/python benchmarks/bench_gui.py [--project FILE | --real DIR] [--repeats N]
 
 Start-up time is measured separately by ``python -m fluorogui.gui.snapshot`` (it prints
 the seconds to a usable window and to the first frame on screen).

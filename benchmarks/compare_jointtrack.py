@@ -9,7 +9,7 @@ freedom in JointTrack's camera frame (x, y in the image plane, z along the beam:
 direction) and the spread (SD) of the perturbed starts, then the mean and SD over frames;
 last, the knee kinematics of JointTrack's own poses with the meshes' default anatomical frames.
 
-Usage: .venv/bin/python packaging/compare_jointtrack.py [--data DIR] [--starts 5]
+Usage: .venv/bin/python benchmarks/compare_jointtrack.py [--data DIR] [--starts 5]
            [--perturb-mm 2] [--perturb-deg 2] [--seed 0]
 """
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The long fuzz run of issue 11: throw broken inputs at every loader, the command line and
 the project saves, and print the counts that must all be zero.
 
-    python packaging/fuzz.py --cli 1000 --projects 500 --loaders 40 --kills 100 --full-disk 4 --large
+    python tools/fuzz.py --cli 1000 --projects 500 --loaders 40 --kills 100 --full-disk 4 --large
 
 ``--cli``: command lines (bad option values, missing / folder / FIFO / empty / junk /
 truncated / mutated input files) run through ``fluorogui.cli.main`` in worker processes;

@@ -1,7 +1,7 @@
 """Project file size and save / open times of a 300-frame biplane session with two
 components (1,200 outlines of 400 points with their splines, 600 matched poses).
 
-    python packaging/bench_project.py [--frames 300] [--points 400]
+    python benchmarks/bench_project.py [--frames 300] [--points 400]
 """
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """Does the reported per-pose SD match the spread over noise realisations?
 
-    python packaging/bench_uncertainty.py [--realisations 100] [--noise 0.1] [--corr 3]
-    python packaging/bench_uncertainty.py --xray MESH [--flexion 30 60] [--rim] [--background none]
+    python benchmarks/bench_uncertainty.py [--realisations 100] [--noise 0.1] [--corr 3]
+    python benchmarks/bench_uncertainty.py --xray MESH [--flexion 30 60] [--rim] [--background none]
 
 For each scene (a bent ellipsoid, outlines made without the matcher's code by
 ``fluorogui.reference.hull_outlines``) the matcher is run on many noise realisations; the

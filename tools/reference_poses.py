@@ -4,7 +4,7 @@ region fitted to the segmented dark region of both images, no outline, edge dete
 silhouette code of the matcher).
 
 For every row of the matcher's poses (default ``tests/data/biplane_reference_poses.csv``,
-made by ``packaging/find_reference_poses.py --refine``) the region fit starts from the
+made by ``tools/find_reference_poses.py --refine``) the region fit starts from the
 matcher's pose (and, with ``--perturb MM_DEG``, also from that pose moved by a random
 offset of that size per axis, to show the fit does not simply stay where it starts).
 The other component's region at the matcher's pose, dilated by 3 px, is left out of the
@@ -21,10 +21,10 @@ angles, two views 70 deg apart and tilted 10 deg, 1024 px of 0.3076 mm like the 
 data, ``--starts`` starts per case moved uniformly by up to ``--perturb`` (default 2)
 mm / deg per axis. Prints fit - truth per start and the mean, SD and max per component.
 
-Usage: .venv/bin/python packaging/reference_poses.py [--data DIR] [--poses CSV] [--frames N]
+Usage: .venv/bin/python tools/reference_poses.py [--data DIR] [--poses CSV] [--frames N]
            [--components femoral tibial] [--perturb MM_DEG] [--out CSV]
-       .venv/bin/python packaging/reference_poses.py --xray [--flexion 30 45 60 90] [--starts 3]
-       .venv/bin/python packaging/reference_poses.py --single-plane [--data ../shared/data/single-plane-tka]
+       .venv/bin/python tools/reference_poses.py --xray [--flexion 30 45 60 90] [--starts 3]
+       .venv/bin/python tools/reference_poses.py --single-plane [--data ../shared/data/single-plane-tka]
 
 ``--single-plane``: the three single-plane frames (one view: translation along the beam is
 the weak direction of every method, the region fit's too), fitted from JointTrack's own

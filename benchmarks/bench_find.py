@@ -15,7 +15,7 @@ The shape libraries (one per mesh, built on first use) are built before the timi
 their cost is reported separately; ``--repeat N`` runs every frame N times and reports
 the fastest (timings on a shared machine are noisy).
 
-Usage: .venv/bin/python packaging/bench_find.py [--data DIR] [--frames 0 60 ...] [--repeat N]
+Usage: .venv/bin/python benchmarks/bench_find.py [--data DIR] [--frames 0 60 ...] [--repeat N]
            [--near-mm 5] [--near-deg 15] [--no-near] [--overlays DIR]
 """
 from __future__ import annotations

@@ -9,7 +9,7 @@ and after stepping, the bound of the session's frame cache
 (``IMAGE_CACHE_FRAMES`` x views x image bytes) and of the open-decoder pool
 (``MAX_OPEN_VIDEOS``), and the milliseconds per frame.
 
-Usage: .venv/bin/python packaging/bench_frames.py [--frames 1000] [--size 1024] [--keep DIR]
+Usage: .venv/bin/python benchmarks/bench_frames.py [--frames 1000] [--size 1024] [--keep DIR]
 """
 from __future__ import annotations
 
