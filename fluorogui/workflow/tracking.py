@@ -273,7 +273,7 @@ def run_parallel(jobs: Sequence[TrackJob], cancel: Callable[[], bool] | None = N
                 for f in futures:
                     if f.done() and f.exception() is not None:
                         stop.set()
-                        raise f.exception()
+                        raise f.exception() from None
                 continue
             if item is None:
                 running -= 1

@@ -17,11 +17,11 @@ import numpy as np
 
 from fluorogui.core.projection.geometry import View
 from fluorogui.core.projection.mesh import PreparedMesh
+from fluorogui.core.search.find import Placement
 from fluorogui.io.errors import InputError
 from fluorogui.workflow.finding import find_in_frame, near_search
 from fluorogui.workflow.framematch import ComponentInput, FrameMatcher
 from fluorogui.workflow.results import FrameResult
-from fluorogui.core.search.find import Placement
 from fluorogui.workflow.settings import WorkflowSettings
 from fluorogui.workflow.tracking import TrackJob, TrackProgress, frames_between, read_frame_images
 
@@ -127,7 +127,8 @@ class WorkMixin:
     # -- find --------------------------------------------------------------------------------------
     def find_job(self, frame: int, components=None) -> FindJob:
         frame = self._check_frame(frame)
-        return FindJob(self.views, frame, self.image_paths(frame), {c: self.mesh(c) for c in self._components(components)})
+        meshes = {c: self.mesh(c) for c in self._components(components)}
+        return FindJob(self.views, frame, self.image_paths(frame), meshes)
 
     def store_placements(self, placements: dict[str, Placement]) -> None:
         """Put the confidently found components at their poses (status ``placed``)."""
