@@ -65,7 +65,7 @@ def run_app(path: str | Path | None = None) -> int:
     window = MainWindow()
     smoke = bool(os.environ.get(SMOKE_ENV))
     if not smoke:
-        from fluorogui.gui.crash import install_crash_handler
+        from fluorogui.gui.dialogs.crash import install_crash_handler
 
         install_crash_handler(window)
     window.show()
@@ -85,7 +85,7 @@ def run_app(path: str | Path | None = None) -> int:
             window.controller.session.history.set_clean()
             QTimer.singleShot(0, window.close)
         elif demo:
-            from fluorogui.gui.tour import start_tour
+            from fluorogui.gui.dialogs.tour import start_tour
 
             start_tour(window)
 

@@ -29,18 +29,18 @@ from PySide6.QtWidgets import (
 
 from fluorogui.gui import theme
 from fluorogui.gui.controller import SessionController
-from fluorogui.gui.help_menu import HelpActions
-from fluorogui.gui.image_panel import ImagePanel, Tool
-from fluorogui.gui.knee_actions import KneeActions
-from fluorogui.gui.match_control import MatchControl
-from fluorogui.gui.matcher_panel import MatcherPanel
-from fluorogui.gui.missing_files import MissingFiles
-from fluorogui.gui.pixel_value import RawPixels, format_value
-from fluorogui.gui.pose_editor import PoseEditor
-from fluorogui.gui.review_actions import ReviewActions
-from fluorogui.gui.session_files import SessionFiles
+from fluorogui.gui.actions.help import HelpActions
+from fluorogui.gui.panels.image_panel import ImagePanel, Tool
+from fluorogui.gui.actions.knee import KneeActions
+from fluorogui.gui.actions.tasks import MatchControl
+from fluorogui.gui.panels.matcher_panel import MatcherPanel
+from fluorogui.gui.dialogs.missing_files import MissingFiles
+from fluorogui.gui.panels.pixel_value import RawPixels, format_value
+from fluorogui.gui.panels.pose_editor import PoseEditor
+from fluorogui.gui.actions.review import ReviewActions
+from fluorogui.gui.actions.files import SessionFiles
 from fluorogui.gui.session_view import COMPONENT_COLOURS, SessionView
-from fluorogui.gui.timeline import Timeline, TimelineLegend
+from fluorogui.gui.panels.timeline import Timeline, TimelineLegend
 from fluorogui.gui.worker import TaskRunner
 from fluorogui.io.errors import InputError
 from fluorogui.workflow.session import ORIENTATION_PRESETS
@@ -99,7 +99,7 @@ class MainWindow(SessionFiles, SessionView, MatchControl, ReviewActions, HelpAct
 
         self.scene_widget = None
         if with_3d:
-            from fluorogui.gui.scene_widget import Scene3DWidget
+            from fluorogui.gui.scene.scene_widget import Scene3DWidget
 
             self.scene_widget = Scene3DWidget(self)
             self.scene_widget.rays_button.setChecked(False)  # rays on demand: they hide the models
@@ -181,7 +181,7 @@ class MainWindow(SessionFiles, SessionView, MatchControl, ReviewActions, HelpAct
 
     def calibrate_fluoroscope(self) -> None:
         """The calibration wizard (distortion from plates, geometry from a bead phantom)."""
-        from fluorogui.gui.calibration_wizard import CalibrationWizard
+        from fluorogui.gui.dialogs.calibration_wizard import CalibrationWizard
 
         wizard = CalibrationWizard(self)
         if wizard.exec():
@@ -313,7 +313,7 @@ class MainWindow(SessionFiles, SessionView, MatchControl, ReviewActions, HelpAct
             match_menu.addAction(a)
         model_menu.insertAction(self.orient_menu.menuAction(), self.next_component_action)
 
-        from fluorogui.gui.tour import start_tour
+        from fluorogui.gui.dialogs.tour import start_tour
 
         self.tour_action = self._action("Guided &tour", lambda: start_tour(self, force=True),
                                         tip="A one-minute tour of the window")

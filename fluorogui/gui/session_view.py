@@ -14,7 +14,7 @@ from PySide6.QtWidgets import QTreeWidgetItem
 from fluorogui.core.matching.loop import predicted_outline
 from fluorogui.core.outlines.spline import OutlineError
 from fluorogui.gui import jobs
-from fluorogui.gui.matcher_panel import describe_pose
+from fluorogui.gui.panels.matcher_panel import describe_pose
 from fluorogui.io.errors import InputError
 from fluorogui.workflow.session import FrameState
 

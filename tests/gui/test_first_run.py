@@ -9,7 +9,7 @@ pytest.importorskip("pytestqt")
 from PySide6.QtWidgets import QApplication  # noqa: E402
 
 from fluorogui.gui.app import open_start_path  # noqa: E402
-from fluorogui.gui.tour import STEPS, start_tour  # noqa: E402
+from fluorogui.gui.dialogs.tour import STEPS, start_tour  # noqa: E402
 
 
 def test_tour_shows_once_and_steps_through(window):
@@ -38,7 +38,7 @@ def _stop_logging():
 
 
 def test_crash_report_logs_autosaves_and_copies(window, demo, tmp_path, monkeypatch, request):
-    from fluorogui.gui.crash import crash_dialog, crash_report
+    from fluorogui.gui.dialogs.crash import crash_dialog, crash_report
     from fluorogui.logs import log_file_path, setup_logging
 
     monkeypatch.setenv("FLUOROGUI_DATA_DIR", str(tmp_path / "data"))

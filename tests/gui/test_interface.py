@@ -13,7 +13,7 @@ from PySide6.QtWidgets import QApplication, QMessageBox  # noqa: E402
 
 from fluorogui import __version__  # noqa: E402
 from fluorogui.core.records import PoseRecord  # noqa: E402
-from fluorogui.gui.pixel_value import RawPixels, format_value  # noqa: E402
+from fluorogui.gui.panels.pixel_value import RawPixels, format_value  # noqa: E402
 from fluorogui.logs import log_file_path  # noqa: E402
 
 
@@ -155,7 +155,7 @@ def _path_points(path):
 
 
 def test_an_erased_stretch_is_drawn_as_a_gap(qtbot):
-    from fluorogui.gui.image_panel import ImagePanel
+    from fluorogui.gui.panels.image_panel import ImagePanel
 
     panel = ImagePanel(0)
     qtbot.addWidget(panel)
@@ -207,7 +207,7 @@ def test_eta_follows_the_recent_frames_not_the_first():
 def test_save_dialog_starts_beside_the_images_never_in_the_data_folder(window, tmp_path, monkeypatch):
     from PySide6.QtWidgets import QFileDialog
 
-    from fluorogui.gui.session_files import app_data_dir
+    from fluorogui.gui.actions.files import app_data_dir
 
     assert window.open_demo(ask=False)  # the demo lives in the app's data folder
     data = app_data_dir().resolve()
@@ -243,7 +243,7 @@ def test_no_session_and_a_missing_image_leave_a_hint(window, demo):
 def test_tool_hint_in_the_status_bar_and_tooltips_on_every_tool_button(window):
     from PySide6.QtWidgets import QToolBar, QToolButton
 
-    from fluorogui.gui.image_panel import Tool
+    from fluorogui.gui.panels.image_panel import Tool
 
     window.set_tool(Tool.ERASE)
     assert window.tool_label.text().startswith("Erase (E): Brush away")

@@ -8,7 +8,7 @@ pytest.importorskip("pytestqt")
 from PySide6.QtWidgets import QDialog  # noqa: E402
 
 from fluorogui.core.records import PoseRecord  # noqa: E402
-from fluorogui.gui.knee_actions import ExportDialog  # noqa: E402
+from fluorogui.gui.actions.knee import ExportDialog  # noqa: E402
 
 
 def put_truth(session):

@@ -8,7 +8,7 @@ from PySide6.QtCore import QSettings, Qt  # noqa: E402
 from PySide6.QtWidgets import QMessageBox  # noqa: E402
 
 from fluorogui.core.projection.pose import pose_error  # noqa: E402
-from fluorogui.gui.image_panel import Tool  # noqa: E402
+from fluorogui.gui.panels.image_panel import Tool  # noqa: E402
 from fluorogui.gui.main_window import MainWindow  # noqa: E402
 from fluorogui.workflow.session import FrameState  # noqa: E402
 
@@ -235,7 +235,7 @@ def test_track_following_frames_matches_every_frame(window, demo, qtbot):
 
 
 def test_dropped_folder_opens_the_import_dialog_filled(window, demo, monkeypatch):
-    from fluorogui.gui.import_dialog import ImportDialog
+    from fluorogui.gui.dialogs.import_dialog import ImportDialog
 
     shown = []
 

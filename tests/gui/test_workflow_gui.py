@@ -16,7 +16,7 @@ from PySide6.QtWidgets import QFileDialog, QMessageBox  # noqa: E402
 from fluorogui.core.projection.pose import pose_error  # noqa: E402
 from fluorogui.core.records import PoseRecord  # noqa: E402
 from fluorogui.core.status import Status
-from fluorogui.gui.timeline import STATE_COLOURS  # noqa: E402
+from fluorogui.gui.panels.timeline import STATE_COLOURS  # noqa: E402
 from fluorogui.io.project.lock import lock_path  # noqa: E402
 from fluorogui.workflow.session import FrameState, Session  # noqa: E402
 

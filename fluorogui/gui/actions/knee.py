@@ -23,7 +23,7 @@ from PySide6.QtWidgets import (
 )
 
 from fluorogui.core.knee.kinematics import KinematicsError
-from fluorogui.gui.knee_panel import AnatomicalFrameDialog, KneePanel
+from fluorogui.gui.panels.knee_panel import AnatomicalFrameDialog, KneePanel
 from fluorogui.io.errors import InputError
 from fluorogui.workflow import exports
 

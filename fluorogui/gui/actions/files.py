@@ -209,7 +209,7 @@ class SessionFiles:
 
     def import_session(self, paths: dict | None = None, folder: Path | None = None) -> bool:
         """The import dialog (optionally pre-filled); the imported session replaces this one."""
-        from fluorogui.gui.import_dialog import ImportDialog
+        from fluorogui.gui.dialogs.import_dialog import ImportDialog
 
         if not self.maybe_save():
             return False

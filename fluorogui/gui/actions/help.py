@@ -103,7 +103,7 @@ class HelpActions:
         return dialog
 
     def about_text(self) -> str:
-        from fluorogui.gui.session_files import app_data_dir
+        from fluorogui.gui.actions.files import app_data_dir
 
         return (f"<h3>fluorogui {html.escape(__version__)}</h3>"
                 "<p>Pose of total-knee-replacement implants from two fluoroscopic views "

@@ -12,7 +12,7 @@ from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QPainterPath
 
 from fluorogui.core.outlines import editing as oe
-from fluorogui.gui.panel_items import EditCommand, Tool, guarded, polygon
+from fluorogui.gui.panels.image_items import EditCommand, Tool, guarded, polygon
 
 
 class PanelInteraction:
