@@ -43,10 +43,10 @@ def open_start_path(window: MainWindow, path: str | Path) -> bool:
         window.open_paths([path])
         return True
     if not path.exists():
-        window._warn("Cannot open project", f"{path}: no such file. Open another one with File → Open (Ctrl+O).")
+        window.warn("Cannot open project", f"{path}: no such file. Open another one with File → Open (Ctrl+O).")
         return False
     if path.is_file() and not os.access(path, os.R_OK):
-        window._warn("Cannot open project", f"{path}: not readable (permission denied).")
+        window.warn("Cannot open project", f"{path}: not readable (permission denied).")
         return False
     return window.open_project(path, ask=False)
 
