@@ -249,3 +249,19 @@ def test_dropped_folder_opens_the_import_dialog_filled(window, demo, monkeypatch
     assert shown and shown[0]["pairs_csv"].endswith("pairs.csv")
     assert len(window.controller.frames) == 3 and window.controller.path is None
     assert window.controller.dirty  # an import is unsaved work
+
+
+def test_the_menus_actions_ask_as_their_methods_do(window, demo, dialogs, monkeypatch):
+    """A menu action passes Qt's ``checked`` to its slot: it must not land in a parameter
+    (the demo action skipped the unsaved-changes question; Import poses… crashed)."""
+    from PySide6.QtWidgets import QFileDialog
+
+    window.open_project(demo)
+    window.session.set_pose("femoral", window.controller.frame, np.ones(6))  # an unsaved change
+    dialogs["answers"].append(QMessageBox.StandardButton.Cancel)
+    window.files.demo_action.trigger()
+    assert dialogs["question"] and window.controller.path == demo and window.controller.dirty
+    asked = []
+    monkeypatch.setattr(QFileDialog, "getOpenFileName", lambda *a, **k: (asked.append(a[1]), ("", ""))[1])
+    window.knee.import_poses_action.trigger()
+    assert asked == ["Import poses"]

@@ -51,7 +51,7 @@ class SessionFiles(QObject):
                                "Open a fluorogui project (Ctrl+O)")
         self.new_action = add("&New session from images and calibration…", lambda: self.import_session(),
                               QKeySequence.StandardKey.New)
-        self.demo_action = add("Open the &demo session", self.open_demo)
+        self.demo_action = add("Open the &demo session", lambda: self.open_demo())
         self.save_action = add("&Save", lambda: self.save(), QKeySequence.StandardKey.Save, "save",
                                "Save the session (Ctrl+S)")
         self.save_as_action = add("Save &as…", lambda: self.save_as(), QKeySequence.StandardKey.SaveAs)

@@ -31,7 +31,8 @@ class KneeActions(QObject):
             "&Export results…", self.export_results, "Ctrl+Shift+E",
             tip="Write poses, kinematics, Autoscoper .tra, JointTrack .jts or the figure")
         self.import_poses_action = window.add_action(
-            "&Import poses…", self.import_poses_file, tip="Read poses from our CSV, Autoscoper .tra or JointTrack .jts")
+            "&Import poses…", lambda: self.import_poses_file(),
+            tip="Read poses from our CSV, Autoscoper .tra or JointTrack .jts")
         panel.frame_selected.connect(c.set_frame)
         panel.side_chosen.connect(lambda side: c.session.set_side(side))
         panel.export_figure_requested.connect(self.export_figure)
