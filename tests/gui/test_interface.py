@@ -118,8 +118,9 @@ def test_home_end_and_the_component_key(window, demo, qtbot):
 
 def test_shortcut_list_is_complete(window):
     rows = dict(window.help.shortcut_rows())
-    for name, keys in (("Move point", "M"), ("Undo", "Ctrl+Z"), ("Redo", "Ctrl+Shift+Z"), ("Accept pose", "Ctrl+Return"),
-                       ("Un-accept pose", "Ctrl+Shift+Return"), ("First frame", "Home"), ("Last frame", "End"),
+    for name, keys in (("Move point", "M"), ("Undo", "Ctrl+Z"), ("Redo", "Ctrl+Shift+Z"),
+                       ("Accept pose", "Ctrl+Return"), ("Un-accept pose", "Ctrl+Shift+Return"),
+                       ("First frame", "Home"), ("Last frame", "End"),
                        ("Next component", "K"), ("Keyboard shortcuts", "F1"), ("Fit images", "F")):
         assert name in rows and rows[name].startswith(keys), (name, rows.get(name))
     assert all(len(keys.split(" or ")) == len(set(keys.split(" or "))) for keys in rows.values())  # no repeats

@@ -1,2 +1,1 @@
-"""The menu and action groups of the main window, each an object the window owns: files, editing, view, model,
-matching, review, knee and help."""
+"""The main window's menu and action groups, each an object the window owns (files, edit, view, model, tasks...)."""

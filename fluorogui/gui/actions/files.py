@@ -1,5 +1,5 @@
-"""The session life cycle of the main window: open, save, the demo, import, recent files,
-autosave and crash recovery, and dropped files.
+"""The File menu and the session life cycle of the main window: open, save, the demo,
+import, recent files, calibration, autosave and crash recovery, and dropped files.
 
 An open project file is locked (``fluorogui.io.project.lock``) so that the command line or a
 second app cannot write it at the same time. A file another live program holds is not

@@ -4,8 +4,9 @@ worker thread with live overlays, progress and cancel; then storing what comes b
 through the session and saying what happened in plain words.
 
 ``MatchControl`` belongs to a main window; it uses the window's controller, runner,
-matcher panel and 3D scene, and its ``SessionView`` to draw live results. The jobs come from ``Session.match_job`` /
-``find_job`` / ``track_job`` (see ``jobs``): no matching loop or tracking rule of its own.
+matcher panel and 3D scene, and its ``SessionView`` to draw live results. The jobs come
+from ``Session.match_job`` / ``find_job`` / ``track_job`` (see ``jobs``): no matching
+loop or tracking rule of its own.
 """
 from __future__ import annotations
 

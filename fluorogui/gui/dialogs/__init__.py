@@ -1,2 +1,1 @@
-"""The windows that open over the main window: calibration wizard, import, export, crash report, missing files,
-anatomical frames and the guided tour."""
+"""Windows over the main window: calibration, import, export, crash report, missing model files, anatomical frames."""

@@ -1,2 +1,1 @@
-"""The widgets inside the main window: the image panels with their items and editing tools, the matcher, pose,
-kinematics, timeline and pixel-value panels."""
+"""The widgets inside the main window: image panels (items, editing tools), matcher, pose, kinematics, timeline."""

@@ -511,7 +511,7 @@ class ImagePanel(PanelInteraction, QGraphicsView):
                 try:
                     spline = OutlineSpline.fit(pts)
                     comp.spline_ok = True
-                except Exception:  # an unusable outline is shown as its polyline
+                except Exception:  # noqa: BLE001 - an unusable outline is shown as its polyline
                     spline = None
             if spline is None:
                 path.addPolygon(polygon(pts))
