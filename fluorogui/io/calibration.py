@@ -108,11 +108,13 @@ def load_view(path, name: str = "", *, image_size=JOINTTRACK_DEFAULT_IMAGE_SIZE)
 
 
 def _plausible(path: Path, view: View, fields: dict) -> View:
-    """``view`` if a fluoroscope can have it; else InputError naming the file and its field."""
+    """``view`` if a fluoroscope can have it; else InputError naming the file and its field.
+    The view remembers its file (``extra["file"]``) for later messages about it."""
     problem = plausible.view_problem(view)
     if problem:
         kind, sentence = problem
         raise InputError(path, f"{fields[kind]}: {sentence}")
+    view.extra["file"] = str(path)
     return view
 
 
@@ -201,6 +203,7 @@ def check_image_size(view: View, image_shape, path) -> None:
     cal_w, cal_h = view.image_size
     if (width, height) != (cal_w, cal_h):
         label = f" '{view.name}'" if view.name else ""
+        label += f" ({view.extra['file']})" if view.extra.get("file") else ""
         raise InputError(
             path, f"image is {width}x{height} px but the calibration{label} is for {cal_w}x{cal_h} px"
         )

@@ -268,7 +268,8 @@ def test_check_image_size(tmp_path):
     check_image_size(view, (1024, 1024), "img.tif")
     with pytest.raises(InputError) as info:
         check_image_size(view, (512, 640), "img.tif")
-    assert str(info.value) == "img.tif: image is 640x512 px but the calibration 'cam1' is for 1024x1024 px"
+    assert str(info.value) == \
+        f"img.tif: image is 640x512 px but the calibration 'cam1' ({tmp_path / 'cam.txt'}) is for 1024x1024 px"
 
 
 # -- writing: round trips -------------------------------------------------------------------------
