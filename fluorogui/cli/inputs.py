@@ -107,9 +107,10 @@ MIN_COMPONENT_PX = 4.0
 def check_start_visible(views, mesh, start, image_paths, what: str = "--start") -> None:
     """Refuse a start pose the views cannot see, as a mistake in ``what`` (UsageError, exit 2):
     the component's centre at or behind a view's X-ray source, so close to it that the
-    component would be over four times the image across, beyond a view's intensifier (when the
-    calibration has a real pixel pitch), outside an image, or so far away that it would be
-    a speck. The outline there could not be segmented or matched."""
+    component would be over four times the image across, outside an image, or so far away
+    that it would be a speck. The outline there could not be segmented or matched. (Not
+    "beyond the intensifier": a calibration without a pixel pitch, saved as JSON, has only
+    a nominal source-intensifier distance.)"""
     from fluorogui.core.projection.pose import transform_points
 
     centre = transform_points(start, mesh.centroid[None, :])[0]
@@ -127,9 +128,6 @@ def check_start_visible(views, mesh, start, image_paths, what: str = "--start") 
         if across > 4.0 * max(w, h):
             raise UsageError(f"fluorogui: {what}: the pose lies too close to the source of {name} ({depth:.4g} mm "
                              f"from it): the component would be {across:.0f} px across in a {w}x{h} px image")
-        if not view.extra.get("pitch_assumed") and depth >= view.distance:
-            raise UsageError(f"fluorogui: {what}: the pose lies beyond the intensifier of {name} ({depth:.4g} mm "
-                             f"from the source, the intensifier {view.distance:.4g} mm)")
         u, v = view.project(centre[None, :])[0]
         if not (0 <= u <= w - 1 and 0 <= v <= h - 1):
             raise UsageError(f"fluorogui: {what}: the pose puts the component outside this image of {name} "

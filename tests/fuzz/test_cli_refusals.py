@@ -187,8 +187,8 @@ EXPECTED = {  # case -> the one line on stderr, after "fluorogui: error: <calibr
     "start_at_source": "fluorogui: --start: the pose lies at the source of view 1 (its centre is 5 mm in front of "
                        "it, within the component's size)",
     "start_half_way_to_source": "fluorogui: --start: the pose puts the component outside this image of view 2 (",
-    "start_1e5_mm_away": "fluorogui: --start: the pose lies beyond the intensifier of view 1 (1.01e+05 mm from the "
-                         "source, the intensifier 1200 mm)",
+    "start_1e5_mm_away": "fluorogui: --start: the pose lies too far from the source of view 1 (1.01e+05 mm from it): "
+                         "the component would be 1.2 px across",
     "jointtrack_lower_case_header": "the header 'jt_intcalib' is not in capitals as JointTrack writes it; read as "
                                     "JT_INTCALIB",
 }

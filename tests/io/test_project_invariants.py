@@ -49,8 +49,8 @@ def test_a_schema_5_file_with_a_short_view_is_repaired_with_a_warning(tmp_path):
         project = load_project(path)
     assert project == short_project()
     assert [str(w.message) for w in caught] == [
-        f"{path}: sequences[1] has 1 images for 2 frames (schema 5 allowed it): frames 1..1 of view 2 have no "
-        "image and are flagged when matched; saving states this in the file"]
+        f"{path}: view 2 has 1 of the 2 frames' images (schema 5 allowed it silently): frame 1 will be flagged "
+        "when matched; saving states this in the file (sequences[1].frames_without_image)"]
 
 
 @pytest.mark.parametrize("stated, words", [

@@ -28,9 +28,10 @@ InputError naming the file and the field. Records and poses are counted against 
 frames can hold before any of them is checked, then checked one by one as they are
 converted, each raw item dropped once converted (the JSON, its checked form and the
 project are never all held at once). File paths are stored relative to the project file's
-folder (with "/" separators) and made absolute on load; the files they name need not exist. Older schemas
-are upgraded step by step through ``MIGRATIONS``; newer ones are refused. Saving is atomic
-(``files.atomic_write_text``) and keeps the previous file as ``<name>.fluoro.bak``.
+folder (with "/" separators) and made absolute on load; the files they name need not
+exist. Older schemas are upgraded step by step through ``MIGRATIONS``; newer ones are
+refused. Saving is atomic (``files.atomic_write_text``) and keeps the previous file as
+``<name>.fluoro.bak``.
 """
 from __future__ import annotations
 
@@ -194,11 +195,11 @@ def load_project(path) -> Project:
         raise InputError(path, "not a fluorogui project (not a text file)") from None
     del raw  # the text, then the parsed document, then the project: never all three at once
     try:
-        document = parse_json(text)
-    except DocumentError as exc:
-        raise InputError(path, str(exc)) from None
-    del text
-    try:
+        try:
+            document = parse_json(text)
+        except DocumentError as exc:
+            raise InputError(path, str(exc)) from None
+        del text
         return _project_from_parsed(document, path)
     except InputError:
         raise
@@ -227,9 +228,10 @@ def _project_from_parsed(document: Any, path: Path) -> Project:
         for k, sequence in enumerate(project.sequences):
             short = project.frames[len(sequence.paths):]
             if short:
-                warn_input(path, f"sequences[{k}] has {len(sequence.paths)} images for {len(project.frames)} frames "
-                                 f"(schema {version} allowed it): frames {short[0]}..{short[-1]} of view {k + 1} "
-                                 "have no image and are flagged when matched; saving states this in the file")
+                frames = f"frame {short[0]}" if len(short) == 1 else f"frames {short[0]} to {short[-1]}"
+                warn_input(path, f"view {k + 1} has {len(sequence.paths)} of the {len(project.frames)} frames' images "
+                                 f"(schema {version} allowed it silently): {frames} will be flagged when matched; "
+                                 f"saving states this in the file (sequences[{k}].frames_without_image)")
     return project
 
 
