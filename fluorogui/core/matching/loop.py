@@ -188,8 +188,49 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
                       loop: LoopSettings | None = None, splines: Sequence[OutlineSpline | None] | None = None,
                       occluded: Sequence | None = None, progress=None, cancel=None,
                       rim_models: list[RimModel | None] | None = None) -> MatchResult:
-    """Match one component in one frame from ``start`` (mm, degrees).
+    """Match one component in one frame from ``start`` (mm, degrees), segmenting its outlines.
 
+    The one segment -> match -> re-segment loop of the app, the command line, tracking and
+    scripts.
+
+    Parameters
+    ----------
+    images : sequence of numpy.ndarray
+        One image per view, float in [0, 1].
+    views : sequence of View
+    mesh : PreparedMesh
+    start : array_like of 6 float
+        The start pose, mm and degrees.
+    settings : MatchSettings, optional
+        The matcher's settings (default: the fast method).
+    loop : LoopSettings, optional
+        Passes, when the loop has settled, search bands and the rim refinement.
+    splines : sequence of OutlineSpline or None, optional
+        Reviewed outlines per view (None where a view has none): used as they are.
+    occluded : sequence of numpy.ndarray or None, optional
+        Per view, a boolean mask of where another component hides this one.
+    progress, cancel : callable, optional
+        As for :func:`~fluorogui.core.matching.matcher.match`.
+    rim_models : list, optional
+        Per view, the rim model fitted in an earlier frame of the sequence (None entries
+        are filled in here, for the next frame).
+
+    Returns
+    -------
+    MatchResult
+        As :func:`~fluorogui.core.matching.matcher.match` returns, plus ``splines`` (the
+        outlines it was matched on), ``image_outlines`` (the automatic ones), their
+        ``outline_weights`` and ``passes``.
+
+    Raises
+    ------
+    SegmentationError
+        No outline could be traced in the first pass.
+    fluorogui.core.cancel.Cancelled
+        ``cancel()`` turned true.
+
+    Notes
+    -----
     ``splines`` are given (reviewed) outlines, per view, None where a view has none. With
     a given outline in every view: one match on them. Otherwise the missing views are
     segmented along the pose and matched, again and again (at least ``loop.min_passes``,
@@ -211,7 +252,25 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
     first refining pass also matches the plain outlines and the refined ones are kept only
     when they fit the model better (a lower objective); otherwise the loop goes on without
     them. ``result.settings["rim_refined"]`` says per view whether the result's outline
-    was refined."""
+    was refined.
+
+    Examples
+    --------
+    The demo's femoral component from a start 2-3 mm / degrees off:
+
+    >>> import numpy as np
+    >>> from fluorogui import Session
+    >>> from fluorogui.core.matching.loop import LoopSettings
+    >>> from fluorogui.simulation.demo import demo_project_path
+    >>> session = Session.open(demo_project_path("cache", frames=2, image_size=256))
+    >>> truth = np.array(session.project.settings["demo_truth"]["0"]["femoral"])
+    >>> result = segment_and_match(session.images(0), session.views, session.mesh("femoral"),
+    ...                            truth + [2, -2, 1, 3, -2, 2], loop=LoopSettings(rim="off"))
+    >>> result.converged, result.passes >= 2
+    (True, True)
+    >>> bool(np.abs(result.pose - truth).max() < 0.5)
+    True
+    """
     settings = settings or MatchSettings()
     loop = loop or LoopSettings()
     pose = np.asarray(start, dtype=float)
