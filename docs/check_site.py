@@ -27,7 +27,8 @@ def commands(parser: argparse.ArgumentParser, prefix: tuple[str, ...] = ()):
 
 def page_text(path: Path) -> str:
     text = re.sub(r"<[^>]+>", " ", path.read_text(encoding="utf-8"))
-    return html.unescape(text).replace("\u2011", "-").replace("\u2013", "--")
+    text = html.unescape(text).replace("\u2011", "-").replace("\u2013", "--")
+    return re.sub(r"\s+", " ", text)  # highlighted usage lines split words across tags
 
 
 def main(site: Path) -> int:

@@ -49,12 +49,7 @@ html_theme = "furo"
 html_title = f"fluorogui {release}"
 html_logo = "../fluorogui/resources/icons/app.svg" if (ROOT / "fluorogui/resources/icons/app.svg").exists() else None
 html_favicon = html_logo
-html_theme_options = {
-    "source_repository": "https://github.com/fluorogui/fluorogui/",
-    "source_branch": "main",
-    "source_directory": "docs/",
-    "navigation_with_keys": True,
-}
+html_theme_options = {"navigation_with_keys": True}
 html_show_sourcelink = False
 html_last_updated_fmt = None  # builds are reproducible: no build date on every page
 
