@@ -242,7 +242,7 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
     points' weights and the number of passes.
 
     With ``loop.rim`` "on" the passes after the first move the automatic outlines to the
-    boundary the metal's rim profile gives (``core.rim``); with "auto" (the default) only
+    boundary the metal's rim profile gives (``core.outlines.rim``); with "auto" (the default) only
     in the views whose edge the second pass finds soft (``soft_edge_views``: a thin rim
     darkening inside the silhouette, where Canny's outline lies inside it and the pose
     would be biased; real images have shown step edges, which stay as Canny puts them).

@@ -20,7 +20,7 @@ predicted one (tracking recovery), and say honestly when it could not.
    edge score.
 3. *Final fit.* The best candidate (and the runner-up when its edge score is within
    ``CLOSE_SCORE``) is matched on Canny outlines with the full mesh
-   (``pipeline.match_images``, one pass; a second when the pose moved more than
+   (``core.matching.loop.match_images``, one pass; a second when the pose moved more than
    ``SETTLED`` so that the outline was segmented along a different pose).
 4. *Verdict.* ``found`` only when both views fit: mean outline distance per view at most
    ``MAX_VIEW_PX``, IoU of silhouette and image-outline region at least ``MIN_IOU`` and
