@@ -58,7 +58,8 @@ def _within(errors: list, basin_mm: float, basin_deg: float) -> list[bool]:
 
 def _idealized(run: dict) -> list[str]:
     basin_mm, basin_deg = run.get("basin", (0.05, 0.05))
-    rows, totals = [], {"runs": 0, "within": 0, "false": 0, "worst_mm": 0.0, "worst_deg": 0.0}
+    counts, errors_rows = [], []
+    totals = {"runs": 0, "within": 0, "false": 0, "worst_mm": 0.0, "worst_deg": 0.0}
     for case in run["results"]["cases"]:
         errors = case["errors"]
         converged = [r["converged"] for r in case["runs"]]
@@ -72,18 +73,22 @@ def _idealized(run: dict) -> list[str]:
         totals["false"] += false
         totals["worst_mm"] = max(totals["worst_mm"], worst_mm)
         totals["worst_deg"] = max(totals["worst_deg"], worst_deg)
-        name = Path(case["model"]).stem.replace("_", " ") + (f" ({case['variant']})" if case.get("variant") else "")
-        dof = [f"{_num(m)} ± {_num(sd)}" for m, sd in zip(s["mean"], s["sd"])]
-        rows.append([name, case["label"], case["method"], f"{s['n_converged']}/{s['n_runs']}",
-                     f"{sum(within)}/{len(errors)}", str(false), *dof,
-                     f"{_num(worst_mm)} / {_num(worst_deg)}", _num(s["median_seconds"], 2)])
-    head = ["model", "case", "method", "converged", f"within {basin_mm:g} mm / {basin_deg:g}°",
-            "converged outside", *[f"{d} mean ± SD" for d in DOF_HEAD], "worst start (mm / °)", "s per match"]
-    lines = _table(head, rows)
+        name = Path(case["model"]).stem.replace("_component", "").replace("_", " ")
+        name += f" ({case['variant']})" if case.get("variant") else ""
+        if case["method"] != "fast":
+            name += f", {case['method']}"
+        counts.append([name, case["label"], f"{s['n_converged']}/{s['n_runs']}", f"{sum(within)}/{len(errors)}",
+                       str(false), f"{_num(worst_mm)} / {_num(worst_deg)}", _num(s["median_seconds"], 2)])
+        errors_rows.append([name, case["label"].split(" [")[0],
+                            *[f"{_num(m)} ± {_num(sd)}" for m, sd in zip(s["mean"], s["sd"])]])
+    lines = _table(["model", "case", "converged", f"within {basin_mm:g} mm / {basin_deg:g}°", "converged outside",
+                    "worst start (mm / °)", "s per match"], counts)
     lines.append(f"All cases: **{totals['within']} of {totals['runs']}** starts ended within "
                  f"{basin_mm:g} mm / {basin_deg:g}° of the truth; **{totals['false']}** converged outside it; "
                  f"the worst start ended {_num(totals['worst_mm'])} mm / {_num(totals['worst_deg'])}° off.")
-    return lines + [""]
+    lines += ["", "Error of the converged starts, mean ± SD (mm, degrees):", ""]
+    lines += _table(["model", "case", *DOF_HEAD], errors_rows)
+    return lines
 
 
 def _spheres(run: dict) -> list[str]:
