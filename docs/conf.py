@@ -24,7 +24,8 @@ version = ".".join(release.split(".")[:2])
 
 project = "fluorogui"
 author = "The fluorogui developers"
-copyright = f"2026–{max(date.today().year, 2026)}, {author}"
+_year = max(date.today().year, 2026)
+copyright = f"2026{f'–{_year}' if _year > 2026 else ''}, {author}"
 
 extensions = [
     "sphinx.ext.autodoc",

@@ -31,7 +31,6 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
 
     from PySide6.QtCore import QEventLoop, QSettings, QTimer
-    from PySide6.QtWidgets import QApplication
 
     from fluorogui.gui import theme
     from fluorogui.gui.app import make_application
