@@ -481,8 +481,8 @@ def find_components(images: Sequence[np.ndarray], views: Sequence[View], meshes:
 
     Dark regions propose positions, thousands of orientations are scored on oriented edge
     maps, the best candidates are refined on the image edges and matched on Canny
-    outlines, and each is judged; see the methods page *Find implants*. Each component
-    after the first is searched with those already found masked.
+    outlines, and each is judged; see the methods page *Find implants*. Positions where a
+    component was already found are skipped for the next one.
 
     Parameters
     ----------
