@@ -153,7 +153,7 @@ def source_frame_rate(path) -> tuple[float, str] | None:
             return (fps, f"{path.name} (video)") if 0 < fps <= MAX_FPS else None
         if suffix in DICOM_SUFFIXES or (suffix not in IMAGE_SUFFIXES and has_dicom_preamble(path)):
             return _dicom_frame_rate(path)
-    except InputError:
+    except (InputError, OSError):
         return None
     return None
 
