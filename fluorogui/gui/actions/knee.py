@@ -11,6 +11,7 @@ from PySide6.QtCore import QObject, QStandardPaths, QTimer
 from PySide6.QtWidgets import QDialog, QFileDialog, QInputDialog
 
 from fluorogui.core.knee.kinematics import KinematicsError
+from fluorogui.gui.actions.files import app_data_dir
 from fluorogui.gui.dialogs.anatomical_frame import AnatomicalFrameDialog
 from fluorogui.gui.dialogs.export_dialog import TIMED_KINDS, ExportDialog
 from fluorogui.io.errors import InputError
@@ -73,8 +74,6 @@ class KneeActions(QObject):
         in a folder we cannot write, or the demo in the app's data folder) the last folder
         exported to, else Documents. Never the images' folder: that is often read-only on a
         lab server."""
-        from fluorogui.gui.actions.files import app_data_dir
-
         data = app_data_dir().resolve()
 
         def writable(folder) -> bool:

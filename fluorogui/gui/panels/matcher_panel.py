@@ -249,7 +249,7 @@ class MatcherPanel(QWidget):
         self.texts.setWidgetResizable(True)
         self.texts.setFrameShape(QFrame.Shape.NoFrame)
         self.texts.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
-        self.texts.setMinimumHeight(48)
+        self.texts.setMinimumHeight(64)  # two summary lines and Details…, on a laptop too
         self.progress = QProgressBar()
         self.progress.setVisible(False)
         self.progress.setTextVisible(True)
@@ -261,8 +261,8 @@ class MatcherPanel(QWidget):
         layout.addLayout(form)
         layout.addLayout(buttons)
         layout.addLayout(running)
-        layout.addWidget(self.plot, 3)
-        layout.addWidget(self.texts, 2)
+        layout.addWidget(self.plot, 2)
+        layout.addWidget(self.texts, 3)
 
     # -- settings ------------------------------------------------------------------------------
     def settings(self, base: MatchSettings | None = None) -> MatchSettings:
