@@ -125,8 +125,7 @@ def run(args) -> int:
                 "(invalid markers, NaN values; accept them in the app, or --include-unreviewed)")
         warn(f"{len(left_out)} pose{'s' if len(left_out) > 1 else ''} {what}: frame{'s' if len(frames) > 1 else ''} "
              f"{frame_list(frames)}")
-    frames = session.frames
-    if args.c3d and any(b - a != 1 for a, b in zip(frames, frames[1:])):
+    if args.c3d and not exports.consecutive_frames(session):
         warn("the project's frame numbers are not consecutive: a C3D reader times C3D frames one 1/fps apart, so "
              "its times are not frame / fps; the C3D's FLUOROGUI:FRAMES and FLUOROGUI:TIMES hold the true ones "
              "(.trc and .mot carry them too)")

@@ -300,6 +300,13 @@ def _descriptions(labels: list[str]) -> list[str]:
     return [f"{label.split('_')[0]} component: {words[label.split('_', 1)[1]]}, world mm" for label in labels]
 
 
+def consecutive_frames(session) -> bool:
+    """Whether the frame numbers follow one another: a C3D reader times its frames 1/fps
+    apart, which is frame ÷ fps only then (the C3D keeps the true ones in FLUOROGUI:FRAMES)."""
+    frames = session.frames
+    return all(b - a == 1 for a, b in zip(frames, frames[1:]))
+
+
 def export_c3d(session, path, fps: float | None = None, include_unreviewed: bool = False) -> Path:
     """C3D: the anatomical markers, POINT:RATE the frame rate, one C3D frame per project
     frame; poses left out (see the module) are invalid markers (residual −1)."""

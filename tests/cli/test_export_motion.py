@@ -127,3 +127,23 @@ def test_import_keeps_fps_or_the_videos_own(tmp_path, capsys):
     assert "time" not in load_project(tmp_path / "png.fluoro").settings
     assert main(["import", str(data), "--out", str(tmp_path / "bad.fluoro"), "--fps", "-1"]) == 2
     assert "--fps" in one_error_line(capsys) and not (tmp_path / "bad.fluoro").exists()
+
+
+def test_real_data_frames_keep_their_numbers_and_times(shared_data, tmp_path, capsys):
+    """biplane-tka's pairs are frames 0, 20, 40, 50, …: C3D frames are evenly timed, so the
+    command says so and the file keeps the true frame numbers and times."""
+    from tests.io.test_motion_files import read_c3d
+
+    project = tmp_path / "real.fluoro"
+    assert main(["import", str(shared_data / "biplane-tka"), "--out", str(project), "--fps", "30"]) == 0
+    frames = load_project(project).frames
+    assert any(b - a != 1 for a, b in zip(frames, frames[1:]))
+    capsys.readouterr()
+    assert main(["export", str(project), "--c3d", str(tmp_path / "r.c3d"), "--trc", str(tmp_path / "r.trc")]) == 0
+    assert "not consecutive" in capsys.readouterr().err
+    _, points, residual, info = read_c3d(tmp_path / "r.c3d")
+    assert len(points) == len(frames) and np.all(residual < 0)  # nothing matched yet: every marker invalid
+    np.testing.assert_array_equal(info["frames"], frames)
+    np.testing.assert_allclose(info["times"], np.array(frames) / 30.0, rtol=1e-6)
+    lines = (tmp_path / "r.trc").read_text().splitlines()[6:]
+    assert [line.split("\t")[0] for line in lines] == [str(f) for f in frames]

@@ -141,6 +141,9 @@ class KneeActions(QObject):
         if unmatched:
             left_out += (f"; {len(unmatched)} pose{'s' if len(unmatched) != 1 else ''} not matched or accepted left "
                          "out of the C3D/OpenSim/XMALab files")
+        if "c3d" in targets and not exports.consecutive_frames(session):
+            left_out += ("; the frame numbers are not consecutive, so a C3D reader's times are not frame / fps "
+                         "(the C3D keeps the true ones in FLUOROGUI:FRAMES and :TIMES)")
         self.window.statusBar().showMessage(f"Exported {len(written)} file{'s' if len(written) != 1 else ''} "
                                             f"to {Path(dialog.folder.text())}{left_out}", 8000)
         self.window.settings.setValue("export_dir", dialog.folder.text())
