@@ -26,11 +26,13 @@ from PySide6.QtWidgets import (
     QDoubleSpinBox,
     QFileDialog,
     QFormLayout,
+    QFrame,
     QHBoxLayout,
     QLabel,
     QLineEdit,
     QMenu,
     QPushButton,
+    QScrollArea,
     QToolButton,
     QVBoxLayout,
     QWidget,
@@ -190,13 +192,25 @@ class ImportDialog(QDialog):
         self.buttons.accepted.connect(self.accept)
         self.buttons.rejected.connect(self.reject)
 
+        fields = QWidget()
+        column = QVBoxLayout(fields)
+        column.setContentsMargins(0, 0, 0, 0)
+        column.addLayout(form)
+        column.addWidget(self.error_label)
+        column.addStretch(1)
+        self.form_area = QScrollArea()  # a short screen scrolls the fields, the buttons stay in sight
+        self.form_area.setObjectName("import_fields")
+        self.form_area.setWidgetResizable(True)
+        self.form_area.setFrameShape(QFrame.Shape.NoFrame)
+        self.form_area.setWidget(fields)
         layout = QVBoxLayout(self)
         layout.addLayout(top)
-        layout.addLayout(form)
-        layout.addWidget(self.error_label)
-        layout.addStretch(1)
+        layout.addWidget(self.form_area, 1)
         layout.addWidget(self.buttons)
-        self.resize(720, self.sizeHint().height())
+        wanted = top.sizeHint().height() + fields.sizeHint().height() + self.buttons.sizeHint().height() + 48
+        screen = self.screen() or QGuiApplication.primaryScreen()
+        room = screen.availableGeometry().height() - 60 if screen is not None else wanted  # less a title bar
+        self.resize(720, max(320, min(wanted, room)))
 
     # -- building --------------------------------------------------------------------------
     @staticmethod
