@@ -87,12 +87,14 @@ def run(args) -> int:
     fps = stored_frame_rate(project.settings)
     print(f"wrote {out}: {len(project.frames)} frames, {len(project.views)} views, "
           f"components {', '.join(m.component for m in project.models)}"
-          + (f", {fps:g} frames per second" if fps is not None else ""))
+          + (f", {fps:g} frames per second" if fps is not None else
+             ", no frame rate (the images do not say; give --fps N for C3D, .trc and .mot exports)"))
     return 0
 
 
 def _frame_rate(project, fps: float | None) -> None:
-    """Keep ``--fps`` (saying when the images declare another), or tell what the images said."""
+    """Keep ``--fps`` (saying when the images declare another); warn when the views declare
+    different rates (images that declare none are the usual case: the summary line says so)."""
     from fluorogui.io.importer import declared_frame_rates
     from fluorogui.io.motion_files import store_frame_rate, stored_frame_rate
 
@@ -102,10 +104,6 @@ def _frame_rate(project, fps: float | None) -> None:
         if other:
             warn(f"--fps {fps:g} kept although {'; '.join(other)} frames per second")
         store_frame_rate(project.settings, fps, "user (--fps)")
-    elif stored_frame_rate(project.settings) is None:
-        if declared:
-            rates = ", ".join(f"{where}: {rate:g}" for rate, where in declared)
-            warn(f"the views declare different frame rates ({rates}); no frame rate kept: give --fps N")
-        else:
-            warn("the images do not say their frame rate; give --fps N for C3D, .trc and .mot exports "
-                 "(or fluorogui export --fps N)")
+    elif stored_frame_rate(project.settings) is None and declared:
+        rates = ", ".join(f"{where}: {rate:g}" for rate, where in declared)
+        warn(f"the views declare different frame rates ({rates}); no frame rate kept: give --fps N")
