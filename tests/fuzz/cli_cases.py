@@ -66,7 +66,8 @@ OPTION_CASES = [  # (argv builder, option, kind)
     (match_argv, "--starts", "1-1000"), (match_argv, "--outline-points", "from-1"), (match_argv, "--points", "from-10"),
     (repeat_argv, "--starts", "1-1000"), (repeat_argv, "--seed", "from-0"), (repeat_argv, "--frames", "from-0"),
     (lambda s: ["track", "x.fluoro"], "--workers", "1-256"), (lambda s: ["batch", "x.fluoro"], "--workers", "from-1"),
-    (lambda s: ["bench"], "--starts", "1-1000"), (lambda s: ["demo", str(s["folder"] / "d.fluoro")], "--frames", "1-1000"),
+    (lambda s: ["bench"], "--starts", "1-1000"),
+    (lambda s: ["demo", str(s["folder"] / "d.fluoro")], "--frames", "1-1000"),
 ]
 SLOTS = [("cam0", match_argv), ("img1", match_argv), ("mesh", match_argv), ("outline0", match_argv),
          ("pairs", repeat_argv), ("reference", repeat_argv), ("cam1", repeat_argv)]

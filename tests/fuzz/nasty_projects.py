@@ -59,7 +59,7 @@ def mutate_document(document, rng) -> object:
     for _ in range(rng.randint(1, 3)):
         places = []
 
-        def walk(value, parent, key):
+        def walk(value, parent, key, places=places):
             if parent is not None:
                 places.append((parent, key))
             if isinstance(value, dict):

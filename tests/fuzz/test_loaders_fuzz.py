@@ -42,7 +42,7 @@ def test_reference_tables(tmp_path_factory, rows, header):
     except InputError as exc:
         assert str(exc).startswith(f"{path}: ") and "\n" not in str(exc)
         return
-    for frame, component, pose in poses:
+    for _frame, _component, pose in poses:
         assert pose.shape == (6,) and all(abs(v) <= 1e7 for v in pose)
 
 
