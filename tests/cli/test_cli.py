@@ -159,6 +159,7 @@ def test_wrong_number_of_cameras_is_one_line(scene, capsys):
     _expect_error(_args(scene) + ["--camera", scene["cams"][0]], capsys, "two --camera")
 
 
+@pytest.mark.slow
 def test_cli_runs_as_a_module_without_qt(scene, tmp_path):
     """The one end-to-end ``python -m fluorogui`` run (the other CLI tests call ``main`` in
     this process, where pytest-qt has imported Qt already): a match in a fresh interpreter
