@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from loader_worker import fuzz_loaders
@@ -16,6 +17,7 @@ from fluorogui.io.outlines import read_outline_csv
 from fluorogui.io.pose_files import read_reference_poses
 
 
+@pytest.mark.slow
 def test_mutated_files_of_every_loader(tmp_path):
     seeds = make_seeds(tmp_path / "seeds")
     (tmp_path / "cases").mkdir()

@@ -77,6 +77,7 @@ def test_converged_wrong_pose_is_flagged_never_matched(demo, truth):
         assert mm < 0.011 and deg < 0.024, (component, mm, deg)
 
 
+@pytest.mark.slow
 def test_missing_image_is_flagged_and_tracking_goes_on(demo):
     session = Session.open(demo)
     session.project.sequences[1].paths[2].unlink()  # view 2 of frame 2
@@ -168,6 +169,7 @@ def test_pose_records_of_unknown_status_are_refused():
         PoseRecord(np.zeros(6), None, status="great")
 
 
+@pytest.mark.slow
 def test_matched_pose_keeps_its_sd_in_the_project(demo):
     session = Session.open(demo)
     result = session.match(1, "femoral")[0]
