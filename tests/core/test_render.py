@@ -55,7 +55,7 @@ def test_cube_coverage_equals_projected_area():
     world = transform_points([1.3, -2.2, 40.0, 25.0, 37.0, -12.0], vertices)
     cov = render_silhouette(view, world, faces, supersample=8)
     area = ConvexHull(view.project(world)).volume  # a convex body projects to its vertices' hull
-    assert abs(cov.sum() - area) / area < 1e-3
+    assert abs(cov.sum() - area) / area < 1.3e-5  # measured 6.4e-6
 
 
 def test_overlapping_triangles_are_a_union_not_xor():
@@ -95,7 +95,7 @@ def test_large_mesh_matches_disc_area():
     # the sphere's silhouette from a point source is a circle of radius d r / sqrt(D^2 - r^2)
     D = 1050.0
     radius_px = 1000.0 * 30.0 / np.sqrt(D**2 - 30.0**2) / 0.25
-    assert abs(cov.sum() - np.pi * radius_px**2) / (np.pi * radius_px**2) < 2e-3  # polygonal sphere
+    assert abs(cov.sum() - np.pi * radius_px**2) / (np.pi * radius_px**2) < 3.3e-4  # polygonal sphere: 1.6e-4
 
 
 def test_render_fluoro_dark_component_on_bright_background():
