@@ -130,6 +130,31 @@ def test_another_process_is_refused_by_name_and_its_crash_frees_the_project(proj
         assert read_holder(project)["program"] == "fluorogui (desktop)"
 
 
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="POSIX fork")
+def test_a_forked_child_is_another_process(project):
+    """A child forked while the project is held is refused like any other process, and
+    its exit leaves the parent's lock held."""
+    import portalocker
+
+    with ProjectLock(project, "parent"):
+        pid = os.fork()
+        if pid == 0:  # the child
+            try:
+                ProjectLock(project, "child").acquire()
+                code = 1
+            except ProjectLocked as exc:
+                code = 0 if "in use by parent" in str(exc) else 3
+            except BaseException:  # noqa: BLE001 - any other outcome is a failure code
+                code = 2
+            os._exit(code)
+        _, status = os.waitpid(pid, 0)
+        assert os.waitstatus_to_exitcode(status) == 0
+        with open(guard_path(project), "rb") as other, pytest.raises(portalocker.AlreadyLocked):
+            portalocker.lock(other, portalocker.LockFlags.EXCLUSIVE | portalocker.LockFlags.NON_BLOCKING)
+        assert read_holder(project)["program"] == "parent"
+    assert _files(project.parent) == ["knee.fluoro"]
+
+
 def test_a_note_of_a_dead_process_is_taken_over(project):
     lock_path(project).write_text(json.dumps({"program": "fluorogui track", "pid": _dead_pid(),
                                               "host": socket.gethostname(), "since": 0}))

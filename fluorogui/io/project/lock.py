@@ -60,6 +60,24 @@ _HELD: dict[Path, _Held] = {}  # projects this process holds, by absolute lock p
 _HELD_LOCK = threading.Lock()
 
 
+def _forget_after_fork() -> None:
+    """A forked child holds nothing: its copies of the guard files are closed (which does
+    not release the parent's locks; unlocking would) and it takes its own locks."""
+    global _HELD_LOCK
+    _HELD_LOCK = threading.Lock()
+    for held in _HELD.values():
+        if held.fd is not None:
+            try:
+                os.close(held.fd)
+            except OSError:
+                pass
+    _HELD.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_after_fork)
+
+
 class ProjectLocked(InputError):
     """The project is locked by another live process; ``holder`` says who."""
 
@@ -223,10 +241,14 @@ class ProjectLock:
     def _write_note(self) -> None:
         me = {"program": self.program, "pid": os.getpid(), "started": _process_started(),
               "host": socket.gethostname(), "user": _user(), "since": time.time(), "token": self.token}
-        try:
-            atomic_write_text(self.path, json.dumps(me))
-        except InputError as exc:
-            raise InputError(self.path, f"cannot write the lock file: {exc.problem}") from None
+        for attempt in range(5):
+            try:
+                atomic_write_text(self.path, json.dumps(me))
+                return
+            except InputError as exc:
+                if attempt == 4 or os.name != "nt":
+                    raise InputError(self.path, f"cannot write the lock file: {exc.problem}") from None
+                time.sleep(0.02)  # Windows replaces no file another process is reading: again
 
 
 def _claims_it(holder: dict) -> bool:
