@@ -110,8 +110,9 @@ def main(argv=None) -> int:
             shoot(window, "app-kinematics")
         if wanted("dialog-export"):
             from fluorogui.gui.dialogs.export_dialog import ExportDialog
+            from fluorogui.workflow import exports
 
-            dialog = ExportDialog(scratch, "demo", session.n_views, window)
+            dialog = ExportDialog(scratch, "demo", session.n_views, window, fps=exports.frame_rate(session))
             dialog.show()
             shoot(dialog, "dialog-export")
             dialog.close()
