@@ -518,7 +518,7 @@ def _fit_models(views_pts: list[_Points], usable: list[np.ndarray], smooth: int,
 #: a fitted attenuation (1/mm) below this is a soft rim (``is_soft``). The X-ray model's
 #: cobalt-chrome (1/mm) fits 1.0-1.4; the real biplane views 2-50 (76 of 106 the grid's
 #: step of 50) but 3 of 106 at 1.0-1.4 (the full fit, ``rim_model``, at the listed poses
-#: of every frame, ad hoc): a narrow margin, see the README
+#: of every frame, ad hoc): a narrow margin (docs/methods/outlines.rst, When the loop refines)
 SOFT_BELOW_MU = 1.7
 #: the quick fit (``edge_model``) calls an edge a step above this, and the full fit decides
 #: below it: it saw soft rims in 40 % of the real views the full fit calls steps, fits of
