@@ -63,6 +63,7 @@ class ComponentInput:
     gap: int = 1  # frame numbers since the last matched frame: the jump allowed grows with it
     probe: bool = True  # look for a second orientation that fits as well (no motion to tell them apart)
     predicted: bool = True  # ``start`` predicts the pose (tracking): far from it is suspect; a hand placement is not
+    search: bool = True  # recovery may search with *find implants* (off where that was tried already)
 
 
 def occlusion_masks(views: Sequence[View], others: Sequence[tuple[PreparedMesh, np.ndarray]], near: np.ndarray | None,
@@ -191,7 +192,7 @@ class FrameMatcher:
             # recovery starts get a shorter loop: most of them lead nowhere
             candidate = self.attempt(images, job, start, occluded, cancel, None if not label else light)
             tried += 1
-            if best is None or _better(candidate, best):
+            if best is None or better_result(candidate, best):
                 best = candidate
                 best.recovered = label
             if best.status == Status.MATCHED:
@@ -247,7 +248,8 @@ class FrameMatcher:
             return
         if job.fallback is not None and np.abs(np.asarray(job.fallback) - job.start).max() > 0.5:
             yield "last pose", np.asarray(job.fallback, dtype=float)
-        if t.find_near and self.find_near is not None:
+        search = t.find_near and self.find_near is not None and job.search
+        if search:
             pose = self.find_near(images, job.component, job.mesh, job.start, cancel)
             if pose is not None:
                 yield "find near the prediction", np.asarray(pose, dtype=float)
@@ -261,7 +263,7 @@ class FrameMatcher:
             for axis in axes:
                 for sign in (1.0, -1.0):
                     yield "turned start", turned(job.start, centroid, axis, sign * t.rotated_start_deg)
-        if t.find_near and self.find_near is not None:
+        if search:
             pose = self.find_near(images, job.component, job.mesh, None, cancel)
             if pose is not None:
                 yield "find implants", np.asarray(pose, dtype=float)
@@ -329,7 +331,7 @@ class RimJudgement:
                 self.settled[k] = sorted(self.votes[k], key=lambda m: m.mu)[len(self.votes[k]) // 2]
 
 
-def _better(a: FrameResult, b: FrameResult) -> bool:
+def better_result(a: FrameResult, b: FrameResult) -> bool:
     """Is ``a`` a better result than ``b``: a better status, then a lower objective."""
     if _RANK[a.status] != _RANK[b.status]:
         return _RANK[a.status] < _RANK[b.status]
