@@ -1,7 +1,7 @@
 """The Qt-free workflow the app, the command line and scripts share: sessions, matching a frame, find implants, tracking, calibration, kinematics and exports."""
+from fluorogui.core.search.find import Placement
 from fluorogui.core.status import Status
 from fluorogui.workflow.results import FrameResult
-from fluorogui.core.search.find import Placement
 from fluorogui.workflow.session import FrameState, Session
 from fluorogui.workflow.settings import TrackingSettings, WorkflowSettings
 

@@ -110,14 +110,18 @@ class FrameMatcher:
     """Matches components in frames of one session set-up (views, settings, find)."""
 
     def __init__(self, views: Sequence[View], settings: WorkflowSettings | None = None,
-                 find_near: Callable | None = None, live: Callable | None = None) -> None:
+                 find_near: Callable | None = None, live: Callable | None = None,
+                 rim: dict[str, list] | None = None) -> None:
         self.views = list(views)
         self.settings = settings or WorkflowSettings()
         # find_near(images, component, mesh, pose or None (a search of the whole image), cancel) -> pose or None
         self.find_near = find_near
         self.live = live  # live(component, calls, objective_mm, pose) at every step of a match
-        # each component's rim models per view (core.rim): judged in its first matched frames, then reused
-        self.rim_judgements: dict[str, RimJudgement] = {}
+        # each component's rim models per view (core.rim): judged in its first matched frames, then
+        # reused; ``rim`` (component -> models per view) are ones judged before (kept in the project)
+        self.rim_judgements: dict[str, RimJudgement] = {
+            c: RimJudgement.settled_with(models) for c, models in (rim or {}).items()
+            if len(models) == len(self.views) and all(m is not None for m in models)}
         self._frame: tuple[list, dict] | None = None  # see _frame_state
 
     def _frame_state(self, images) -> dict:
@@ -202,7 +206,10 @@ class FrameMatcher:
         if best.status == Status.MATCHED and job.probe and self.settings.tracking.probe:
             best, tried = self._probe(images, job, best, occluded, cancel, tried)
         if best.status == Status.MATCHED:  # one vote per frame, from its best result only
-            self.rim_judgements[job.component].add(best.rim_models)
+            judgement = self.rim_judgements[job.component]
+            judgement.add(best.rim_models)
+            if judgement.is_settled:
+                best.rim_settled = list(judgement.settled)  # for the project to keep
         best.frame, best.attempts, best.seconds = frame, tried, time.perf_counter() - t0
         if best.pose is None:
             best.pose = np.asarray(job.start, dtype=float).copy()  # the prediction, as a start for the user
@@ -316,6 +323,17 @@ class RimJudgement:
     def __init__(self, n_views: int) -> None:
         self.votes: list[list] = [[] for _ in range(n_views)]
         self.settled: list = [None] * n_views
+
+    @classmethod
+    def settled_with(cls, models: list) -> "RimJudgement":
+        """A judgement made before (e.g. in an earlier run on the same images)."""
+        judgement = cls(len(models))
+        judgement.settled = list(models)
+        return judgement
+
+    @property
+    def is_settled(self) -> bool:
+        return all(m is not None for m in self.settled)
 
     def for_attempt(self) -> list:
         return self.settled if all(m is not None for m in self.settled) else list(self.settled)

@@ -28,6 +28,7 @@ from typing import Callable, Iterable
 
 import numpy as np
 
+from fluorogui.core.outlines.rim import RimModel
 from fluorogui.core.outlines.spline import OutlineError, OutlineSpline
 from fluorogui.core.projection.geometry import triangulate
 from fluorogui.core.projection.mesh import MeshError, PreparedMesh, check_plausible_mm, prepare_mesh
@@ -44,6 +45,8 @@ from fluorogui.workflow.settings import SETTINGS_KEY, WorkflowSettings
 from fluorogui.workflow.work import WorkMixin
 
 COMPONENT_ORDER = ("femoral", "tibial")
+#: ``project.settings`` key of the components' rim models (``Session.rim_models``)
+RIM_KEY = "rim_models"
 IMAGE_CACHE_FRAMES = 6
 #: Default depth of a model along a single view's central ray, as a fraction of the source-intensifier distance.
 SINGLE_PLANE_DEPTH = 0.85
@@ -440,8 +443,30 @@ class Session(WorkMixin, KneeMixin):
                 record = r.record()
                 if record is not None:
                     self.set_record(r.component, r.frame, record, "Match")
+                if r.rim_settled is not None and all(m is not None for m in r.rim_settled):
+                    self._keep_rim_models(r.component, r.rim_settled)
         finally:
             self.history.end_macro()
+
+    # -- the images' rim models -----------------------------------------------------------------
+    def rim_models(self) -> dict[str, list[RimModel]]:
+        """Each component's rim models per view (``core.outlines.rim``: the metal's attenuation and
+        the images' blur), judged once in its first matched frames and kept in the project, so
+        that later matches and runs start from them instead of fitting them again."""
+        out = {}
+        for component, models in (self.project.settings.get(RIM_KEY) or {}).items():
+            try:
+                out[component] = [RimModel(float(m["mu"]), float(m["sigma"])) for m in models]
+            except (KeyError, TypeError, ValueError):
+                continue  # a damaged entry is judged again
+            if len(out[component]) != self.n_views:
+                del out[component]
+        return out
+
+    def _keep_rim_models(self, component: str, models: list) -> None:
+        kept = [{"mu": round(float(m.mu), 6), "sigma": round(float(m.sigma), 6)} for m in models]
+        if self.project.settings.get(RIM_KEY, {}).get(component) != kept:
+            self.project.settings.setdefault(RIM_KEY, {})[component] = kept
 
     # -- progress of the work --------------------------------------------------------------------
     def frame_state(self, frame: int) -> FrameState:

@@ -68,6 +68,7 @@ class TrackJob:
     starts: dict[str, np.ndarray] = field(default_factory=dict)  # start poses for components without anchors
     find: bool = True  # search for components with no anchor and no start
     image_counts: list[int] = field(default_factory=list)  # images per camera, for messages
+    rim: dict = field(default_factory=dict)  # component -> rim models per view judged before (the project's)
 
     def run(self, progress: TrackProgress | None = None,
             cancel: Callable[[], bool] | None = None) -> Iterator[FrameResult]:
@@ -75,7 +76,7 @@ class TrackJob:
         ``Cancelled`` when ``cancel()`` turns true (the frame in progress is not yielded,
         the frames before it were)."""
         s = self.settings
-        matcher = FrameMatcher(self.views, s, near_search(self.views, s))
+        matcher = FrameMatcher(self.views, s, near_search(self.views, s), rim=self.rim)
         motion = {c: MotionModel(self.meshes[c].centroid) for c in self.components}
         for c, poses in self.anchors.items():
             for frame, pose in poses:

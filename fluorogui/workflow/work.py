@@ -17,11 +17,11 @@ import numpy as np
 
 from fluorogui.core.projection.geometry import View
 from fluorogui.core.projection.mesh import PreparedMesh
+from fluorogui.core.search.find import Placement
 from fluorogui.io.errors import InputError
 from fluorogui.workflow.finding import find_in_frame, near_search
 from fluorogui.workflow.framematch import ComponentInput, FrameMatcher
 from fluorogui.workflow.results import FrameResult
-from fluorogui.core.search.find import Placement
 from fluorogui.workflow.settings import WorkflowSettings
 from fluorogui.workflow.tracking import TrackJob, TrackProgress, frames_between, read_frame_images
 
@@ -36,13 +36,14 @@ class MatchJob:
     inputs: list[ComponentInput]
     fixed: dict = field(default_factory=dict)  # other components (mesh, pose) to mask
     settings: WorkflowSettings = field(default_factory=WorkflowSettings)
+    rim: dict = field(default_factory=dict)  # component -> rim models per view judged before
 
     def run(self, live: Callable | None = None, cancel: Callable[[], bool] | None = None) -> list[FrameResult]:
         """The results, one per component. ``live(component, calls, objective_mm, pose)``
         follows every step of the matcher. Raises InputError for a missing image and
         ``Cancelled`` when ``cancel()`` turns true."""
         images = read_frame_images(self.frame, self.image_paths, len(self.views), views=self.views)
-        matcher = FrameMatcher(self.views, self.settings, near_search(self.views, self.settings), live)
+        matcher = FrameMatcher(self.views, self.settings, near_search(self.views, self.settings), live, self.rim)
         found = matcher.match_frame(self.frame, images, self.inputs, self.fixed, cancel)
         return [found[j.component] for j in self.inputs]
 
@@ -115,7 +116,7 @@ class WorkMixin:
                     fixed[c] = (self.mesh(c), self.pose(c, frame))
                 except InputError:
                     pass
-        return MatchJob(self.views, frame, self.image_paths(frame), inputs, fixed, settings)
+        return MatchJob(self.views, frame, self.image_paths(frame), inputs, fixed, settings, self.rim_models())
 
     def match(self, frame: int, components=None, live=None, cancel=None) -> list[FrameResult]:
         """Match and store (one undoable step); returns the results. Raises ``Cancelled``
@@ -191,7 +192,7 @@ class WorkMixin:
         paths = {f: self.image_paths(f) for f in frames}
         counts = [len(seq.paths) for seq in self.project.sequences]
         return TrackJob(self.views, meshes, frames, paths, names, settings, anchors, keep, given, residuals, starts,
-                        image_counts=counts)
+                        image_counts=counts, rim=self.rim_models())
 
     def track(self, frames: Sequence[int] | None = None, components=None, redo: bool = False,
               progress: TrackProgress | None = None, cancel: Callable[[], bool] | None = None,
