@@ -35,6 +35,8 @@ class Parser(argparse.ArgumentParser):
 
 
 # -- option types ---------------------------------------------------------------------------------
+
+
 def int_in(least: int, most: int):
     """An argparse type: a whole number from ``least`` to ``most``."""
     def parse(text: str) -> int:
@@ -67,7 +69,11 @@ finite_float.__name__ = "number"
 
 
 # -- terminal -----------------------------------------------------------------------------------
+
+
 @contextmanager
+
+
 def native_stderr_to_log(log_path):
     """Send what C libraries (VTK, libpng, libtiff) write to the process's stderr into the log
     file at ``log_path`` while the block runs; Python's own ``sys.stderr`` keeps the terminal.
@@ -134,6 +140,8 @@ def components_arg(value: str) -> str | list[str]:
 
 
 @contextmanager
+
+
 def locked_session(path, program: str):
     """Open a project under its lock; the lock is released on the way out."""
     from fluorogui.io.errors import InputError
@@ -175,6 +183,7 @@ def report_flagged(result) -> None:
 def add_match_options(p) -> None:
     """``--points``, ``--outline-points``, ``--method`` and ``--starts`` of a match."""
     p.add_argument("--points", type=int_in(*POINTS_RANGE), default=15000, help="point-model size (paper method)")
-    p.add_argument("--outline-points", type=int_in(*OUTLINE_POINTS_RANGE), default=None, help="outline points per view (paper default 60)")
+    p.add_argument("--outline-points", type=int_in(*OUTLINE_POINTS_RANGE), default=None,
+                   help="outline points per view (paper default 60)")
     p.add_argument("--method", choices=["fast", "paper"], default="fast")
     p.add_argument("--starts", type=int_in(*STARTS_RANGE), default=1, help="independent starts; the best match is kept")

@@ -69,7 +69,8 @@ def run(args) -> int:
     if flagged:
         frames = sorted({frame for frame, _, _ in flagged})
         what = ("written although flagged for review" if args.include_unreviewed else
-                "flagged for review and left out of --tra/--jts as NaN (accept them in the app, or --include-unreviewed)")
+                "flagged for review and left out of --tra/--jts as NaN "
+                "(accept them in the app, or --include-unreviewed)")
         warn(f"{len(flagged)} pose{'s' if len(flagged) > 1 else ''} {what}: frame{'s' if len(frames) > 1 else ''} "
              f"{frame_list(frames)}")
     if args.plot:

@@ -8,8 +8,9 @@ import numpy as np
 
 from fluorogui.cli.common import UsageError
 
-
 # -- helpers --------------------------------------------------------------------------------
+
+
 def load_views(paths):
     from fluorogui.io.calibration import load_view
 

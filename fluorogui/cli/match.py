@@ -16,11 +16,13 @@ from fluorogui.cli.common import UsageError, add_match_options, add_rim_options,
 
 def add_parser(sub):
     m = sub.add_parser("match", help="match one component in one image pair")
-    m.add_argument("--camera", action="append", required=True, metavar="CAM", help="calibration file (twice; once for single-plane)")
+    m.add_argument("--camera", action="append", required=True, metavar="CAM",
+                   help="calibration file (twice; once for single-plane)")
     m.add_argument("--image", action="append", required=True, metavar="IMG",
                    help="image file per camera; FILE@N is frame N (0-based) of a multi-frame DICOM or video")
     m.add_argument("--model", required=True, metavar="MESH", help="component mesh in mm (STL/PLY/OBJ/VTK)")
-    m.add_argument("--start", nargs=6, type=finite_float, required=True, metavar=("X", "Y", "Z", "ALPHA", "BETA", "GAMMA"))
+    m.add_argument("--start", nargs=6, type=finite_float, required=True,
+                   metavar=("X", "Y", "Z", "ALPHA", "BETA", "GAMMA"))
     m.add_argument("--outline", action="append", metavar="CSV", help="ordered outline points u,v (twice)")
     m.add_argument("--correction", action="append", metavar="CORR.json",
                    help="distortion correction per camera (fluorogui calibrate distortion)")
@@ -113,8 +115,8 @@ def run(args) -> int:
         }))
     else:
         labels = ("x", "y", "z", "alpha", "beta", "gamma")
-        print("pose: " + "  ".join(f"{l}={v:.4f}" for l, v in zip(labels, pose)))
-        print("SD:   " + "  ".join(f"{l}={v:.4f}" for l, v in zip(labels, sd)))
+        print("pose: " + "  ".join(f"{name}={v:.4f}" for name, v in zip(labels, pose)))
+        print("SD:   " + "  ".join(f"{name}={v:.4f}" for name, v in zip(labels, sd)))
         if m is not None:
             print(f"objective {m.objective_mm:.4f} mm (per view {', '.join(f'{v:.4f}' for v in m.per_view_mean_mm)}), "
                   f"{m.calls} calls, {result.seconds:.3f} s, "

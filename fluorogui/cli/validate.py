@@ -33,7 +33,8 @@ def add_parser(sub):
     vi.add_argument("--renderer", choices=["xray", "silhouette"], default="xray",
                     help="xray: the independent image model (default); silhouette: the old filled silhouette")
     vi.add_argument("--variant", nargs="+", default=[""], metavar="V",
-                    help="mesh variants: none, mirrored, scaled+15, scaled-15, ps-box (femoral), symmetric, symmetric-ap (tray)")
+                    help="mesh variants: none, mirrored, scaled+15, scaled-15, ps-box (femoral), "
+                         "symmetric, symmetric-ap (tray)")
     vi.add_argument("--angle", type=finite_float, default=90.0, help="degrees between the two views")
     vi.add_argument("--tilt", type=finite_float, default=0.0, help="degrees the views are tilted out of a common plane")
     vi.add_argument("--offset", nargs=2, type=finite_float, default=[0.0, 0.0], metavar=("DU", "DV"),
@@ -41,7 +42,8 @@ def add_parser(sub):
     vi.add_argument("--source-distance", nargs=2, type=finite_float, default=[1000.0, 1000.0], metavar=("D1", "D2"),
                     help="source to object distance per view (mm)")
     vi.add_argument("--bits", type=int, choices=[8, 16], default=16, help="xray: image bit depth")
-    vi.add_argument("--mu", type=finite_float, default=None, help="xray: the metal's attenuation (1/mm; default CoCr, 1.0)")
+    vi.add_argument("--mu", type=finite_float, default=None,
+                    help="xray: the metal's attenuation (1/mm; default CoCr, 1.0)")
     vi.add_argument("--photons", type=finite_float, default=3000.0, metavar="N",
                     help="xray: quanta per pixel without an object (quantum noise; 0: none, to see bias alone)")
     vi.add_argument("--background", choices=["knee", "none"], default="knee",
@@ -134,7 +136,8 @@ def _case_row(model, method, case):
     from fluorogui.simulation.protocols import DOF_LABELS
 
     for k, d in enumerate(DOF_LABELS):
-        row[f"{d}_mean"], row[f"{d}_sd"], row[f"{d}_rmse"] = (round(float(x), 5) for x in (s.mean[k], s.sd[k], s.rmse[k]))
+        values = (round(float(x), 5) for x in (s.mean[k], s.sd[k], s.rmse[k]))
+        row[f"{d}_mean"], row[f"{d}_sd"], row[f"{d}_rmse"] = values
     return row
 
 
@@ -168,7 +171,8 @@ def cmd_validate_idealized(args) -> int:
     check_output_folder(args.out)
     _check_settings(args)
     if args.seed + args.draws - 1 > SEED_RANGE[1]:
-        raise UsageError(f"fluorogui: --seed {args.seed} with --draws {args.draws}: the last seed exceeds {SEED_RANGE[1]}")
+        raise UsageError(f"fluorogui: --seed {args.seed} with --draws {args.draws}: "
+                         f"the last seed exceeds {SEED_RANGE[1]}")
     if not 64 <= args.image_size <= 4096:
         raise UsageError(f"fluorogui: --image-size {args.image_size}: give 64 to 4096 pixels")
     views = two_views(args.angle, args.tilt, tuple(args.offset), tuple(args.source_distance),
@@ -178,13 +182,18 @@ def cmd_validate_idealized(args) -> int:
         views, beam = views[:1], np.asarray(views[0].normal, dtype=float)
     other, other_is_tibial = _other_component(args)
     render = _xray_renderer(args)
+    rim = {"on": ", rim refinement", "off": ", no rim refinement",
+           "auto": ", rim refinement where the edge is soft"}[args.rim]
+    image_model = ""
+    if render:
+        image_model = (f", {args.bits}-bit, metal {args.mu or 1.0:g}/mm, distortion k1 {args.distortion:g} "
+                       "(corrected), " + (f"{args.photons:g} quanta/px" if args.photons else "no noise")
+                       + ("" if args.background == "knee" else ", no background"))
     print(f"idealized: {args.renderer} images, " + ("one view (single-plane) of " if args.single_view else "")
           + f"views {args.angle:g} deg apart, tilt {args.tilt:g} deg, "
           f"offset {args.offset[0]:g}/{args.offset[1]:g} px, sources {args.source_distance[0]:g}/"
-          f"{args.source_distance[1]:g} mm" + {"on": ", rim refinement", "off": ", no rim refinement", "auto": ", rim refinement where the edge is soft"}[args.rim] + (f", {args.bits}-bit, metal {args.mu or 1.0:g}/mm, distortion k1 {args.distortion:g} (corrected), "
-                                                  + (f"{args.photons:g} quanta/px" if args.photons else "no noise")
-                                                  + ("" if args.background == "knee" else ", no background")
-                                                  if render else "") + (f"; with {Path(args.other).name} overlapping" if other else "")
+          f"{args.source_distance[1]:g} mm" + rim + image_model
+          + (f"; with {Path(args.other).name} overlapping" if other else "")
           + (f"; {args.draws} noise draws per case (seeds {args.seed}-{args.seed + args.draws - 1}), each a row"
              if args.draws > 1 else "")
           + f"; {args.starts} starts per " + ("draw" if args.draws > 1 else "case")
@@ -252,7 +261,8 @@ def _other_component(args):
         name = Path(args.other).name.lower()
         role = "tibial" if "tib" in name else "femoral" if "fem" in name else None
         if role is None:
-            raise UsageError(f"fluorogui: --other {args.other}: say which component it is with --other-is tibial|femoral")
+            raise UsageError(f"fluorogui: --other {args.other}: say which component it is "
+                             "with --other-is tibial|femoral")
     mesh = load_model(args.other)
     return (mesh.vertices, mesh.faces), role == "tibial"
 
@@ -279,7 +289,8 @@ def _basin_counts(case, wrong_mm: float = WRONG_MM, wrong_deg: float = WRONG_DEG
     # how far each start's pose parameters lie from the truth in its own reported SDs
     z = np.array([np.max(np.abs(pose_difference(r.pose, case.truth)) / np.maximum(r.sd, 1e-12))
                   if r.sd is not None else np.inf for r in case.results])
-    return {"right_basin": int(right.sum()), "converged": int(conv.sum()), "false_converged": int((conv & ~right).sum()),
+    return {"right_basin": int(right.sum()), "converged": int(conv.sum()),
+            "false_converged": int((conv & ~right).sum()),
             "false_beyond_3sd": int((conv & ~right & (z > 3.0)).sum()),
             "worst_mm": round(float(err[:, :3].max()), 4), "worst_deg": round(float(err[:, 3:].max()), 4)}
 
@@ -300,7 +311,8 @@ def _totals_line(rows: list[dict]) -> str:
         mm, deg = means[:, :3].max(axis=1), means[:, 3:].max(axis=1)
         line += (f"worst mean error {mm.max():.3f} mm / {deg.max():.3f} deg (mean over cases {mm.mean():.3f} mm / "
                  f"{deg.mean():.3f} deg); ")
-    return line + f"worst start {max(r['worst_mm'] for r in rows):.3f} mm / {max(r['worst_deg'] for r in rows):.3f} deg\n"
+    worst_mm, worst_deg = max(r["worst_mm"] for r in rows), max(r["worst_deg"] for r in rows)
+    return line + f"worst start {worst_mm:.3f} mm / {worst_deg:.3f} deg\n"
 
 
 def _print_idealized_table(title, table, basin=(WRONG_MM, WRONG_DEG), beam=None):
@@ -316,7 +328,8 @@ def _print_idealized_table(title, table, basin=(WRONG_MM, WRONG_DEG), beam=None)
     for label, case in table:
         s, b = case.summary, _basin_counts(case, *basin, beam)
         print(f"{label:<26}" + "".join(f"{_fmt_dof(s, k):>24}" for k in range(6))
-              + f"{b['converged']:>4}/{s.n_runs:<2}{b['right_basin']:>5}{b['false_converged']:>7}{b['false_beyond_3sd']:>6}"
+              + f"{b['converged']:>4}/{s.n_runs:<2}{b['right_basin']:>5}{b['false_converged']:>7}"
+              + f"{b['false_beyond_3sd']:>6}"
               + f"{b['worst_mm']:>8.3f}/{b['worst_deg']:<6.3f}{s.median_seconds:>9.3f}")
     print()
 
@@ -340,9 +353,11 @@ def cmd_validate_spheres(args) -> int:
         print(f"spheres — method {method} (separation, mm; true {SPHERE_DIAMETER:.2f})")
         for name, m, s, r in zip(out["pairs"], out["pair_mean_mm"], out["pair_sd_mm"], out["pair_rmse_mm"]):
             print(f"  {name:<8} {m:8.3f} ± {s:.3f} [{r:.3f}]")
-            rows.append({"method": method, "pair": name, "mean_mm": round(m, 5), "sd_mm": round(s, 5), "rmse_mm": round(r, 5)})
-        print(f"  mean {out['mean_mm']:.4f} (error {out['mean_error_mm']:+.4f}), SD {out['sd_mm']:.4f}, RMSE {out['rmse_mm']:.4f}; "
-              f"{out['converged']}/{out['runs']} convergent, median {out['median_seconds']:.3f} s/match\n")
+            rows.append({"method": method, "pair": name, "mean_mm": round(m, 5), "sd_mm": round(s, 5),
+                         "rmse_mm": round(r, 5)})
+        print(f"  mean {out['mean_mm']:.4f} (error {out['mean_error_mm']:+.4f}), SD {out['sd_mm']:.4f}, "
+              f"RMSE {out['rmse_mm']:.4f}; {out['converged']}/{out['runs']} convergent, "
+              f"median {out['median_seconds']:.3f} s/match\n")
     _write_outputs(args.out, payload, rows)
     if args.json:
         print(json.dumps(payload))
@@ -370,9 +385,11 @@ def cmd_validate_repeatability(args) -> int:
         table = []
         for label, image_paths, pose in cases:
             images = load_images(image_paths, views)
-            splines = outline_splines(args.outline if not args.reference else None, images, image_paths, views, mesh, pose)
-            case = repeatability_case(MatchProblem(mesh, views, splines), pose, match_settings(args, method, multistart=False), args.starts,
-                                      args.seed, label=label)
+            outlines = args.outline if not args.reference else None
+            splines = outline_splines(outlines, images, image_paths, views, mesh, pose)
+            settings = match_settings(args, method, multistart=False)
+            case = repeatability_case(MatchProblem(mesh, views, splines), pose, settings, args.starts, args.seed,
+                                      label=label)
             resid = case.extra["per_view_mean_mm"]
             table.append((f"{label} ({resid[0]:.2f}/{resid[1]:.2f})", case.summary))
             payload["cases"].append({"method": method, **case.to_dict()})

@@ -138,7 +138,8 @@ class PoseRecord:
         try:
             self.status = Status(self.status)
         except ValueError:
-            raise ValueError(f"unknown pose status {self.status!r} (use {', '.join(s.value for s in Status)})") from None
+            known = ", ".join(s.value for s in Status)
+            raise ValueError(f"unknown pose status {self.status!r} (use {known})") from None
         self.reason = str(self.reason)
 
     @property

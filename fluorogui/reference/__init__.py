@@ -1,1 +1,1 @@
-"""Reference results that share no code with the matcher: an X-ray image model, pose fits by region overlap and hull outlines."""
+"""References that share no code with the matcher: an X-ray image model, region-overlap fits, hull outlines."""

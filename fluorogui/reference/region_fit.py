@@ -317,7 +317,7 @@ def fit_pose(views, images, mesh: EdgeMesh, start, *, exclude=None, fields=None,
         data = prepare_views(views, images, _place(vertices, centroid, R0, c0, p)[0], mesh, pad, exclude, fields)
         targets = [_blur(d.target, sigma)[d.valid] for d in data]
 
-        def residuals(q):
+        def residuals(q, s=s, sigma=sigma, data=data, targets=targets):  # this stage's evidence
             world, _ = _place(vertices, centroid, R0, c0, q)
             return np.concatenate([_blur(coverage(d.view, world, mesh, d.box, s), sigma)[d.valid] - t
                                    for d, t in zip(data, targets)])

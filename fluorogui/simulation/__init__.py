@@ -1,1 +1,1 @@
-"""Generated scenes with known answers: implant phantoms, pseudo-fluoroscopic renders, the demo, knee-bend sequences and the paper's validation protocols."""
+"""Scenes with known answers: implant phantoms, renders, the demo, knee bends and the paper's protocols."""

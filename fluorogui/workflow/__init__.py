@@ -1,4 +1,4 @@
-"""The Qt-free workflow the app, the command line and scripts share: sessions, matching a frame, find implants, tracking, calibration, kinematics and exports."""
+"""The Qt-free workflow the app, the CLI and scripts share: sessions, matching, tracking, calibration, exports."""
 from fluorogui.core.search.find import Placement
 from fluorogui.core.status import Status
 from fluorogui.workflow.results import FrameResult

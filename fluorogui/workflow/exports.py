@@ -173,8 +173,8 @@ def export_plot(session, path, against: str = "frame", rows: list[KneeRow] | Non
     path = check_output_file(path)
     if path.suffix.lower() not in (".png", ".svg", ".pdf"):
         raise InputError(path, "the figure must be .png, .svg or .pdf")
-    save_kinematics_figure(session.knee_rows() if rows is None else rows, path, side=session.side or "right", against=against,
-                           title=session.path.stem if session.path else "")
+    save_kinematics_figure(session.knee_rows() if rows is None else rows, path, side=session.side or "right",
+                           against=against, title=session.path.stem if session.path else "")
     return path
 
 
@@ -191,9 +191,11 @@ def read_poses_file(session, path, component: str | None = None, view: int = 0) 
         rows = read_jts(path)
         _check_row_count(path, len(rows), session.frames)
         camera = session.views[view]
-        return {(f, component): jointtrack_to_world_pose(r, camera) for f, r in zip(session.frames, rows) if r is not None}
+        return {(f, component): jointtrack_to_world_pose(r, camera)
+                for f, r in zip(session.frames, rows) if r is not None}
     if suffix == ".tra":
-        components = [c for c in KNEE_COMPONENTS if session.project.model(c) is not None] if component is None else [component]
+        components = ([c for c in KNEE_COMPONENTS if session.project.model(c) is not None]
+                      if component is None else [component])
         rows = read_tra(path, len(components))
         _check_row_count(path, len(rows), session.frames)
         return {(f, c): matrix_to_pose(m) for f, row in zip(session.frames, rows)

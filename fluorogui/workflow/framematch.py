@@ -179,8 +179,8 @@ class FrameMatcher:
         status, reason = judge(quality, limits, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))])
         if status == Status.MATCHED:
             self._frame_state(images)["rims"][job.component] = list(rims)
-        return FrameResult(0, job.component, result.pose, status, reason, result, quality,
-                           out.image_outlines, time.perf_counter() - t0, rim_models=rims, outline_weights=out.outline_weights)
+        return FrameResult(0, job.component, result.pose, status, reason, result, quality, out.image_outlines,
+                           time.perf_counter() - t0, rim_models=rims, outline_weights=out.outline_weights)
 
     # -- one component, with recovery ------------------------------------------------------------
     def match_component(self, frame: int, images, job: ComponentInput, occluded=None,

@@ -90,7 +90,8 @@ def draw_kinematics(figure: Figure, rows, side: str = "right", against: str = "f
     if data["review"].any():
         ax.plot(data["frame"][data["review"]], data["residual"][data["review"]], "o", mfc="none",
                 mec=REVIEW_COLOUR, ms=6)
-    ax.set_title("Worst match residual per frame (mm); red rings: needs review (arrows: beyond the axis)", fontsize=8, pad=2)
+    ax.set_title("Worst match residual per frame (mm); red rings: needs review (arrows: beyond the axis)",
+                 fontsize=8, pad=2)
     ax.set_xlabel("frame", fontsize=7)
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.tick_params(labelsize=7)

@@ -131,7 +131,8 @@ class TrackJob:
 
     def _is_anchor(self, frame: int, r: FrameResult) -> bool:
         """A result the motion may go by: matched, or kept as accepted / already matched."""
-        return r.status == Status.MATCHED or (r.kept and r.pose is not None and self._kept_is_matched(frame, r.component))
+        kept_matched = r.kept and r.pose is not None and self._kept_is_matched(frame, r.component)
+        return r.status == Status.MATCHED or kept_matched
 
     def _anchor(self, c: str, r: FrameResult, motion, residuals) -> None:
         motion[c].add(r.frame, r.pose)
@@ -334,7 +335,7 @@ def run_parallel(jobs: Sequence[TrackJob], cancel: Callable[[], bool] | None = N
                 for f in futures:
                     if f.done() and f.exception() is not None:
                         stop.set()
-                        raise f.exception()
+                        raise f.exception() from None
                 continue
             if item is None:
                 running -= 1

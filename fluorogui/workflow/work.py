@@ -128,7 +128,8 @@ class WorkMixin:
     # -- find --------------------------------------------------------------------------------------
     def find_job(self, frame: int, components=None) -> FindJob:
         frame = self._check_frame(frame)
-        return FindJob(self.views, frame, self.image_paths(frame), {c: self.mesh(c) for c in self._components(components)})
+        meshes = {c: self.mesh(c) for c in self._components(components)}
+        return FindJob(self.views, frame, self.image_paths(frame), meshes)
 
     def store_placements(self, placements: dict[str, Placement]) -> None:
         """Put the confidently found components at their poses (status ``placed``)."""

@@ -1,1 +1,1 @@
-"""Fluoroscope calibration: image-intensifier distortion from a perforated plate and view geometry from a bead phantom."""
+"""Fluoroscope calibration: image-intensifier distortion (a perforated plate) and view geometry (a bead phantom)."""

@@ -96,7 +96,7 @@ def joint_kinematics(femur_world, tibia_world, side: str = "right") -> KneeKinem
     T = np.asarray(tibia_world, dtype=float)
     if not (np.all(np.isfinite(F)) and np.all(np.isfinite(T))):
         return KneeKinematics.missing()
-    I, J, K = F[:3, 0], F[:3, 1], F[:3, 2]
+    I, J, K = F[:3, 0], F[:3, 1], F[:3, 2]  # noqa: E741 (Grood & Suntay's names)
     i, j, k = T[:3, 0], T[:3, 1], T[:3, 2]
     e1, e3 = I, k
     floating = np.cross(e3, e1)

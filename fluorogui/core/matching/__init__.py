@@ -1,1 +1,1 @@
-"""Pose of a component from its outlines: the objective, the optimisers, the segment-and-match loop, quality checks and uncertainty."""
+"""A component's pose from its outlines: objective, optimisers, the segment-match loop, checks and uncertainty."""

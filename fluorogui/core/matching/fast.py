@@ -31,8 +31,9 @@ from fluorogui.core.matching.problem import (
 from fluorogui.core.projection.pose import rotvec_matrix
 from fluorogui.core.projection.silhouette import mesh_silhouette
 
-
 # -- the fast method ----------------------------------------------------------------------------
+
+
 def _times_skew(a: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Rows a_i^T [v_i]x (N, 3), i.e. a_i x v_i, written out (no (N, 3, 3) matrices)."""
     out = np.empty_like(a)
@@ -41,12 +42,14 @@ def _times_skew(a: np.ndarray, v: np.ndarray) -> np.ndarray:
     out[:, 2] = a[:, 0] * v[:, 1] - a[:, 1] * v[:, 0]
     return out
 
+
 def _polyline_normals(points: np.ndarray, at: np.ndarray | None = None) -> np.ndarray:
     """Unit normals of a closed polyline from its central differences (at the indices ``at``)."""
     at = np.arange(len(points)) if at is None else np.asarray(at)
     t = points[(at + 1) % len(points)] - points[at - 1]
     n = np.column_stack([t[:, 1], -t[:, 0]])
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+
 
 class _FastEvaluation:
     """Residuals and Jacobian of the fast objective at one pose (correspondences frozen)."""
@@ -131,13 +134,15 @@ class _FastEvaluation:
             g += J.T @ (ww * r)
         return H, g
 
+
 def _initial_translation(problem: MatchProblem, R, c, image_samples, iterations: int = 3) -> np.ndarray:
     """Shift the centroid so the silhouette centroids meet the image-outline centroids."""
     mesh = problem.mesh
     for _ in range(iterations):
         A, b = [], []
         for view, g in zip(problem.views, image_samples):
-            sil = mesh_silhouette(mesh, R, c - R @ mesh.centroid, view, scale=1.0, spacing_px=2.0)  # a centroid: coarse is enough
+            # a centroid: a coarse silhouette is enough
+            sil = mesh_silhouette(mesh, R, c - R @ mesh.centroid, view, scale=1.0, spacing_px=2.0)
             shift = _polygon_centroid(g) - _polygon_centroid(sil.points_px)
             _, Jc = view.project_jacobian(c[None, :])
             A.append(Jc[0])
@@ -148,6 +153,7 @@ def _initial_translation(problem: MatchProblem, R, c, image_samples, iterations:
             break
     return c
 
+
 def _polygon_centroid(p: np.ndarray) -> np.ndarray:
     x, y = p[:, 0], p[:, 1]
     x1, y1 = np.roll(x, -1), np.roll(y, -1)
@@ -157,14 +163,17 @@ def _polygon_centroid(p: np.ndarray) -> np.ndarray:
         return p.mean(0)
     return np.array([((x + x1) * cross).sum(), ((y + y1) * cross).sum()]) / (6.0 * a)
 
+
 def _image_samples(problem: MatchProblem, settings: MatchSettings, whole: bool = False) -> list[np.ndarray]:
     """Image outline samples per view (about ``spacing_px`` apart, or ``outline_points``);
     unless ``whole``, without chords across gaps and without occluded points."""
     n_samples = [settings.outline_points or max(16, int(s.length_px / settings.spacing_px)) for s in problem.splines]
     if whole:
         return [s.sample(n) for s, n in zip(problem.splines, n_samples)]
-    samples = [s.sample(n, skip_gaps=settings.skip_gaps and len(s.gaps) > 0) for s, n in zip(problem.splines, n_samples)]
+    samples = [s.sample(n, skip_gaps=settings.skip_gaps and len(s.gaps) > 0)
+               for s, n in zip(problem.splines, n_samples)]
     return [g[visible_points(problem.occluder(k), g)] for k, g in enumerate(samples)]
+
 
 def match_fast(problem, start, settings, progress, cancel) -> MatchResult:
     mesh = problem.mesh

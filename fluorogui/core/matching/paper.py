@@ -19,7 +19,10 @@ from fluorogui.core.projection.pose import rotation_matrix
 class _CallLimit(Exception):
     pass
 
+
 # -- the paper's objective ----------------------------------------------------------------------
+
+
 def paper_view_distances(problem: MatchProblem, pose: np.ndarray, settings: MatchSettings) -> list[np.ndarray]:
     """Eq. (4) distances (mm on the intensifier) of the paper's outline points, per view."""
     cloud = problem.cloud(settings.model_points, settings.seed)
@@ -39,6 +42,7 @@ def paper_view_distances(problem: MatchProblem, pose: np.ndarray, settings: Matc
         d = spline.closest_secant(pts)[0] if hasattr(spline, "closest_secant") else spline.closest(pts)[0]
         out.append(np.asarray(d) * view.mm_per_px())
     return out
+
 
 def match_paper(problem, start, settings, progress, cancel) -> MatchResult:
     centroid = problem.mesh.centroid

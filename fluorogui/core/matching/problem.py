@@ -20,6 +20,8 @@ ProgressCallback = Callable[[int, float, np.ndarray], None]
 
 
 @dataclass
+
+
 class MatchSettings:
     method: str = "fast"  # "fast" or "paper"
     outline_points: int | None = None  # paper: N equally spaced (default 60); fast: None = one per `spacing_px`
@@ -59,6 +61,8 @@ MIN_OUTLINE_POINTS = 8
 
 
 @dataclass
+
+
 class MatchResult:
     pose: np.ndarray
     objective_mm: float
@@ -120,7 +124,10 @@ class MatchResult:
             "settings": self.settings,
         }
 
+
 @dataclass
+
+
 class MatchProblem:
     """One component in one frame: its mesh, the views and the image outline splines.
 
@@ -147,10 +154,15 @@ class MatchProblem:
 
 
 # -- centroid parametrisation ---------------------------------------------------------------
+
+
 # -- centroid parametrisation ---------------------------------------------------------------
+
+
 def _to_state(pose: np.ndarray, centroid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     R = rotation_matrix(*pose[3:])
     return R, R @ centroid + pose[:3]
+
 
 def _to_pose(R: np.ndarray, c: np.ndarray, centroid: np.ndarray) -> np.ndarray:
     return np.array([*(c - R @ centroid), *angles_from_matrix(R)])
@@ -159,7 +171,6 @@ def _to_pose(R: np.ndarray, c: np.ndarray, centroid: np.ndarray) -> np.ndarray:
 # -- occlusion masks -----------------------------------------------------------------------------
 #: a view keeps all its outline points when fewer than this many are outside the occluded area
 MIN_VISIBLE_POINTS = 8
-
 
 
 def mask_at(mask: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -172,6 +183,7 @@ def mask_at(mask: np.ndarray, uv: np.ndarray) -> np.ndarray:
     out = np.zeros(len(uv), dtype=bool)
     out[on] = mask[row[on], col[on]]
     return out
+
 
 def visible_points(mask: np.ndarray | None, uv: np.ndarray) -> np.ndarray:
     """True for points (K, 2) in pixels that a boolean ``mask`` does not cover (points off

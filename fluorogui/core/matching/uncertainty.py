@@ -83,6 +83,7 @@ def pose_covariance(problem: MatchProblem, pose, settings: MatchSettings | None 
         A[:, j] = pose_difference(plus, minus) / (2 * h)
     return A @ cov @ A.T
 
+
 def pose_sd(cov: np.ndarray) -> list[float]:
     """Standard deviations (mm, deg) from a pose covariance."""
     return [float(np.sqrt(v)) if np.isfinite(v) and v >= 0 else float("inf") for v in np.diag(cov)]

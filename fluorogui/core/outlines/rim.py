@@ -88,7 +88,8 @@ _FINE = 0.05  # px: the grid the profiles are computed and blurred on
 _X = np.arange(-8.0, 12.0, _FINE) + _FINE / 2  # inward distance from the boundary (px), off 0 by half a step
 # where path lengths are cast (px inside the model boundary): finely near it, where
 # the metal thickens fastest, coarsely beyond the pixels a fit uses
-_L_OFFSETS = np.r_[0.0, 0.005, 0.01, 0.02, 0.035, 0.05, 0.075, np.arange(0.1, 1.0, 0.1), np.arange(1.0, 7.0 + 1e-9, 0.25)]
+_L_OFFSETS = np.r_[0.0, 0.005, 0.01, 0.02, 0.035, 0.05, 0.075, np.arange(0.1, 1.0, 0.1),
+                   np.arange(1.0, 7.0 + 1e-9, 0.25)]
 # linear interpolation of a path length profile at _X (beyond the last offset: constant)
 _LI0 = np.clip(np.searchsorted(_L_OFFSETS, np.clip(_X, 0, None), side="right") - 1, 0, len(_L_OFFSETS) - 2)
 _LFRAC = np.clip((np.clip(_X, 0, None) - _L_OFFSETS[_LI0]) / np.diff(_L_OFFSETS)[_LI0], 0.0, 1.0)

@@ -332,7 +332,8 @@ class OutlineSpline:
                 self._lookup = (start, 0.0, None)
             else:
                 edges = start + np.arange(n_bins) * width
-                self._lookup = (start, width, np.clip(np.searchsorted(breaks, edges, side="right") - 1, 0, n_pieces - 1))
+                piece = np.clip(np.searchsorted(breaks, edges, side="right") - 1, 0, n_pieces - 1)
+                self._lookup = (start, width, piece)
         start, width, table = self._lookup
         if table is None:
             return np.clip(np.searchsorted(breaks, t, side="right") - 1, 0, n_pieces - 1)

@@ -1,1 +1,1 @@
-"""The virtual fluoroscope: views and projection, poses, meshes, exact silhouettes and the paper's point-cloud outline."""
+"""The virtual fluoroscope: views and projection, poses, meshes, silhouettes, the paper's point outline."""

@@ -428,7 +428,9 @@ def _find_one(name, mesh, images, views, maps, rounds, near_pose, steps: _Steps,
         placement = _conclude(name, mesh, lib, images, views, maps, cands, steps, t0, " in the images")
         if placement.found:
             return placement
-        if best is None or (placement.pose is not None and (best.pose is None or placement.objective_mm < best.objective_mm)):
+        closer = best is not None and placement.pose is not None and (
+            best.pose is None or placement.objective_mm < best.objective_mm)
+        if best is None or closer:
             best = placement
     steps.span = (0.0, 1.0)
     if best is None:
