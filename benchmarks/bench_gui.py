@@ -146,8 +146,8 @@ def main() -> int:
         QTimerWait(300)
         cancel_stalls.append(meter.stop(window.runner.ended_at)[0])
         window.runner.progress.disconnect(cancel_once)
-        if window.last_cancel_latency is not None:
-            latencies.append(window.last_cancel_latency)
+        if window.tasks.last_cancel_latency is not None:
+            latencies.append(window.tasks.last_cancel_latency)
     window.matcher.method.setCurrentIndex(0)
     if latencies:
         rows.append(("cancel latency (request to 'cancelled' on the GUI thread)", statistics.median(latencies),

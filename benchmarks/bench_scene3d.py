@@ -129,7 +129,7 @@ def rotate(plotter, render, timings, key):
 def run_plotter(data: Path) -> dict:
     import pyvista as pv
 
-    from fluorogui.gui.scene3d import FluoroScene
+    from fluorogui.gui.scene.scene3d import FluoroScene
 
     inputs = load_inputs(data)
     timings = {"backend": "pv.Plotter(off_screen)"}
@@ -155,7 +155,7 @@ def run_widget(data: Path, interactive: bool) -> dict:
     from PySide6.QtWidgets import QApplication
 
     app = QApplication.instance() or QApplication([])
-    from fluorogui.gui.scene_widget import Scene3DWidget
+    from fluorogui.gui.scene.scene_widget import Scene3DWidget
 
     inputs = load_inputs(data)
     widget = Scene3DWidget(interactive=interactive, window_size=WINDOW)

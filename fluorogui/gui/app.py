@@ -43,10 +43,10 @@ def open_start_path(window: MainWindow, path: str | Path) -> bool:
         window.open_paths([path])
         return True
     if not path.exists():
-        window._warn("Cannot open project", f"{path}: no such file. Open another one with File → Open (Ctrl+O).")
+        window.warn("Cannot open project", f"{path}: no such file. Open another one with File → Open (Ctrl+O).")
         return False
     if path.is_file() and not os.access(path, os.R_OK):
-        window._warn("Cannot open project", f"{path}: not readable (permission denied).")
+        window.warn("Cannot open project", f"{path}: not readable (permission denied).")
         return False
     return window.open_project(path, ask=False)
 
@@ -65,7 +65,7 @@ def run_app(path: str | Path | None = None) -> int:
     window = MainWindow()
     smoke = bool(os.environ.get(SMOKE_ENV))
     if not smoke:
-        from fluorogui.gui.crash import install_crash_handler
+        from fluorogui.gui.dialogs.crash import install_crash_handler
 
         install_crash_handler(window)
     window.show()
@@ -85,7 +85,7 @@ def run_app(path: str | Path | None = None) -> int:
             window.controller.session.history.set_clean()
             QTimer.singleShot(0, window.close)
         elif demo:
-            from fluorogui.gui.tour import start_tour
+            from fluorogui.gui.dialogs.tour import start_tour
 
             start_tour(window)
 

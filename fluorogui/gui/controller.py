@@ -7,8 +7,8 @@ adapter only adds what a desktop app needs on top:
 * Qt signals for the session's events (``pose_changed``, ``outline_changed`` ...); frames
   are always frame numbers (the ``frame`` column of pairs.csv), never list positions;
 * the GUI's own state: the frame on screen and the component being edited;
-* a ``QUndoStack`` that mirrors ``session.history`` (``HistoryMirror``) for the Undo /
-  Redo actions and the window's modified flag;
+* ``dirty_changed`` for the window's modified flag, following ``session.history``'s
+  listener events (the Undo / Redo actions follow the same history: ``actions.undo``);
 * the project lock (``fluorogui.io.project.lock``) while a project file is open;
 * ``apply_edit``, where the image panels' outline edits enter the session's history.
 
@@ -21,7 +21,6 @@ from pathlib import Path
 from PySide6.QtCore import QObject, Signal
 
 from fluorogui.core.records import Project
-from fluorogui.gui.undo_mirror import HistoryMirror
 from fluorogui.io.errors import InputError
 from fluorogui.io.project.lock import ProjectLock, ProjectLocked
 from fluorogui.workflow.history import Command
@@ -58,7 +57,6 @@ class SessionController(QObject):
         self.component = COMPONENT_ORDER[0]
         self.lock: ProjectLock | None = None
         self.read_only = False  # another program holds the file: save only to another one
-        self.undo_stack = HistoryMirror(self.session.history, self)
         self._dirty = self.session.dirty
         self.session.history.listeners.append(self._history_changed)
         self.session.listeners.append(self._session_event)

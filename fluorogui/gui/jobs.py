@@ -17,9 +17,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from fluorogui.core.matching.loop import predicted_outline
+from fluorogui.core.search.find import Placement
 from fluorogui.core.status import Status
 from fluorogui.workflow.results import FrameResult
-from fluorogui.core.search.find import Placement
 from fluorogui.workflow.tracking import by_frame
 
 OVERLAY_SPACING_PX = 3.0

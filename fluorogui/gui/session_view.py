@@ -2,27 +2,54 @@
 overlays, 3D scene), the pose status of its components, the session tree and the
 timeline, kept in step with the session's events.
 
-``SessionView`` is a mixin of ``MainWindow``; it reads the session (``controller.session``)
-and never changes it. Frames are frame numbers throughout.
+``SessionView`` belongs to a main window and draws into its panels, 3D scene, timeline,
+session tree and status bar; it reads the session (``controller.session``) and never
+changes it. Frames are frame numbers throughout.
 """
 from __future__ import annotations
 
-from PySide6.QtCore import Qt
-from PySide6.QtGui import QAction, QColor
+from contextlib import contextmanager
+
+from PySide6.QtCore import QObject, Qt, QTimer
+from PySide6.QtGui import QColor
 from PySide6.QtWidgets import QTreeWidgetItem
 
 from fluorogui.core.matching.loop import predicted_outline
 from fluorogui.core.outlines.spline import OutlineError
 from fluorogui.gui import jobs
-from fluorogui.gui.matcher_panel import describe_pose
+from fluorogui.gui.panels.matcher_panel import describe_pose
+from fluorogui.gui.panels.pixel_value import RawPixels, format_value
 from fluorogui.io.errors import InputError
 from fluorogui.workflow.session import FrameState
 
 COMPONENT_COLOURS = {"femoral": QColor(90, 170, 255), "tibial": QColor(110, 220, 120)}
 
 
-class SessionView:
-    """What ``MainWindow`` shows of the session (a mixin)."""
+class SessionView(QObject):
+    """What a main window shows of the session, kept in step with the controller's signals."""
+
+    def __init__(self, window) -> None:
+        super().__init__(window)
+        self.window = window
+        self.controller = c = window.controller
+        self.panels = window.panels
+        self.scene_widget = window.scene_widget
+        self.matcher = window.matcher
+        self.timeline = window.timeline
+        self.tree = window.tree
+        self.raw_pixels = RawPixels()
+        self._camera_pending = False
+        self._deferred_overlay = False
+        self.tree.itemActivated.connect(self._tree_activated)
+        self.tree.itemClicked.connect(self._tree_activated)
+        for panel in self.panels:
+            panel.cursor_moved.connect(lambda u, v, value, view=panel.view_index: self.show_cursor(u, v, value, view))
+        c.project_replaced.connect(self._project_replaced)
+        c.frame_changed.connect(lambda _frame: self.show_frame())
+        c.component_changed.connect(self._component_changed)
+        c.pose_changed.connect(self._pose_changed)
+        c.outline_changed.connect(self._outline_changed)
+        c.model_changed.connect(self._model_changed)
 
     @property
     def session(self):
@@ -31,23 +58,7 @@ class SessionView:
     # -- a new project ---------------------------------------------------------------------------
     def _project_replaced(self) -> None:
         c, s = self.controller, self.controller.session
-        self.place_clicks.clear()
         names = s.components()
-        self.component_combo.blockSignals(True)
-        self.component_combo.clear()
-        self.component_combo.addItems(names)
-        if c.component in names:
-            self.component_combo.setCurrentText(c.component)
-        self.component_combo.blockSignals(False)
-        self.component_menu.clear()
-        for action in self.component_actions.actions():
-            self.component_actions.removeAction(action)
-        for name in names:
-            action = QAction(name, self, checkable=True)
-            action.setChecked(name == c.component)
-            action.triggered.connect(lambda _=False, n=name: c.set_component(n))
-            self.component_actions.addAction(action)
-            self.component_menu.addAction(action)
         for view, panel in enumerate(self.panels):
             # a single-plane session: one panel across the width (no session: both, with the hint)
             panel.setVisible(view < s.n_views or s.n_views == 0)
@@ -59,22 +70,38 @@ class SessionView:
                 if name not in names:
                     scene.remove_model(name)  # the previous project's component
         for name in names:
-            error = self._load_scene_model(name)
+            error = self.load_scene_model(name)
             if error is not None:
                 missing.append((name, error))
         self.matcher.set_settings(s.settings.match)
         self.matcher.show_summary("")
         self._camera_pending = True
         self._refresh_tree()
-        self._refresh_title()
+        self.window.refresh_title()
         self.timeline.set_frames(s.frames, s.frame_states())
         for frame in s.frames:
             self.timeline.set_note(frame, self._frame_note(frame))
         self._component_changed(c.component)
         if missing:  # after the window shows the project: offer to relink each missing model
-            from PySide6.QtCore import QTimer
+            offer = self.window.missing.offer_locate
+            QTimer.singleShot(0, lambda: [offer(name, error) for name, error in missing])
 
-            QTimer.singleShot(0, lambda: [self.offer_locate(name, error) for name, error in missing])
+    def load_scene_model(self, name: str) -> InputError | None:
+        """Put a component's mesh in the 3D scene; on failure remove what was there (and its
+        overlays: never a stale one) and return the error."""
+        s = self.controller.session
+        try:
+            vertices, faces = s.raw_mesh(name)
+        except (InputError, KeyError) as exc:
+            if self.scene_widget is not None:
+                self.scene_widget.scene.remove_model(name)
+            for panel in self.panels:
+                panel.set_model_outline(name, None)
+            return exc if isinstance(exc, InputError) else InputError(name, "no model in this session")
+        if self.scene_widget is not None:
+            colour = COMPONENT_COLOURS.get(name, QColor(200, 200, 200)).getRgbF()[:3]
+            self.scene_widget.scene.set_model(name, vertices, faces, colour)
+        return None
 
     def _refresh_tree(self) -> None:
         s = self.controller.session
@@ -119,8 +146,8 @@ class SessionView:
                 images.append(s.image(frame, view))
                 self.panels[view].placeholder = ""
             except InputError as exc:
-                self.statusBar().showMessage(str(exc), 10000)
-                self.last_error = str(exc)
+                self.window.statusBar().showMessage(str(exc), 10000)
+                self.window.last_error = str(exc)
                 images.append(None)
                 if view < len(self.panels):
                     self.panels[view].placeholder = f"No image for frame {frame}:\n{exc}"
@@ -132,17 +159,17 @@ class SessionView:
         if self.scene_widget is not None:
             self.scene_widget.scene.set_images(images)
         for name in s.components():
-            self._show_pose(name)
-        self._show_rays()
-        if self.scene_widget is not None and getattr(self, "_camera_pending", False):
+            self.show_pose(name)
+        self.show_rays()
+        if self.scene_widget is not None and self._camera_pending:
             self._camera_pending = False
             self.scene_widget.scene.camera_preset("implant")
-        self._show_pose_status()
+        self.show_pose_status()
         self.timeline.set_current(frame)
-        self.frame_label.setText(f"Frame {frame} ({c.frame_index + 1}/{len(s.frames)})")
-        self.frame_shown.emit(frame)
+        self.window.frame_label.setText(f"Frame {frame} ({c.frame_index + 1}/{len(s.frames)})")
+        self.window.frame_shown.emit(frame)
 
-    def _show_rays(self) -> None:
+    def show_rays(self) -> None:
         """Rays in the 3D scene through the active component's image outline."""
         if self.scene_widget is None:
             return
@@ -150,22 +177,22 @@ class SessionView:
         for view in range(s.n_views):
             self.scene_widget.scene.set_rays(view, s.outline_points(c.outline_key(view)))
 
-    def _show_pose(self, component: str) -> None:
+    def show_pose(self, component: str) -> None:
         """Overlays and 3D model of one component at its current pose."""
         c, s = self.controller, self.controller.session
         pose = s.pose(component, c.frame)
         record = s.pose_record(component, c.frame)
         for panel in self.panels:
             panel.set_model_flagged(component, record is not None and record.needs_review)
-        self._show_model_outline(component, pose)
+        self.show_model_outline(component, pose)
         if self.scene_widget is not None:
             self.scene_widget.scene.set_pose(component, pose)
             self.scene_widget.scene.render()
         if component == c.component:
-            self.pose_editor.set_pose(pose)
-            self.pose_editor.set_uncertainty(_pose_sd(record))
+            self.window.pose_editor.set_pose(pose)
+            self.window.pose_editor.set_uncertainty(_pose_sd(record))
 
-    def _show_model_outline(self, component: str, pose, outlines=None) -> None:
+    def show_model_outline(self, component: str, pose, outlines=None) -> None:
         c, s = self.controller, self.controller.session
         try:
             mesh = s.mesh(component)
@@ -189,7 +216,7 @@ class SessionView:
                     distances = None
             panel.set_model_outline(component, points, distances)
 
-    def _show_pose_status(self) -> None:
+    def show_pose_status(self) -> None:
         """The matcher panel's account of every component's pose in the frame on screen."""
         c, s = self.controller, self.controller.session
         if c.frame is None:
@@ -199,9 +226,9 @@ class SessionView:
             text, level = describe_pose(name, s.pose_record(name, c.frame))
             lines.append((text, level, name == c.component))
         self.matcher.show_poses(lines)
-        self._refresh_accept_state()
+        self.window.review.refresh_accept_state()
         record = s.pose_record(c.component, c.frame)
-        if not self.runner.is_running():  # a running task draws its own plot
+        if not self.window.runner.is_running():  # a running task draws its own plot
             self.matcher.plot.set_values(record.match.history if record is not None and record.match else [])
 
     def _frame_note(self, frame: int) -> str:
@@ -217,28 +244,23 @@ class SessionView:
     # -- keeping in step with the session ----------------------------------------------------------
     def _component_changed(self, name: str) -> None:
         c, s = self.controller, self.controller.session
-        self.component_combo.blockSignals(True)
-        self.component_combo.setCurrentText(name)
-        self.component_combo.blockSignals(False)
-        for action in self.component_actions.actions():
-            action.setChecked(action.text() == name)
         for panel in self.panels:
             panel.set_active_component(name)
         known = name in s.components()
-        self.pose_editor.set_component(name if known else None)
+        self.window.pose_editor.set_component(name if known else None)
         if known and c.frame is not None:
-            self.pose_editor.set_pose(s.pose(name, c.frame))
-            self.pose_editor.set_uncertainty(_pose_sd(s.pose_record(name, c.frame)))
-            self._show_pose_status()
+            self.window.pose_editor.set_pose(s.pose(name, c.frame))
+            self.window.pose_editor.set_uncertainty(_pose_sd(s.pose_record(name, c.frame)))
+            self.show_pose_status()
         if self.scene_widget is not None and known:
             self.scene_widget.enable_gizmo(name)
-            self._show_rays()
+            self.show_rays()
 
     def _pose_changed(self, frame: int, component: str) -> None:
         c = self.controller
         if frame == c.frame:
-            self._show_pose(component)
-            self._show_pose_status()
+            self.show_pose(component)
+            self.show_pose_status()
         self._frame_state_changed(frame)
 
     def _outline_changed(self, key, component: str) -> None:
@@ -247,10 +269,44 @@ class SessionView:
         if frame == c.frame and view < len(self.panels):
             self.panels[view].set_outline(component, s.outline_points(key), key)
             if not self._deferred_overlay:
-                self._show_model_outline(component, s.pose(component, frame))
+                self.show_model_outline(component, s.pose(component, frame))
             if component == c.component:
-                self._show_rays()
+                self.show_rays()
         self._frame_state_changed(frame)
+
+    @contextmanager
+    def one_overlay_refresh(self):
+        """Within: outline changes leave the model overlays alone (a result stores several
+        outlines and a pose; the pose change redraws the overlay once)."""
+        self._deferred_overlay = True
+        try:
+            yield
+        finally:
+            self._deferred_overlay = False
+
+    def _model_changed(self, name: str) -> None:
+        """A component's mesh file changed (relinked, or undone): reload it everywhere."""
+        if self.load_scene_model(name) is None and self.controller.frame is not None:
+            self.show_pose(name)
+            self.show_pose_status()
+
+    def show_cursor(self, u: float, v: float, value: float, view: int | None = None) -> None:
+        """Cursor position and the value stored in the image file at that pixel (the
+        panels hold images scaled to [0, 1]; the file's own number is what users know)."""
+        raw = None
+        c, s = self.controller, self.controller.session
+        if view is not None and c.frame is not None and view < s.n_views:
+            path = s.image_path(c.frame, view)
+            image = self.panels[view].image()
+            if path is not None and image is not None:
+                raw = self.raw_pixels.value_at(path, u, v, image.shape)
+        if raw is not None:
+            text = format_value(raw)
+        elif value == value:  # not NaN: no file value, show the scaled one
+            text = f"{value:.4g}"
+        else:
+            text = "–"
+        self.window.cursor_label.setText(f"u {u:.1f}  v {v:.1f}  value {text}")
 
     def _frame_state_changed(self, frame: int) -> None:
         s = self.controller.session

@@ -11,12 +11,13 @@ from PySide6.QtWidgets import QMessageBox  # noqa: E402
 
 @pytest.fixture()
 def window(qtbot, tmp_path, monkeypatch):
+    from fluorogui.gui.dialogs.missing_files import MissingFiles
     from fluorogui.gui.main_window import MainWindow
 
     monkeypatch.setenv("FLUOROGUI_DATA_DIR", str(tmp_path / "appdata"))
     warnings = []
     monkeypatch.setattr(QMessageBox, "warning", lambda *a, **k: warnings.append(a) or QMessageBox.StandardButton.Ok)
-    monkeypatch.setattr(MainWindow, "_ask", lambda self, box: None)  # "Locate the model?": cancelled
+    monkeypatch.setattr(MissingFiles, "ask", lambda self, box: None)  # "Locate the model?": cancelled
     w = MainWindow(settings=QSettings(str(tmp_path / "s.ini"), QSettings.Format.IniFormat), with_3d=False)
     qtbot.addWidget(w)
     w.warnings = warnings

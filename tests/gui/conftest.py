@@ -59,13 +59,13 @@ def dialogs(monkeypatch):
     monkeypatch.setattr(QMessageBox, "information", information)
     monkeypatch.setattr(QMessageBox, "question", question)
 
-    def ask(window, box):  # the main window's own modal boxes (Locate a missing model): cancelled
+    def ask(missing, box):  # the main window's own modal boxes (Locate a missing model): cancelled
         seen["question"].append((box.windowTitle(), box.text()))
         return None
 
-    from fluorogui.gui.main_window import MainWindow
+    from fluorogui.gui.dialogs.missing_files import MissingFiles
 
-    monkeypatch.setattr(MainWindow, "_ask", ask)
+    monkeypatch.setattr(MissingFiles, "ask", ask)
     return seen
 
 

@@ -12,7 +12,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "core"))
 from plate_phantom import KnownDistortion, plate_image  # noqa: E402
 from test_beads import PITCH, SIZE, phantom, render, two_views  # noqa: E402
 
-from fluorogui.gui.calibration_wizard import CalibrationWizard  # noqa: E402
+from fluorogui.gui.dialogs.calibration_wizard import CalibrationWizard  # noqa: E402
 from fluorogui.io.calibration import load_view  # noqa: E402
 from fluorogui.io.images import write_image  # noqa: E402
 

@@ -1,6 +1,7 @@
 """The session controller: a thin Qt adapter over the workflow's Session. Its signals carry
-frame numbers, its QUndoStack mirrors the session's history both ways, panel edits enter
-that history as single steps, and an open project file is locked."""
+frame numbers, the Undo / Redo actions move the session's own history and follow it when
+it moves by itself, panel edits enter that history as single steps, and an open project
+file is locked."""
 import json
 import os
 import socket
@@ -14,6 +15,7 @@ import pyvista as pv  # noqa: E402
 
 from fluorogui.core.records import ImageSequence, MatchRecord, ModelEntry, PoseRecord, Project
 from fluorogui.core.status import Status
+from fluorogui.gui.actions.undo import UndoActions  # noqa: E402
 from fluorogui.gui.controller import SessionController  # noqa: E402
 from fluorogui.io.project.lock import ProjectLocked, lock_path, read_holder  # noqa: E402
 from fluorogui.simulation.phantoms import femoral_component_mesh  # noqa: E402
@@ -56,65 +58,73 @@ def test_frame_signals_carry_frame_numbers(controller, qtbot):
     assert blocker.args == [5, "femoral"]
 
 
-def test_undo_redo_through_the_qt_stack_changes_the_session(controller, qtbot):
+def test_undo_redo_actions_change_the_session(controller, qtbot):
     c, s = controller, controller.session
-    assert not c.dirty and not c.undo_stack.canUndo()
+    undo = UndoActions(s.history, c)
+    assert not c.dirty and not undo.undo_action.isEnabled()
     start = s.pose("femoral", 0)
     target = start + np.array([1, 2, 3, 4, 5, 6.0])
     with qtbot.waitSignal(c.dirty_changed) as blocker:
         s.set_pose("femoral", 0, target)
     assert blocker.args == [True]
-    assert c.undo_stack.count() == 1 and c.undo_stack.undoText() == "Move model"
-    c.undo_stack.undo()
+    assert len(s.history) == 1 and undo.undo_action.text() == "&Undo Move model"
+    undo.undo_action.trigger()
     assert s.pose_record("femoral", 0) is None and not c.dirty and s.history.index == 0
-    c.undo_stack.redo()
+    undo.redo_action.trigger()
     np.testing.assert_allclose(s.pose("femoral", 0), target)
     assert s.history.index == 1 and c.dirty
 
 
-def test_the_qt_stack_follows_the_history_when_it_moves_by_itself(controller):
+def test_the_undo_actions_follow_the_history_when_it_moves_by_itself(controller):
     c, s = controller, controller.session
+    undo = UndoActions(s.history, c)
+    modified = []
+    c.dirty_changed.connect(modified.append)
     s.set_pose("femoral", 0, np.ones(6))
     s.set_outline((0, 1, "femoral"), SQUARE)
-    assert c.undo_stack.count() == 2 and c.undo_stack.undoText() == "Edit outline"
-    s.history.undo()  # a script undoes: the Qt stack must not undo a second time
-    assert c.undo_stack.index() == 1 and s.history.index == 1
+    assert len(s.history) == 2 and undo.undo_action.text() == "&Undo Edit outline"
+    s.history.undo()  # a script undoes: the actions show it, nothing is undone a second time
+    assert undo.undo_action.text() == "&Undo Move model" and undo.redo_action.text() == "&Redo Edit outline"
+    assert s.history.index == 1
     assert s.outline_record((0, 1, "femoral")) is None and s.pose_record("femoral", 0) is not None
     s.history.redo()
-    assert c.undo_stack.index() == 2 and s.outline_record((0, 1, "femoral")) is not None
+    assert undo.undo_action.text() == "&Undo Edit outline" and not undo.redo_action.isEnabled()
+    assert s.outline_record((0, 1, "femoral")) is not None
     s.history.set_clean()
-    assert c.undo_stack.isClean() and not c.dirty
+    assert modified[-1] is False and not c.dirty
     s.history.reset_clean()
-    assert not c.undo_stack.isClean() and c.dirty
+    assert modified[-1] is True and c.dirty
 
 
 def test_mergeable_nudges_are_one_step_and_macros_one_entry(controller):
     c, s = controller, controller.session
+    undo = UndoActions(s.history, c)
     for k in range(4):
         s.set_pose("femoral", 0, np.full(6, float(k)), text="Edit pose", mergeable=True)
-    assert c.undo_stack.count() == 1
+    assert len(s.history) == 1 and undo.undo_action.text() == "&Undo Edit pose"
     s.history.begin_macro("Match femoral in frame 0")
     s.set_outline((0, 0, "femoral"), SQUARE, reviewed=False)
     s.set_outline((0, 1, "femoral"), SQUARE, reviewed=False)
     s.set_pose("femoral", 0, np.ones(6))
     s.history.end_macro()
-    assert c.undo_stack.count() == 2 and c.undo_stack.undoText() == "Match femoral in frame 0"
-    c.undo_stack.undo()
+    assert len(s.history) == 2 and undo.undo_action.text() == "&Undo Match femoral in frame 0"
+    undo.undo_action.trigger()
     assert s.outline_record((0, 0, "femoral")) is None
     np.testing.assert_allclose(s.pose("femoral", 0), np.full(6, 3.0))
 
 
 def test_a_panel_edit_is_one_reviewed_step_with_the_panels_own_state(controller):
     c, s = controller, controller.session
+    undo = UndoActions(s.history, c)
     erased = []
     key = c.outline_key(1)
     c.apply_edit("Erase edges and 2 points", (key, SQUARE), [(lambda: erased.append(1), lambda: erased.pop())])
     assert erased == [1] and s.outline_record(key).reviewed
-    assert c.undo_stack.count() == 1 and c.undo_stack.undoText() == "Erase edges and 2 points"
+    assert len(s.history) == 1 and undo.undo_action.text() == "&Undo Erase edges and 2 points"
     assert s.frame_state(0) == FrameState.OUTLINED
-    c.undo_stack.undo()
+    undo.undo_action.trigger()
     assert erased == [] and s.outline_record(key) is None and s.frame_state(0) == FrameState.EMPTY
-    c.undo_stack.redo()
+    undo.redo_action.trigger()
     assert erased == [1] and s.outline_points(key) is not None
 
 

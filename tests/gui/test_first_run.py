@@ -9,7 +9,7 @@ pytest.importorskip("pytestqt")
 from PySide6.QtWidgets import QApplication  # noqa: E402
 
 from fluorogui.gui.app import open_start_path  # noqa: E402
-from fluorogui.gui.tour import STEPS, start_tour  # noqa: E402
+from fluorogui.gui.dialogs.tour import STEPS, start_tour  # noqa: E402
 
 
 def test_tour_shows_once_and_steps_through(window):
@@ -38,14 +38,14 @@ def _stop_logging():
 
 
 def test_crash_report_logs_autosaves_and_copies(window, demo, tmp_path, monkeypatch, request):
-    from fluorogui.gui.crash import crash_dialog, crash_report
+    from fluorogui.gui.dialogs.crash import crash_dialog, crash_report
     from fluorogui.logs import log_file_path, setup_logging
 
     monkeypatch.setenv("FLUOROGUI_DATA_DIR", str(tmp_path / "data"))
     setup_logging()
     request.addfinalizer(_stop_logging)
     window.open_project(demo)
-    window.step_frame(1)
+    window.review.step_frame(1)
     window.controller.session.set_reviewed(window.controller.component, 1, True)  # unsaved work
     try:
         raise RuntimeError("boom in a slot")
@@ -83,7 +83,7 @@ def test_start_with_an_unreadable_project(window, dialogs, demo):
 
 def test_start_with_a_folder_fills_the_import_dialog(window, monkeypatch, tmp_path):
     seen = []
-    monkeypatch.setattr(type(window), "import_session", lambda self, fill=None, folder=None: seen.append(folder))
+    monkeypatch.setattr(window.files, "import_session", lambda fill=None, folder=None: seen.append(folder))
     assert open_start_path(window, tmp_path)
     assert seen == [tmp_path]
 
@@ -110,7 +110,7 @@ def test_a_missing_model_clears_its_overlay_and_offers_locate(window, demo, monk
         asked.append(box.text())
         return next(b for b in box.buttons() if b.text() == "Locate…")
 
-    monkeypatch.setattr(window, "_ask", ask)
+    monkeypatch.setattr(window.missing, "ask", ask)
     monkeypatch.setattr(QFileDialog, "getOpenFileName", lambda *a, **k: (str(moved), ""))
     window.controller.session.history.set_clean()
     window.open_project(demo, ask=False)  # the same project again, now with its femoral mesh missing
@@ -120,7 +120,7 @@ def test_a_missing_model_clears_its_overlay_and_offers_locate(window, demo, monk
     # Locate… relinked it: the model and its overlay are back, as one undoable step
     assert window.session.project.model("femoral").mesh_path == moved
     assert window.panels[0].model_outline("femoral") is not None
-    window.undo_action.trigger()
+    window.edit.undo_action.trigger()
     assert window.session.project.model("femoral").mesh_path.name == "femoral_component.stl"
     assert window.panels[0].model_outline("femoral") is None
 
@@ -128,7 +128,7 @@ def test_a_missing_model_clears_its_overlay_and_offers_locate(window, demo, monk
 def test_match_with_a_missing_model_offers_locate_not_a_repeat(window, demo, monkeypatch):
     window.open_project(demo)
     offered = []
-    monkeypatch.setattr(window, "offer_locate", lambda name, error: offered.append((name, str(error))))
+    monkeypatch.setattr(window.missing, "offer_locate", lambda name, error: offered.append((name, str(error))))
     (demo.parent / "models" / "tibial_component.stl").unlink()
     window.controller.session._raw_meshes.clear()
     window.controller.session._meshes.clear()

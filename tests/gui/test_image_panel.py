@@ -8,7 +8,7 @@ from PySide6.QtCore import QPoint, QPointF, Qt  # noqa: E402
 from PySide6.QtGui import QColor  # noqa: E402
 
 from fluorogui.core.outlines.editing import points_near_path  # noqa: E402
-from fluorogui.gui.image_panel import ImagePanel, Tool  # noqa: E402
+from fluorogui.gui.panels.image_panel import ImagePanel, Tool  # noqa: E402
 
 SIZE = 200
 CENTRE = np.array([100.0, 100.0])

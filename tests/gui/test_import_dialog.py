@@ -6,7 +6,7 @@ import pytest
 pytest.importorskip("pytestqt")
 from PySide6.QtWidgets import QDialog, QFileDialog  # noqa: E402
 
-from fluorogui.gui.import_dialog import FIELD_KEYS, ImportDialog  # noqa: E402
+from fluorogui.gui.dialogs.import_dialog import FIELD_KEYS, ImportDialog  # noqa: E402
 from fluorogui.simulation.demo import build_demo_project  # noqa: E402
 
 

@@ -13,7 +13,7 @@ from PySide6.QtWidgets import QApplication, QMessageBox  # noqa: E402
 
 from fluorogui import __version__  # noqa: E402
 from fluorogui.core.records import PoseRecord  # noqa: E402
-from fluorogui.gui.pixel_value import RawPixels, format_value  # noqa: E402
+from fluorogui.gui.panels.pixel_value import RawPixels, format_value  # noqa: E402
 from fluorogui.logs import log_file_path  # noqa: E402
 
 
@@ -78,21 +78,21 @@ def test_accept_and_unaccept_are_separate_labelled_actions(window, demo):
     window.open_project(demo)
     c, s = window.controller, window.session
     name = c.component
-    assert not window.accept_action.isEnabled() and not window.unaccept_action.isEnabled()  # only placed
+    assert not window.review.accept_action.isEnabled() and not window.review.unaccept_action.isEnabled()  # only placed
     assert not window.matcher.accept_button.isEnabled()
     record = s.pose_record(name, 0)
     s.set_record(name, 0, PoseRecord(record.pose, None, status="matched"), "Matched by hand")
-    assert window.accept_action.isEnabled() and not window.unaccept_action.isEnabled()
+    assert window.review.accept_action.isEnabled() and not window.review.unaccept_action.isEnabled()
     assert window.matcher.accept_button.text() == "Accept"
-    assert window.accept_pose() and s.pose_record(name, 0).reviewed
+    assert window.review.accept_pose() and s.pose_record(name, 0).reviewed
     assert window.matcher.accept_button.text() == "Un-accept"
-    assert not window.accept_action.isEnabled() and window.unaccept_action.isEnabled()
-    assert not window.accept_pose() and s.pose_record(name, 0).reviewed  # a second Accept is no toggle
+    assert not window.review.accept_action.isEnabled() and window.review.unaccept_action.isEnabled()
+    assert not window.review.accept_pose() and s.pose_record(name, 0).reviewed  # a second Accept is no toggle
     assert "already accepted" in window.statusBar().currentMessage()
     window.matcher.accept_button.click()  # the button now says Un-accept and does it
     assert not s.pose_record(name, 0).reviewed
-    assert window.matcher.accept_button.text() == "Accept" and window.accept_action.isEnabled()
-    assert not window.unaccept_pose()
+    assert window.matcher.accept_button.text() == "Accept" and window.review.accept_action.isEnabled()
+    assert not window.review.unaccept_pose()
 
 
 def test_home_end_and_the_component_key(window, demo, qtbot):
@@ -111,28 +111,29 @@ def test_home_end_and_the_component_key(window, demo, qtbot):
     first, second = c.components()
     assert c.component == first
     QTest.keyClick(handle, "k")
-    assert c.component == second and window.component_combo.currentText() == second
+    assert c.component == second and window.model.component_combo.currentText() == second
     QTest.keyClick(handle, "k")
     assert c.component == first
 
 
 def test_shortcut_list_is_complete(window):
-    rows = dict(window.shortcut_rows())
-    for name, keys in (("Move point", "M"), ("Undo", "Ctrl+Z"), ("Redo", "Ctrl+Shift+Z"), ("Accept pose", "Ctrl+Return"),
-                       ("Un-accept pose", "Ctrl+Shift+Return"), ("First frame", "Home"), ("Last frame", "End"),
+    rows = dict(window.help.shortcut_rows())
+    for name, keys in (("Move point", "M"), ("Undo", "Ctrl+Z"), ("Redo", "Ctrl+Shift+Z"),
+                       ("Accept pose", "Ctrl+Return"), ("Un-accept pose", "Ctrl+Shift+Return"),
+                       ("First frame", "Home"), ("Last frame", "End"),
                        ("Next component", "K"), ("Keyboard shortcuts", "F1"), ("Fit images", "F")):
         assert name in rows and rows[name].startswith(keys), (name, rows.get(name))
     assert all(len(keys.split(" or ")) == len(set(keys.split(" or "))) for keys in rows.values())  # no repeats
-    dialog = window.show_shortcuts()
+    dialog = window.help.show_shortcuts()
     text = dialog.browser.toPlainText()
-    assert "Ctrl+Shift+Z" in text and "Move point" in text and "<table" in window.shortcuts_html()
+    assert "Ctrl+Shift+Z" in text and "Move point" in text and "<table" in window.help.shortcuts_html()
     dialog.close()
 
 
 def test_about_shows_version_and_log_file(window, monkeypatch):
     shown = []
     monkeypatch.setattr(QMessageBox, "about", lambda parent, title, text: shown.append(text))
-    window.about_action.trigger()
+    window.help.about_action.trigger()
     assert __version__ in shown[0] and str(log_file_path()) in shown[0]
 
 
@@ -143,7 +144,7 @@ def test_version_comes_from_the_package_metadata():
 
 
 def test_quick_start_page_is_shipped_with_the_shortcuts(window):
-    dialog = window.show_quick_start()
+    dialog = window.help.show_quick_start()
     text = dialog.browser.toPlainText()
     assert "Quick start" in text or "quick start" in text
     assert "Un-accept" in text and "Ctrl+Shift+Z" in text  # the live shortcut table is filled in
@@ -155,7 +156,7 @@ def _path_points(path):
 
 
 def test_an_erased_stretch_is_drawn_as_a_gap(qtbot):
-    from fluorogui.gui.image_panel import ImagePanel
+    from fluorogui.gui.panels.image_panel import ImagePanel
 
     panel = ImagePanel(0)
     qtbot.addWidget(panel)
@@ -185,7 +186,7 @@ def test_selected_point_marker_is_cleared_on_another_frame(window, demo):
     panel._selected = 3
     panel._update_highlight()
     assert panel.selected_point() == 3
-    window.step_frame(1)
+    window.review.step_frame(1)
     assert panel.selected_point() is None
 
 
@@ -207,17 +208,17 @@ def test_eta_follows_the_recent_frames_not_the_first():
 def test_save_dialog_starts_beside_the_images_never_in_the_data_folder(window, tmp_path, monkeypatch):
     from PySide6.QtWidgets import QFileDialog
 
-    from fluorogui.gui.session_files import app_data_dir
+    from fluorogui.gui.actions.files import app_data_dir
 
     assert window.open_demo(ask=False)  # the demo lives in the app's data folder
     data = app_data_dir().resolve()
     assert data in window.controller.path.resolve().parents
     monkeypatch.setenv("HOME", str(tmp_path))
-    start = window.default_save_dir().resolve()
+    start = window.files.default_save_dir().resolve()
     assert start != data and data not in start.parents
     asked = []
     monkeypatch.setattr(QFileDialog, "getSaveFileName", lambda *a, **k: (asked.append(a[2]), ("", ""))[1])
-    assert not window.save_as()
+    assert not window.files.save_as()
     assert data not in Path(asked[0]).resolve().parents
     monkeypatch.setattr(QFileDialog, "getOpenFileName", lambda *a, **k: (asked.append(a[2]), ("", ""))[1])
     assert not window.open_project()  # File → Open after the demo: not in the demo's folder either
@@ -227,7 +228,7 @@ def test_save_dialog_starts_beside_the_images_never_in_the_data_folder(window, t
 def test_save_dialog_starts_in_the_images_folder(window, demo):
     window.open_project(demo)
     window.controller.session.path = None  # an imported session: no file yet
-    assert window.default_save_dir().resolve() == demo.parent.resolve()
+    assert window.files.default_save_dir().resolve() == demo.parent.resolve()
 
 
 def test_no_session_and_a_missing_image_leave_a_hint(window, demo):
@@ -236,17 +237,17 @@ def test_no_session_and_a_missing_image_leave_a_hint(window, demo):
     assert window.panels[0].placeholder == ""
     path = window.session.image_path(1, 0)
     path.unlink()
-    window.step_frame(1)
+    window.review.step_frame(1)
     assert window.panels[0].image() is None and path.name in window.panels[0].placeholder
 
 
 def test_tool_hint_in_the_status_bar_and_tooltips_on_every_tool_button(window):
     from PySide6.QtWidgets import QToolBar, QToolButton
 
-    from fluorogui.gui.image_panel import Tool
+    from fluorogui.gui.panels.image_panel import Tool
 
-    window.set_tool(Tool.ERASE)
-    assert window.tool_label.text().startswith("Erase (E): Brush away")
+    window.edit.set_tool(Tool.ERASE)
+    assert window.edit.tool_label.text().startswith("Erase (E): Brush away")
     bar = window.findChild(QToolBar, "mainToolbar")
     buttons = [b for b in bar.findChildren(QToolButton) if b.defaultAction() is not None]
     assert len(buttons) > 10

@@ -8,7 +8,7 @@ pytest.importorskip("pytestqt")
 from PySide6.QtWidgets import QDialog  # noqa: E402
 
 from fluorogui.core.records import PoseRecord  # noqa: E402
-from fluorogui.gui.knee_actions import ExportDialog  # noqa: E402
+from fluorogui.gui.dialogs.export_dialog import ExportDialog  # noqa: E402
 
 
 def put_truth(session):
@@ -21,7 +21,7 @@ def test_dock_shows_the_current_frame_and_follows_clicks(window, demo, qtbot):
     window.open_project(demo)
     session = window.session
     put_truth(session)
-    window.refresh_knee()
+    window.knee.refresh_knee()
     panel = window.knee_panel
     row = session.knee_at(window.controller.frame)
     assert panel.value_labels[0].text() == f"{row.values.flexion_deg:.2f}"
@@ -45,7 +45,7 @@ def test_side_is_an_undoable_session_setting(window, demo):
     panel.side.setCurrentIndex(2)
     panel.side.activated.emit(2)
     assert window.session.side == "left" and window.isWindowModified()
-    window.controller.undo_stack.undo()
+    window.edit.undo_action.trigger()
     assert window.session.side is None
     assert panel.side.currentData() is None
 
@@ -53,7 +53,7 @@ def test_side_is_an_undoable_session_setting(window, demo):
 def test_missing_poses_say_why(window, demo):
     window.open_project(demo)
     window.session.project.poses.clear()
-    window.refresh_knee()
+    window.knee.refresh_knee()
     assert "No kinematics" in window.knee_panel.status.text()
     assert window.knee_panel.value_labels[0].text() == "–"
 
@@ -70,7 +70,7 @@ def test_export_dialog_writes_the_chosen_files(window, demo, tmp_path, monkeypat
 
     (tmp_path / "out").mkdir()
     monkeypatch.setattr(ExportDialog, "exec", exec_)
-    window.export_results()
+    window.knee.export_results()
     names = sorted(p.name for p in (tmp_path / "out").iterdir())
     assert names == ["demo.tra", "demo_kinematics.csv", "demo_kinematics.png", "demo_poses.csv"]
     assert "Exported 4 files" in window.statusBar().currentMessage()
@@ -78,7 +78,7 @@ def test_export_dialog_writes_the_chosen_files(window, demo, tmp_path, monkeypat
     # a pose the matcher flagged and nobody accepted stays out of the .tra, and the user is told
     record = window.session.project.poses[(1, "tibial")]
     window.session.project.poses[(1, "tibial")] = PoseRecord(record.pose, status="needs_review", reason="test")
-    window.export_results()
+    window.knee.export_results()
     assert "1 pose flagged for review left out of .tra/.jts" in window.statusBar().currentMessage()
     assert (tmp_path / "out" / "demo.tra").read_text().splitlines()[1].split(",")[16] == "NaN"
 
@@ -91,7 +91,7 @@ def test_export_to_a_missing_folder_gives_one_dialog(window, demo, tmp_path, mon
         return QDialog.DialogCode.Accepted
 
     monkeypatch.setattr(ExportDialog, "exec", exec_)
-    window.export_results()
+    window.knee.export_results()
     assert len(dialogs["warning"]) == 1 and "folder does not exist" in dialogs["warning"][0][2]
 
 
@@ -103,9 +103,9 @@ def test_import_poses_lands_as_placed_and_undoes_in_one_step(window, demo, tmp_p
 
     export_tra(session, tmp_path / "p.tra")
     session.project.poses.clear()
-    assert window.import_poses_file(str(tmp_path / "p.tra")) == 2 * len(session.frames)
+    assert window.knee.import_poses_file(str(tmp_path / "p.tra")) == 2 * len(session.frames)
     assert all(r.status == "placed" for r in session.project.poses.values())
-    window.controller.undo_stack.undo()
+    window.edit.undo_action.trigger()
     assert not session.project.poses
 
 
@@ -115,7 +115,7 @@ def test_pose_changes_refresh_the_dock_once_the_burst_is_over(window, demo, qtbo
     for frame, by in session.project.settings["demo_truth"].items():
         for c, pose in by.items():
             session.set_pose(c, int(frame), np.asarray(pose, float))
-    assert window._knee_timer.isActive()  # one refresh pending, not one per pose
+    assert window.knee.refresh_timer.isActive()  # one refresh pending, not one per pose
     expected = f"{session.knee_at(window.controller.frame).values.flexion_deg:.2f}"
     qtbot.waitUntil(lambda: window.knee_panel.value_labels[0].text() == expected, timeout=3000)
-    assert not window._knee_timer.isActive()
+    assert not window.knee.refresh_timer.isActive()

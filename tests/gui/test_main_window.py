@@ -8,8 +8,8 @@ from PySide6.QtCore import QSettings, Qt  # noqa: E402
 from PySide6.QtWidgets import QMessageBox  # noqa: E402
 
 from fluorogui.core.projection.pose import pose_error  # noqa: E402
-from fluorogui.gui.image_panel import Tool  # noqa: E402
 from fluorogui.gui.main_window import MainWindow  # noqa: E402
+from fluorogui.gui.panels.image_panel import Tool  # noqa: E402
 from fluorogui.workflow.session import FrameState  # noqa: E402
 
 
@@ -19,12 +19,12 @@ def test_opening_a_session_shows_images_outlines_and_frames(window, demo):
     assert "demo.fluoro" in window.windowTitle()
     assert all(panel.image() is not None and panel.image().shape == (512, 512) for panel in window.panels)
     assert window.timeline.frames == [0, 1, 2]
-    assert window.component_combo.count() == 2
+    assert window.model.component_combo.count() == 2
     first = c.components()[0]
     # the projected model outline is drawn in both panels
     assert all(panel.model_outline(first) is not None and len(panel.model_outline(first)) > 20
                for panel in window.panels)
-    window.step_frame(1)
+    window.review.step_frame(1)
     assert c.frame == 1 and window.timeline.current_frame == 1
 
 
@@ -47,11 +47,11 @@ def test_match_runs_in_the_worker_and_lands_on_the_truth(window, demo, qtbot):
     assert s.pose_record(c.components()[0], 0).match is None  # only the active component
     np.testing.assert_allclose(window.pose_editor.pose(), record.pose, atol=1e-3)
     # accept, then undo the acceptance and the match in two steps
-    window.accept_pose()
+    window.review.accept_pose()
     assert s.pose_record(name, 0).reviewed
-    window.undo_action.trigger()
+    window.edit.undo_action.trigger()
     assert not s.pose_record(name, 0).reviewed
-    window.undo_action.trigger()
+    window.edit.undo_action.trigger()
     assert s.pose_record(name, 0).match is None  # back to the demo's rough start
 
 
@@ -107,12 +107,12 @@ def test_outline_edit_in_a_panel_is_stored_and_undone(window, demo, qtbot):
     assert len(s.outline_points(key)) == 3  # the panel's edit reached the session
     assert s.outline_record(key).reviewed  # a user's edit: matching uses it as it is
     assert len(panel.outline(name)) == 3
-    assert window.undo_action.text().endswith("Delete point")
-    window.undo_action.trigger()
+    assert window.edit.undo_action.text().endswith("Delete point")
+    window.edit.undo_action.trigger()
     np.testing.assert_allclose(s.outline_points(key), square)
     np.testing.assert_allclose(panel.outline(name), square)
-    window.step_frame(1)  # undo / redo still apply to frame 0's outline
-    window.redo_action.trigger()
+    window.review.step_frame(1)  # undo / redo still apply to frame 0's outline
+    window.edit.redo_action.trigger()
     assert len(s.outline_points(key)) == 3 and panel.outline(name) is None
 
 
@@ -124,13 +124,13 @@ def test_point_and_click_places_the_model(window, demo):
     from fluorogui.core.projection.pose import rotation_matrix
 
     centre = rotation_matrix(*truth[3:]) @ s.mesh(name).centroid + truth[:3]
-    window.set_tool(Tool.PLACE)
+    window.edit.set_tool(Tool.PLACE)
     for view, panel in enumerate(window.panels):
         u, v = c.project.views[view].project(centre[None])[0]
         panel.point_clicked.emit(view, float(u), float(v))
     pose = s.pose(name, 0)
     placed = rotation_matrix(*pose[3:]) @ s.mesh(name).centroid + pose[:3]
-    assert np.linalg.norm(placed - centre) < 1e-3 and window.last_place_miss < 1e-3
+    assert np.linalg.norm(placed - centre) < 1e-3 and window.model.last_place_miss < 1e-3
     assert "miss" in window.statusBar().currentMessage()
 
 
@@ -141,13 +141,13 @@ def test_save_then_reopen_gives_the_same_session(window, demo, tmp_path, qtbot):
     s.set_outline(c.outline_key(1), np.array([[10, 10], [60, 10], [60, 60], [10, 60.0]]))
     assert window.isWindowModified()
     target = tmp_path / "saved.fluoro"
-    assert window._save_to(target)
+    assert window.files.save_to(target)
     assert not window.isWindowModified() and "saved.fluoro" in window.windowTitle()
     other = MainWindow(settings=QSettings(str(tmp_path / "other.ini"), QSettings.Format.IniFormat), with_3d=False)
     qtbot.addWidget(other)
     assert other.open_project(target)
     assert other.controller.project == c.project
-    assert str(target.resolve()) in window.recent_files()
+    assert str(target.resolve()) in window.files.recent_files()
     other.controller.close()
 
 
@@ -220,7 +220,7 @@ def test_track_following_frames_matches_every_frame(window, demo, qtbot):
     shown = []
     window.frame_shown.connect(shown.append)
     with qtbot.waitSignal(window.runner.finished, timeout=300000):
-        assert window.track_frames()  # frame 0 is not matched yet: tracking starts there
+        assert window.tasks.track_frames()  # frame 0 is not matched yet: tracking starts there
     for frame in c.frames:
         record = s.pose_record(name, frame)
         assert record is not None and record.status == "matched" and record.match.converged
@@ -235,7 +235,7 @@ def test_track_following_frames_matches_every_frame(window, demo, qtbot):
 
 
 def test_dropped_folder_opens_the_import_dialog_filled(window, demo, monkeypatch):
-    from fluorogui.gui.import_dialog import ImportDialog
+    from fluorogui.gui.dialogs.import_dialog import ImportDialog
 
     shown = []
 
@@ -249,3 +249,19 @@ def test_dropped_folder_opens_the_import_dialog_filled(window, demo, monkeypatch
     assert shown and shown[0]["pairs_csv"].endswith("pairs.csv")
     assert len(window.controller.frames) == 3 and window.controller.path is None
     assert window.controller.dirty  # an import is unsaved work
+
+
+def test_the_menus_actions_ask_as_their_methods_do(window, demo, dialogs, monkeypatch):
+    """A menu action passes Qt's ``checked`` to its slot: it must not land in a parameter
+    (the demo action skipped the unsaved-changes question; Import poses… crashed)."""
+    from PySide6.QtWidgets import QFileDialog
+
+    window.open_project(demo)
+    window.session.set_pose("femoral", window.controller.frame, np.ones(6))  # an unsaved change
+    dialogs["answers"].append(QMessageBox.StandardButton.Cancel)
+    window.files.demo_action.trigger()
+    assert dialogs["question"] and window.controller.path == demo and window.controller.dirty
+    asked = []
+    monkeypatch.setattr(QFileDialog, "getOpenFileName", lambda *a, **k: (asked.append(a[1]), ("", ""))[1])
+    window.knee.import_poses_action.trigger()
+    assert asked == ["Import poses"]

@@ -8,9 +8,9 @@ from PySide6.QtCore import QPoint, Qt  # noqa: E402
 from fluorogui.core.matching.problem import MatchSettings
 from fluorogui.core.records import MatchRecord, PoseRecord  # noqa: E402
 from fluorogui.core.status import Status
-from fluorogui.gui.matcher_panel import MatcherPanel, describe_pose  # noqa: E402
-from fluorogui.gui.pose_editor import PoseEditor  # noqa: E402
-from fluorogui.gui.timeline import STATE_COLOURS, Timeline, TimelineLegend  # noqa: E402
+from fluorogui.gui.panels.matcher_panel import MatcherPanel, describe_pose  # noqa: E402
+from fluorogui.gui.panels.pose_editor import PoseEditor  # noqa: E402
+from fluorogui.gui.panels.timeline import STATE_COLOURS, Timeline, TimelineLegend  # noqa: E402
 from fluorogui.workflow.session import FrameState  # noqa: E402
 
 

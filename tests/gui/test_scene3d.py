@@ -15,7 +15,7 @@ from vtkmodules.vtkRenderingCore import vtkCoordinate  # noqa: E402
 
 from fluorogui.core.projection.geometry import View  # noqa: E402
 from fluorogui.core.projection.pose import pose_to_matrix, transform_points  # noqa: E402
-from fluorogui.gui.scene3d import FluoroScene, window_image  # noqa: E402
+from fluorogui.gui.scene.scene3d import FluoroScene, window_image  # noqa: E402
 
 REFERENCE_POSES = Path(__file__).resolve().parents[1] / "data" / "biplane_reference_poses.csv"
 WINDOW = (400, 320)
@@ -310,7 +310,7 @@ def test_real_data_scene_matches_the_xray_from_view1(shared_data, gl_context):
 # -- the Qt panel ---------------------------------------------------------------------------
 @pytest.fixture
 def fallback_widget(qtbot, gl_context, monkeypatch):
-    from fluorogui.gui.scene_widget import Scene3DWidget
+    from fluorogui.gui.scene.scene_widget import Scene3DWidget
 
     monkeypatch.setenv("FLUOROGUI_NO_GL", "1")  # fallback even if Qt has a real platform
     widget = Scene3DWidget()
@@ -385,7 +385,7 @@ def test_widget_close_is_clean(qtbot, fallback_widget):
 def test_widget_picks_the_fallback_on_offscreen_platform(qtbot, gl_context, monkeypatch):
     from PySide6.QtGui import QGuiApplication
 
-    from fluorogui.gui.scene_widget import Scene3DWidget, opengl_available
+    from fluorogui.gui.scene.scene_widget import Scene3DWidget, opengl_available
 
     monkeypatch.delenv("FLUOROGUI_NO_GL", raising=False)
     if QGuiApplication.platformName() not in ("offscreen", "minimal"):
@@ -399,7 +399,7 @@ def test_widget_picks_the_fallback_on_offscreen_platform(qtbot, gl_context, monk
 
 @pytest.mark.skipif(os.environ.get("QT_QPA_PLATFORM", "") != "xcb", reason="needs Qt on a real X display")
 def test_widget_interactive_mode_on_xcb(qtbot):
-    from fluorogui.gui.scene_widget import Scene3DWidget
+    from fluorogui.gui.scene.scene_widget import Scene3DWidget
 
     widget = Scene3DWidget()
     qtbot.addWidget(widget)

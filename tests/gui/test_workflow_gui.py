@@ -16,7 +16,7 @@ from PySide6.QtWidgets import QFileDialog, QMessageBox  # noqa: E402
 from fluorogui.core.projection.pose import pose_error  # noqa: E402
 from fluorogui.core.records import PoseRecord  # noqa: E402
 from fluorogui.core.status import Status
-from fluorogui.gui.timeline import STATE_COLOURS  # noqa: E402
+from fluorogui.gui.panels.timeline import STATE_COLOURS  # noqa: E402
 from fluorogui.io.project.lock import lock_path  # noqa: E402
 from fluorogui.workflow.session import FrameState, Session  # noqa: E402
 
@@ -50,14 +50,14 @@ def test_match_both_lands_on_the_demo_truth_and_undoes_in_one_step(window, fine_
     assert window.matcher.plot.values  # the objective of the match
     sd = s.pose_record(c.component, 0).match.quality["sd"]  # the Pose tab shows the match's SDs
     assert len(sd) == 6 and [label.text() for label in window.pose_editor.sd_labels] == [f"± {v:.3f}" for v in sd]
-    # one undo step, through the Qt stack and back
-    assert c.undo_stack.count() == 1
-    window.undo_action.trigger()
+    # one undo step, through the Undo / Redo actions and back
+    assert len(s.history) == 1
+    window.edit.undo_action.trigger()
     for name in s.components():
         np.testing.assert_allclose(s.pose(name, 0), before[name])
         assert s.outline_record((0, 0, name)) is None
     assert window.timeline.state(0) != FrameState.MATCHED and not c.dirty
-    window.redo_action.trigger()
+    window.edit.redo_action.trigger()
     assert all(s.pose_record(n, 0).status == "matched" for n in s.components())
 
 
@@ -67,7 +67,7 @@ def test_track_both_from_a_matched_frame_keeps_it_and_lands_on_the_truth(window,
     start_from_truth(s, 0)
     for name in s.components():
         c.set_component(name)
-        window.accept_pose()  # frame 0 accepted: tracking must keep it so
+        window.review.accept_pose()  # frame 0 accepted: tracking must keep it so
     assert window.timeline.state(0) == FrameState.REVIEWED
     kept = {n: s.pose_record(n, 0) for n in s.components()}
     shown, plotted = [], []
@@ -93,7 +93,7 @@ def test_track_both_from_a_matched_frame_keeps_it_and_lands_on_the_truth(window,
     assert bars[0].startswith("1 / 3 frames") and "left" in bars[0]
     summary = window.matcher.summary.text()
     assert "3 matched, 0 need review, 0 failed" in summary and "(1–3)" in summary
-    assert c.undo_stack.count() == 2 * len(s.components()) + 3  # set, accept; then one step per tracked frame
+    assert len(s.history) == 2 * len(s.components()) + 3  # set, accept; then one step per tracked frame
     c.set_frame(2)  # coming back to a tracked frame later: its objective is still plotted
     stored = s.pose_record(c.component, 2).match.history
     assert stored and window.matcher.plot.values == pytest.approx(stored)
@@ -146,7 +146,7 @@ def test_a_flagged_frame_is_shown_as_needing_review_and_tracking_goes_on(window,
     # accepting a flagged pose is allowed: it becomes reviewed (green once both are)
     for n in s.components():
         c.set_component(n)
-        window.accept_pose()
+        window.review.accept_pose()
     assert s.frame_state(1) == FrameState.REVIEWED and window.timeline.state(1) == FrameState.REVIEWED
     assert not any(panel.model_flagged(name) for panel in window.panels)
     assert "accepted" in window.matcher.status.text()
@@ -226,7 +226,7 @@ def test_find_implants_can_be_cancelled(window, demo, qtbot, fake_find):
     s = window.controller.session
     fake_find["wait"] = True
     entries = len(s.history)
-    window.runner.progress.connect(lambda _p: window.cancel_action.trigger())  # Esc
+    window.runner.progress.connect(lambda _p: window.tasks.cancel_action.trigger())  # Esc
     with qtbot.waitSignal(window.runner.cancelled, timeout=60000):
         assert window.find_implants()
     assert fake_find["seen_cancel"] and len(s.history) == entries
@@ -263,7 +263,7 @@ def test_a_project_another_program_holds_is_not_opened_behind_its_back(window, d
     copy = tmp_path / "copy.fluoro"
     monkeypatch.setattr(QFileDialog, "getSaveFileName", lambda *a, **k: (str(copy), ""))
     window.controller.session.set_pose("femoral", 0, np.ones(6))
-    assert window.save()  # Save goes to Save As: never over the other program's file
+    assert window.files.save()  # Save goes to Save As: never over the other program's file
     assert copy.exists() and json.loads(lock_path(demo).read_text())["program"] == "fluorogui track"
     assert not window.controller.read_only and "(read-only)" not in window.windowTitle()
 
@@ -277,7 +277,7 @@ def test_a_match_whose_outline_was_moved_for_the_rim_says_so(window, demo):
     window.open_project(demo)
     refined = SimpleNamespace(objective_mm=0.031, history=[0.5, 0.031], settings={"rim_refined": [False, True]})
     plain = SimpleNamespace(objective_mm=0.029, history=[0.4, 0.029], settings={"rim_refined": [False, False]})
-    window._show_results([FrameResult(0, "femoral", np.zeros(6), Status.MATCHED, "", refined, seconds=1.0),
+    window.tasks.show_results([FrameResult(0, "femoral", np.zeros(6), Status.MATCHED, "", refined, seconds=1.0),
                           FrameResult(0, "tibial", np.zeros(6), Status.MATCHED, "", plain, seconds=1.0)])
     summary = window.matcher.summary.text()
     assert "femoral matched in 1.0 s, objective 0.031 mm (outline moved for the metal's soft rim in view 2)" in summary

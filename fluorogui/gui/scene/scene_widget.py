@@ -13,7 +13,7 @@ from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtGui import QGuiApplication, QImage, QPixmap
 from PySide6.QtWidgets import QHBoxLayout, QLabel, QSizePolicy, QToolButton, QVBoxLayout, QWidget
 
-from fluorogui.gui.scene3d import FluoroScene
+from fluorogui.gui.scene.scene3d import FluoroScene
 
 NO_GL_PLATFORMS = {"offscreen", "minimal"}
 SOFTWARE_GL = ("llvmpipe", "softpipe", "swrast", "software rasterizer", "swiftshader")

@@ -3,15 +3,16 @@ track the following frames (the active component or both) and find the implants,
 worker thread with live overlays, progress and cancel; then storing what comes back
 through the session and saying what happened in plain words.
 
-``MatchControl`` is a mixin of ``MainWindow``; it uses the window's controller, runner,
-panels, matcher panel and 3D scene. The jobs come from ``Session.match_job`` /
-``find_job`` / ``track_job`` (see ``jobs``): no matching loop or tracking rule of its own.
+``MatchControl`` belongs to a main window; it uses the window's controller, runner,
+matcher panel and 3D scene, and its ``SessionView`` to draw live results. The jobs come
+from ``Session.match_job`` / ``find_job`` / ``track_job`` (see ``jobs``): no matching
+loop or tracking rule of its own.
 """
 from __future__ import annotations
 
 import time
 
-from PySide6.QtCore import QTimer
+from PySide6.QtCore import QObject, QTimer
 
 from fluorogui.core.status import Status
 from fluorogui.gui import jobs
@@ -71,18 +72,56 @@ class TrackSummary:
         return head + (f" {ending}" if ending else "")
 
 
-class MatchControl:
-    """Task handling of ``MainWindow`` (a mixin)."""
+class MatchControl(QObject):
+    """The long tasks of a main window: their actions, starting them, and their results."""
 
-    def _init_tasks(self) -> None:
+    def __init__(self, window) -> None:
+        super().__init__(window)
+        self.window = window
+        self.controller = window.controller
+        self.runner = runner = window.runner
+        self.matcher = window.matcher
+        self.scene_widget = window.scene_widget
+        self.last_cancel_latency: float | None = None
+        self._last_live_3d = 0.0
         self._live_components: list[str] = []
         self._task_kind = ""
         self._track: TrackSummary | None = None
+        self._track_history: list[float] = []
+        self._eta: Eta | None = None
         self._follow_frame: int | None = None
         self._follow_timer = QTimer(self)
         self._follow_timer.setSingleShot(True)
         self._follow_timer.setInterval(0)
         self._follow_timer.timeout.connect(self._follow)
+        add = window.add_action
+        self.run_action = add("&Match active component", lambda: self.run_match(), "F5", "match",
+                              "Match the active component in this frame (F5)")
+        self.run_both_action = add("Match &both components", lambda: self.match_both(), "Ctrl+F5", "match_both",
+                                   "Match every component in this frame (Ctrl+F5)")
+        self.cancel_action = add("&Cancel", runner.cancel, "Esc", "cancel", "Stop the running task (Esc)")
+        self.cancel_action.setEnabled(False)
+        self.track_action = add("&Track following frames", lambda: self.track_frames(), "Shift+F5",
+                                tip="Track the active component through the following frames (Shift+F5)")
+        self.track_both_action = add("Track &both through following frames", lambda: self.track_both(),
+                                     "Ctrl+Shift+F5", "track_both",
+                                     "Track every component through the following frames (Ctrl+Shift+F5)")
+        self.find_action = add("&Find implants automatically", lambda: self.find_implants(), "Ctrl+F",
+                               tip="Locate every component in this frame's images (Ctrl+F)")
+        m = self.matcher
+        m.run_requested.connect(lambda: self.run_match())
+        m.run_both_requested.connect(lambda: self.match_both())
+        m.cancel_requested.connect(runner.cancel)
+        m.track_requested.connect(lambda: self.track_frames())
+        m.track_both_requested.connect(lambda: self.track_both())
+        m.place_requested.connect(lambda: self.find_implants())
+        m.settings_edited.connect(self._settings_edited)
+        runner.running_changed.connect(self._running_changed)
+        runner.progress.connect(self._task_progress)
+        runner.item.connect(self._task_item)
+        runner.finished.connect(self._task_finished)
+        runner.cancelled.connect(self._task_cancelled)
+        runner.failed.connect(self._task_failed)
 
     # -- starting work -----------------------------------------------------------------------------
     def _ready(self, title: str, views: int = 1) -> bool:
@@ -94,7 +133,7 @@ class MatchControl:
         c, s = self.controller, self.controller.session
         if c.frame is None or s.n_views < views or not s.components():
             need = "two views" if views >= 2 else "a calibrated view"
-            self._warn(title, f"Open a session with {need} and a model first.")
+            self.window.warn(title, f"Open a session with {need} and a model first.")
             return False
         return True
 
@@ -115,13 +154,13 @@ class MatchControl:
         todo = [n for n in names if not ((r := s.pose_record(n, c.frame)) is not None and r.reviewed)]
         if not todo:
             what = "poses are" if len(names) > 1 else f"{names[0]} pose is"
-            self.statusBar().showMessage(f"The {what} accepted in frame {c.frame}; Un-accept it (Ctrl+Shift+Return) "
-                                         "to match it again", 10000)
+            self.window.statusBar().showMessage(f"The {what} accepted in frame {c.frame}; Un-accept it "
+                                                "(Ctrl+Shift+Return) to match it again", 10000)
             return False
         try:
             job = s.match_job(c.frame, todo)
         except (InputError, KeyError, ValueError) as exc:
-            self._job_error("Cannot match", exc)
+            self.window.missing.job_error("Cannot match", exc)
             return False
         self._live_components = todo
         self._task_kind = "match"
@@ -147,12 +186,12 @@ class MatchControl:
         unmatched = any(not ((r := s.pose_record(n, c.frame)) is not None and r.is_matched) for n in names)
         todo = frames[here:] if unmatched else frames[here + 1:]
         if not todo:
-            self.statusBar().showMessage("This is the last frame: no frame follows it to track", 8000)
+            self.window.statusBar().showMessage("This is the last frame: no frame follows it to track", 8000)
             return False
         try:
             job = s.track_job(frames=todo, components=names, redo=True)
         except (InputError, KeyError, ValueError) as exc:
-            self._job_error("Cannot track", exc)
+            self.window.missing.job_error("Cannot track", exc)
             return False
         self._track = TrackSummary(todo, names)
         self._live_components = []
@@ -172,7 +211,7 @@ class MatchControl:
         try:
             job = s.find_job(c.frame, "both")
         except (InputError, KeyError, ValueError) as exc:
-            self._job_error("Cannot search", exc)
+            self.window.missing.job_error("Cannot search", exc)
             return False
         self._live_components = []
         self._task_kind = "find"
@@ -185,20 +224,17 @@ class MatchControl:
         self.matcher.set_running(running)
         self.cancel_action.setEnabled(running)
         for a in (self.run_action, self.run_both_action, self.track_action, self.track_both_action,
-                  self.find_action, self.accept_action, self.unaccept_action, self.open_action,
-                  self.import_action, self.demo_action):
+                  self.find_action):
             a.setEnabled(not running)
-        if not running:
-            self._refresh_accept_state()
         if running:
             self.matcher.show_summary("")
-            self.statusBar().showMessage(self.runner.label + "…")
+            self.window.statusBar().showMessage(self.runner.label + "…")
 
     def _task_progress(self, payload) -> None:
         if isinstance(payload, jobs.LiveUpdate):
             if payload.component == self.controller.component or len(self._live_components) == 1:
                 self.matcher.show_live(payload.calls, payload.objective_mm, payload.history)
-            self._show_model_outline(payload.component, payload.pose, payload.outlines_px)
+            self.window.session_view.show_model_outline(payload.component, payload.pose, payload.outlines_px)
             now = time.perf_counter()
             if (self.scene_widget is not None and now - self._last_live_3d > LIVE_3D_INTERVAL_S
                     and not self.scene_widget.software_gl
@@ -209,18 +245,15 @@ class MatchControl:
                 self.scene_widget.scene.set_pose(payload.component, payload.pose)
                 self.scene_widget.scene.render()
         elif isinstance(payload, jobs.FindProgress):
-            left = describe(self._eta.update(payload.fraction)) if getattr(self, "_eta", None) else ""
+            left = describe(self._eta.update(payload.fraction)) if self._eta is not None else ""
             text = f"{payload.text}, {left}" if left else payload.text
             self.matcher.show_progress(payload.fraction, text)
-            self.statusBar().showMessage(f"{self.runner.label}: {text} (Esc cancels)")
+            self.window.statusBar().showMessage(f"{self.runner.label}: {text} (Esc cancels)")
 
     def _store(self, results, text: str | None = None) -> None:
         """Results into the session (one undoable step), with one overlay refresh."""
-        self._deferred_overlay = True  # one overlay refresh (by the pose change) instead of one per outline
-        try:
+        with self.window.session_view.one_overlay_refresh():
             self.controller.session.store(results, text)
-        finally:
-            self._deferred_overlay = False
 
     def _task_item(self, payload) -> None:
         if not isinstance(payload, jobs.TrackedFrame) or self._track is None:
@@ -228,28 +261,28 @@ class MatchControl:
         self._store(payload.results, f"Track frame {payload.frame}")
         self._track.add(payload.frame, payload.results)
         self._track.elapsed_s = payload.elapsed_s
-        left = self._eta.update(payload.done) if getattr(self, "_eta", None) else None
+        left = self._eta.update(payload.done) if self._eta is not None else None
         self.matcher.show_batch(payload.done, payload.total, payload.elapsed_s, left)
         self._follow_frame = payload.frame  # the view follows, at most once per event-loop pass
         self._follow_timer.start()
         shown = next((r for r in payload.results if r.component == self.controller.component), payload.results[0])
         self._track_history = shown.match.history if shown.match is not None else []
         following = f"; now frame {payload.next_frame}" if payload.next_frame is not None else ""
-        self.statusBar().showMessage(f"{self.runner.label}: frame {payload.frame} done ({payload.done}/"
-                                     f"{payload.total}{following}) — {self._track.counts()}")
+        self.window.statusBar().showMessage(f"{self.runner.label}: frame {payload.frame} done ({payload.done}/"
+                                            f"{payload.total}{following}) — {self._track.counts()}")
 
     def _follow(self) -> None:
         frame, self._follow_frame = self._follow_frame, None
         if frame is None:
             return
-        self.matcher.plot.set_values(getattr(self, "_track_history", []))  # that frame's objective
+        self.matcher.plot.set_values(self._track_history)  # that frame's objective
         self.controller.set_frame(frame)
 
     def _task_finished(self, result) -> None:
         s = self.controller.session
         if self._task_kind == "match":  # the frame's results, one per component
             self._store(result)
-            self._show_results(result)
+            self.show_results(result)
         elif self._task_kind == "track":
             self._end_tracking()
         elif self._task_kind == "find":  # the placements by component
@@ -260,16 +293,16 @@ class MatchControl:
             text = f"Find implants in frame {frame}: {text}." + (
                 " Press Ctrl+F5 to match both." if found else " Place the models by hand (Place model, C).")
             self.matcher.show_summary(text)
-            self.statusBar().showMessage(text, 20000)
+            self.window.statusBar().showMessage(text, 20000)
         self._live_components = []
 
-    def _show_results(self, results) -> None:
+    def show_results(self, results) -> None:
         """A finished match in plain words: status and reason of every component."""
         c = self.controller
         shown = next((r for r in results if r.component == c.component), results[0] if results else None)
         if shown is not None and shown.match is not None:
             self.matcher.plot.set_values(shown.match.history)
-        self._show_pose_status()
+        self.window.session_view.show_pose_status()
         parts = []
         for r in results:
             took = f" in {r.seconds:.1f} s" if r.seconds else ""
@@ -289,7 +322,7 @@ class MatchControl:
         if note:
             text += f" Note: {note}."
         self.matcher.show_summary(text)
-        self.statusBar().showMessage(text, 20000)
+        self.window.statusBar().showMessage(text, 20000)
 
     def _end_tracking(self, ending: str = "") -> None:
         track, self._track = self._track, None
@@ -304,13 +337,13 @@ class MatchControl:
             self.controller.set_frame(flagged[0])
         text = track.text(ending)
         self.matcher.show_summary(text)
-        self.statusBar().showMessage(text, 30000)
+        self.window.statusBar().showMessage(text, 30000)
 
     def _task_cancelled(self) -> None:
         latency = (time.perf_counter() - self.runner.cancel_requested_at) if self.runner.cancel_requested_at else None
         self.last_cancel_latency = latency
         for name in self._live_components:
-            self._show_pose(name)  # back to the stored pose
+            self.window.session_view.show_pose(name)  # back to the stored pose
         self._live_components = []
         if self._task_kind == "track":
             self._end_tracking("Cancelled: the frames tracked so far are kept (Ctrl+Z undoes them frame by frame); "
@@ -320,12 +353,12 @@ class MatchControl:
                 else "Cancelled; the poses are unchanged")
         self.matcher.show_message(text)
         self.matcher.show_summary(text)
-        self.statusBar().showMessage(text, 8000)
+        self.window.statusBar().showMessage(text, 8000)
 
     def _task_failed(self, message: str) -> None:
         for name in self._live_components:
-            self._show_pose(name)
+            self.window.session_view.show_pose(name)
         self._live_components = []
         if self._task_kind == "track":
             self._end_tracking(f"Stopped: {message}")
-        self._warn("The task failed", message)
+        self.window.warn("The task failed", message)

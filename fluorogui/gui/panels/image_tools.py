@@ -12,7 +12,7 @@ from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QPainterPath
 
 from fluorogui.core.outlines import editing as oe
-from fluorogui.gui.panel_items import EditCommand, Tool, guarded, polygon
+from fluorogui.gui.panels.image_items import EditCommand, Tool, guarded, polygon
 
 
 class PanelInteraction:
@@ -120,7 +120,8 @@ class PanelInteraction:
         if self._drag is not None:
             event.accept()
             return
-        if button == Qt.MouseButton.MiddleButton or (button == Qt.MouseButton.LeftButton and self._tool == Tool.NAVIGATE):
+        navigate = button == Qt.MouseButton.LeftButton and self._tool == Tool.NAVIGATE
+        if button == Qt.MouseButton.MiddleButton or navigate:
             self._drag = {"kind": "pan", "last": QPointF(pos)}
             self.viewport().setCursor(Qt.CursorShape.ClosedHandCursor)
         elif button == Qt.MouseButton.RightButton:
@@ -228,7 +229,8 @@ class PanelInteraction:
             self._selected = i
             self._update_highlight()
             if i is not None:
-                self._drag = {"kind": "move", "component": self._active, "index": i, "before": pts.copy(), "moved": False}
+                self._drag = {"kind": "move", "component": self._active, "index": i, "before": pts.copy(),
+                              "moved": False}
         elif tool == Tool.INSERT:
             base = np.zeros((0, 2)) if pts is None else pts
             after = oe.insert_point(base, p)
@@ -243,7 +245,8 @@ class PanelInteraction:
             shape = None if self._image is None else self._image.shape
             self._drag = {
                 "kind": "erase", "component": self._active, "before": None if pts is None else pts.copy(),
-                "removed": np.zeros(0 if pts is None else len(pts), dtype=bool), "last": p, "image_key": self._image_key,
+                "removed": np.zeros(0 if pts is None else len(pts), dtype=bool), "last": p,
+                "image_key": self._image_key,
                 "erased_before": None if shape is None else self._erased_for(self._image_key, shape).copy(),
             }
             if shape is not None:

@@ -44,7 +44,7 @@ from fluorogui.core.outlines import editing as oe
 from fluorogui.core.outlines.edges import DEFAULT_HIGH, DEFAULT_LOW, canny_edges
 from fluorogui.core.outlines.edges import edge_contours as find_edge_contours
 from fluorogui.core.outlines.spline import OutlineSpline
-from fluorogui.gui.panel_items import (
+from fluorogui.gui.panels.image_items import (
     BACKGROUND,
     DEFAULT_COLOURS,
     EDGE_RGBA,
@@ -66,7 +66,7 @@ from fluorogui.gui.panel_items import (
     polygon,
     quantise,
 )
-from fluorogui.gui.panel_tools import PanelInteraction
+from fluorogui.gui.panels.image_tools import PanelInteraction
 
 
 # -- the panel ------------------------------------------------------------------------------------------
@@ -511,7 +511,7 @@ class ImagePanel(PanelInteraction, QGraphicsView):
                 try:
                     spline = OutlineSpline.fit(pts)
                     comp.spline_ok = True
-                except Exception:  # an unusable outline is shown as its polyline
+                except Exception:  # noqa: BLE001 - an unusable outline is shown as its polyline
                     spline = None
             if spline is None:
                 path.addPolygon(polygon(pts))

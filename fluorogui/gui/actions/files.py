@@ -1,13 +1,13 @@
-"""The session life cycle of the main window: open, save, the demo, import, recent files,
-autosave and crash recovery, and dropped files.
+"""The File menu and the session life cycle of the main window: open, save, the demo,
+import, recent files, calibration, autosave and crash recovery, and dropped files.
 
 An open project file is locked (``fluorogui.io.project.lock``) so that the command line or a
 second app cannot write it at the same time. A file another live program holds is not
 opened behind its back: a dialog says who holds it and offers to open it read-only
 (look, and save a copy with Save As).
 
-``SessionFiles`` is a mixin of ``MainWindow``; it works through the window's controller,
-settings, status bar and ``_warn`` / ``_refresh_title``."""
+``SessionFiles`` belongs to a main window; it works through the window's controller,
+settings, status bar and ``warn`` / ``refresh_title``."""
 from __future__ import annotations
 
 import json
@@ -15,8 +15,9 @@ import os
 import time
 from pathlib import Path
 
-from PySide6.QtCore import QStandardPaths, Qt
-from PySide6.QtWidgets import QApplication, QFileDialog, QMessageBox
+from PySide6.QtCore import QObject, QStandardPaths, Qt
+from PySide6.QtGui import QKeySequence
+from PySide6.QtWidgets import QApplication, QFileDialog, QMenu, QMessageBox
 
 from fluorogui.io.errors import InputError
 from fluorogui.io.meshes.read import MESH_SUFFIXES
@@ -36,8 +37,42 @@ def app_data_dir() -> Path:
     return base
 
 
-class SessionFiles:
-    """File handling of ``MainWindow`` (a mixin)."""
+class SessionFiles(QObject):
+    """The File menu's actions of a main window and the session's life cycle."""
+
+    def __init__(self, window) -> None:
+        super().__init__(window)
+        self.window = window
+        self.controller = window.controller
+        self.settings = window.settings
+        self.runner = window.runner
+        add = window.add_action
+        self.open_action = add("&Open…", lambda: self.open_project(), QKeySequence.StandardKey.Open, "open",
+                               "Open a fluorogui project (Ctrl+O)")
+        self.new_action = add("&New session from images and calibration…", lambda: self.import_session(),
+                              QKeySequence.StandardKey.New)
+        self.demo_action = add("Open the &demo session", lambda: self.open_demo())
+        self.save_action = add("&Save", lambda: self.save(), QKeySequence.StandardKey.Save, "save",
+                               "Save the session (Ctrl+S)")
+        self.save_as_action = add("Save &as…", lambda: self.save_as(), QKeySequence.StandardKey.SaveAs)
+        self.calibrate_action = add("&Calibrate fluoroscope (plate, beads)…", self.calibrate_fluoroscope)
+        self.quit_action = add("&Quit", window.close, QKeySequence.StandardKey.Quit)
+        self.recent_menu = QMenu("Open &recent", window)
+        self.runner.running_changed.connect(self._running_changed)
+        self.refresh_recent()
+
+    def _running_changed(self, running: bool) -> None:
+        """No other session while a task works on this one."""
+        for action in (self.open_action, self.new_action, self.demo_action):
+            action.setEnabled(not running)
+
+    def calibrate_fluoroscope(self) -> None:
+        """The calibration wizard (distortion from plates, geometry from a bead phantom)."""
+        from fluorogui.gui.dialogs.calibration_wizard import CalibrationWizard
+
+        wizard = CalibrationWizard(self.window)
+        if wizard.exec():
+            self.window.statusBar().showMessage("Wrote " + ", ".join(str(p) for p in wizard.written), 10000)
 
     def recent_files(self) -> list[str]:
         value = self.settings.value("recent", [])
@@ -48,9 +83,9 @@ class SessionFiles:
     def _add_recent(self, path: Path) -> None:
         items = [str(path)] + [p for p in self.recent_files() if p != str(path)]
         self.settings.setValue("recent", items[:MAX_RECENT])
-        self._refresh_recent()
+        self.refresh_recent()
 
-    def _refresh_recent(self) -> None:
+    def refresh_recent(self) -> None:
         self.recent_menu.clear()
         for p in self.recent_files():
             action = self.recent_menu.addAction(Path(p).name)
@@ -63,7 +98,7 @@ class SessionFiles:
         if not self.controller.dirty:
             return True
         answer = QMessageBox.question(
-            self, "Unsaved changes", "The session has unsaved changes. Save them first?",
+            self.window, "Unsaved changes", "The session has unsaved changes. Save them first?",
             QMessageBox.StandardButton.Save | QMessageBox.StandardButton.Discard | QMessageBox.StandardButton.Cancel,
             QMessageBox.StandardButton.Save)
         if answer == QMessageBox.StandardButton.Save:
@@ -76,12 +111,12 @@ class SessionFiles:
         program holds opens read-only if the user says so (without asking when
         ``quiet_read_only``)."""
         if self.runner.is_running():
-            self.statusBar().showMessage("Wait for the running task to end (or cancel it) first", 5000)
+            self.window.statusBar().showMessage("Wait for the running task to end (or cancel it) first", 5000)
             return False
         if ask and not self.maybe_save():
             return False
         if path is None:
-            name, _ = QFileDialog.getOpenFileName(self, "Open project", str(self._last_dir()), PROJECT_FILTER)
+            name, _ = QFileDialog.getOpenFileName(self.window, "Open project", str(self._last_dir()), PROJECT_FILTER)
             if not name:
                 return False
             path = name
@@ -95,28 +130,28 @@ class SessionFiles:
                 read_only = True
                 self.controller.open(path, read_only=True)
         except InputError as exc:
-            self._warn("Cannot open project", str(exc))
+            self.window.warn("Cannot open project", str(exc))
             return False
         except Exception as exc:  # noqa: BLE001 - a check the loader lacks: one dialog, traceback logged
             logged = log_exception(f"opening {path}")
-            self._warn("Cannot open project", f"{path}: could not be opened ({type(exc).__name__})"
+            self.window.warn("Cannot open project", f"{path}: could not be opened ({type(exc).__name__})"
                        + (f"; details in {logged}" if logged else ""))
             return False
         self._add_recent(Path(path).resolve())
         self.settings.setValue("last_dir", str(Path(path).resolve().parent))
-        self.statusBar().showMessage(f"Opened {path}" + (" read-only" if read_only else ""), 5000)
+        self.window.statusBar().showMessage(f"Opened {path}" + (" read-only" if read_only else ""), 5000)
         return True
 
     def _ask_read_only(self, exc: ProjectLocked) -> bool:
         """Tell the user who holds a project; True if they want it read-only anyway."""
-        self.last_error = str(exc)
+        self.window.last_error = str(exc)
         answer = QMessageBox.question(
-            self, "Project in use",
+            self.window, "Project in use",
             f"{exc}.\n\nOpen it read-only? You can look at it and save a copy with Save As, but not save over "
             "the file while the other program has it.",
             QMessageBox.StandardButton.Open | QMessageBox.StandardButton.Cancel, QMessageBox.StandardButton.Cancel)
         if answer != QMessageBox.StandardButton.Open:
-            self.statusBar().showMessage(f"Not opened: {exc}", 10000)
+            self.window.statusBar().showMessage(f"Not opened: {exc}", 10000)
             return False
         return True
 
@@ -136,20 +171,20 @@ class SessionFiles:
         if ask and not self.maybe_save():
             return False
         QApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
-        self.statusBar().showMessage("Preparing the demo session…")
+        self.window.statusBar().showMessage("Preparing the demo session…")
         QApplication.processEvents()
         try:
             path = demo_project_path(app_data_dir() / "demo")
         except (InputError, OSError) as exc:
             QApplication.restoreOverrideCursor()
-            self._warn("Cannot build the demo", str(exc))
+            self.window.warn("Cannot build the demo", str(exc))
             return False
         QApplication.restoreOverrideCursor()
         opened = self.open_project(path, ask=False, quiet_read_only=True)  # another window may show it
         if opened:
             self.controller.project.settings["demo"] = True
-            self._refresh_title()
-            self.statusBar().showMessage(
+            self.window.refresh_title()
+            self.window.statusBar().showMessage(
                 "Demo session: press F5 to match the femoral component, then Ctrl+Return to accept", 15000)
         return opened
 
@@ -157,7 +192,7 @@ class SessionFiles:
         c = self.controller
         if c.path is None or c.project.settings.get("demo") or c.read_only:
             return self.save_as()
-        return self._save_to(self.controller.path)
+        return self.save_to(self.controller.path)
 
     def default_save_dir(self) -> Path:
         """Where save dialogs start: the session file's folder, else the folder holding the
@@ -187,33 +222,33 @@ class SessionFiles:
         c = self.controller
         name = c.path.name if c.path is not None and not c.project.settings.get("demo") else "session.fluoro"
         start = str(self.default_save_dir() / name)
-        name, _ = QFileDialog.getSaveFileName(self, "Save project as", start, PROJECT_FILTER)
+        name, _ = QFileDialog.getSaveFileName(self.window, "Save project as", start, PROJECT_FILTER)
         if not name:
             return False
         if not name.endswith(".fluoro"):
             name += ".fluoro"
         self.controller.project.settings.pop("demo", None)
-        return self._save_to(Path(name))
+        return self.save_to(Path(name))
 
-    def _save_to(self, path: Path) -> bool:
+    def save_to(self, path: Path) -> bool:
         try:
             self.controller.save(path)
         except (InputError, OSError) as exc:
-            self._warn("Cannot save project", str(exc))
+            self.window.warn("Cannot save project", str(exc))
             return False
         self._add_recent(path.resolve())
         self.recovery_path().unlink(missing_ok=True)
-        self._refresh_title()
-        self.statusBar().showMessage(f"Saved {path}", 5000)
+        self.window.refresh_title()
+        self.window.statusBar().showMessage(f"Saved {path}", 5000)
         return True
 
     def import_session(self, paths: dict | None = None, folder: Path | None = None) -> bool:
         """The import dialog (optionally pre-filled); the imported session replaces this one."""
-        from fluorogui.gui.import_dialog import ImportDialog
+        from fluorogui.gui.dialogs.import_dialog import ImportDialog
 
         if not self.maybe_save():
             return False
-        dialog = ImportDialog(self)
+        dialog = ImportDialog(self.window)
         if folder is not None:
             dialog.fill_from_folder(folder)
         if paths:
@@ -222,7 +257,7 @@ class SessionFiles:
             return False
         self.controller.set_project(dialog.project, None)
         self.controller.session.history.reset_clean()  # never saved: closing asks
-        self.statusBar().showMessage("Imported. Save the session to keep it (Ctrl+S)", 8000)
+        self.window.statusBar().showMessage("Imported. Save the session to keep it (Ctrl+S)", 8000)
         return True
 
     # -- autosave and recovery -------------------------------------------------------------
@@ -242,9 +277,9 @@ class SessionFiles:
             origin = str(self.controller.path) if self.controller.path else ""
             path.with_suffix(".json").write_text(json.dumps({"origin": origin, "time": time.time()}))
         except (InputError, OSError) as exc:
-            self.statusBar().showMessage(f"Autosave failed: {exc}", 10000)
+            self.window.statusBar().showMessage(f"Autosave failed: {exc}", 10000)
             return False
-        self.statusBar().showMessage("Autosaved for recovery", 3000)
+        self.window.statusBar().showMessage("Autosaved for recovery", 3000)
         return True
 
     def offer_recovery(self) -> bool:
@@ -259,7 +294,7 @@ class SessionFiles:
             pass
         origin = info.get("origin") or ""
         answer = QMessageBox.question(
-            self, "Recover session",
+            self.window, "Recover session",
             "fluorogui did not close normally. Recover the autosaved session"
             + (f" of {Path(origin).name}" if origin else "") + "?",
             QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, QMessageBox.StandardButton.Yes)
@@ -269,28 +304,19 @@ class SessionFiles:
         try:
             self.controller.open(path, read_only=True)  # the recovery file is this app's own
         except InputError as exc:
-            self._warn("Cannot recover the session", str(exc))
+            self.window.warn("Cannot recover the session", str(exc))
             return False
         held = self.controller.claim(origin) if origin else ""
         if not origin:
             self.controller.session.path = None
             self.controller.read_only = False
         self.controller.session.history.reset_clean()
-        self._refresh_title()
-        self.statusBar().showMessage("Recovered; save to keep it" + (
+        self.window.refresh_title()
+        self.window.statusBar().showMessage("Recovered; save to keep it" + (
             f" (read-only: {held}; save a copy with Save As)" if held else ""), 8000)
         return True
 
-    # -- drag and drop ---------------------------------------------------------------------
-    def dragEnterEvent(self, event) -> None:  # noqa: N802 (Qt override)
-        if event.mimeData().hasUrls():
-            event.acceptProposedAction()
-
-    def dropEvent(self, event) -> None:  # noqa: N802 (Qt override)
-        paths = [Path(u.toLocalFile()) for u in event.mimeData().urls() if u.isLocalFile()]
-        event.acceptProposedAction()
-        self.open_paths(paths)
-
+    # -- dropped files ---------------------------------------------------------------------
     def open_paths(self, paths: list[Path]) -> None:
         """A dropped project opens; dropped folders, images, meshes or calibrations fill
         the import dialog."""

@@ -154,7 +154,8 @@ class MatcherPanel(QWidget):
         self.outline_points.setRange(0, 1000)
         self.outline_points.setSpecialValueText("auto")
         self.outline_points.setValue(0)
-        self.outline_points.setToolTip("Outline points per view (auto: model one per px, image one per 2 px; paper: 60)")
+        self.outline_points.setToolTip(
+            "Outline points per view (auto: model one per px, image one per 2 px; paper: 60)")
         self.method.currentIndexChanged.connect(lambda _i: self.settings_edited.emit())
         self.density.currentIndexChanged.connect(lambda _i: self.settings_edited.emit())
         self.outline_points.valueChanged.connect(lambda _v: self.settings_edited.emit())

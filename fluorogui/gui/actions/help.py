@@ -2,14 +2,14 @@
 ``fluorogui/resources/quickstart.html``), the complete keyboard and mouse shortcut list,
 and About (version and the log file's path).
 
-``HelpActions`` is a mixin of ``MainWindow``; the shortcut list is read from the window's
-own actions, so a new action with a shortcut is listed without editing this file.
+``HelpActions`` belongs to a main window; the shortcut list is read from the window's own
+actions, so a new action with a shortcut is listed without editing this file.
 """
 from __future__ import annotations
 
 import html
 
-from PySide6.QtCore import Qt
+from PySide6.QtCore import QObject, Qt
 from PySide6.QtGui import QKeySequence
 from PySide6.QtWidgets import QDialog, QDialogButtonBox, QMessageBox, QTextBrowser, QVBoxLayout
 
@@ -31,29 +31,29 @@ MOUSE_AND_PANEL_KEYS = (
 )
 
 
-class HelpActions:
-    """Help menu of ``MainWindow`` (a mixin)."""
+class HelpActions(QObject):
+    """The Help menu's actions of a main window: quick start, shortcuts, the guided tour, About."""
 
-    def _build_help_menu(self, menu_bar) -> None:
-        help_menu = menu_bar.addMenu("&Help")
-        self.quick_start_action = self._action("&Quick start", self.show_quick_start,
-                                               tip="How to outline, place, match, track and export")
-        self.shortcuts_action = self._action("&Keyboard shortcuts", self.show_shortcuts, "F1",
-                                             tip="Every keyboard shortcut and mouse gesture (F1)")
-        self.about_action = self._action("&About fluorogui", self.show_about,
-                                         tip="Version, log file and data folder")
-        for action in (self.quick_start_action, self.shortcuts_action):
-            help_menu.addAction(action)
-        tour = getattr(self, "tour_action", None)
-        if tour is not None:
-            help_menu.addAction(tour)
-        help_menu.addSeparator()
-        help_menu.addAction(self.about_action)
+    def __init__(self, window) -> None:
+        super().__init__(window)
+        self.window = window
+        self.quick_start_action = window.add_action("&Quick start", self.show_quick_start,
+                                                    tip="How to outline, place, match, track and export")
+        self.shortcuts_action = window.add_action("&Keyboard shortcuts", self.show_shortcuts, "F1",
+                                                  tip="Every keyboard shortcut and mouse gesture (F1)")
+        self.tour_action = window.add_action("Guided &tour", self.show_tour, tip="A one-minute tour of the window")
+        self.about_action = window.add_action("&About fluorogui", self.show_about,
+                                              tip="Version, log file and data folder")
+
+    def show_tour(self):
+        from fluorogui.gui.dialogs.tour import start_tour
+
+        return start_tour(self.window, force=True)
 
     def shortcut_rows(self) -> list[tuple[str, str]]:
         """(what, keys) for every action with a shortcut, then the mouse and panel keys."""
         rows, seen = [], set()
-        for action in self.actions():
+        for action in self.window.actions():
             keys = list(dict.fromkeys(k.toString(QKeySequence.SequenceFormat.NativeText)
                                       for k in action.shortcuts() if not k.isEmpty()))  # once each
             name = action.text().replace("&", "").rstrip("…").strip()
@@ -71,7 +71,7 @@ class HelpActions:
         return f"<table cellspacing='0'>{cells}</table>"
 
     def _html_dialog(self, title: str, body: str, name: str) -> QDialog:
-        dialog = QDialog(self)
+        dialog = QDialog(self.window)
         dialog.setObjectName(name)
         dialog.setWindowTitle(title)
         browser = QTextBrowser(dialog)
@@ -103,7 +103,7 @@ class HelpActions:
         return dialog
 
     def about_text(self) -> str:
-        from fluorogui.gui.session_files import app_data_dir
+        from fluorogui.gui.actions.files import app_data_dir
 
         return (f"<h3>fluorogui {html.escape(__version__)}</h3>"
                 "<p>Pose of total-knee-replacement implants from two fluoroscopic views "
@@ -112,4 +112,4 @@ class HelpActions:
                 f"Data folder (demo, autosave): <code>{html.escape(str(app_data_dir()))}</code></p>")
 
     def show_about(self) -> None:
-        QMessageBox.about(self, "About fluorogui", self.about_text())
+        QMessageBox.about(self.window, "About fluorogui", self.about_text())

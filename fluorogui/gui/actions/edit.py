@@ -1,0 +1,76 @@
+"""The Edit menu of the main window: Undo / Redo (bound to the session's history), the
+image panels' editing tools with the status-bar hint of the current one, and clearing the
+active component's outlines (one undoable step)."""
+from __future__ import annotations
+
+from PySide6.QtCore import QObject, Signal
+from PySide6.QtGui import QAction, QActionGroup
+from PySide6.QtWidgets import QLabel
+
+from fluorogui.gui.actions.undo import UndoActions
+from fluorogui.gui.panels.image_items import Tool
+
+TOOLS = (  # tool, icon, text, key, what it does
+    (Tool.NAVIGATE, "navigate", "Navigate", "N",
+     "Pan and zoom (wheel zooms at the cursor, right-drag sets window/level)"),
+    (Tool.PICK_CONTOUR, "pick", "Pick contour", "P",
+     "Click an edge contour to take it as the outline (Shift adds one)"),
+    (Tool.MOVE, "move", "Move point", "M", "Drag an outline point"),
+    (Tool.INSERT, "insert", "Insert point", "I", "Click to insert a point into the nearest segment"),
+    (Tool.DELETE, "delete", "Delete point", "D", "Click to delete the nearest point"),
+    (Tool.ERASE, "erase", "Erase", "E", "Brush away edges and outline points"),
+    (Tool.LASSO, "lasso", "Lasso delete", "L", "Draw around outline points to delete them"),
+    (Tool.CLOSE_GAP, "close_gap", "Close gap", "G", "Click two outline points to bridge the gap between them"),
+    (Tool.PLACE, "place", "Place model", "C", "Click the component in view 1 and view 2 to place the model there"),
+)
+
+
+class EditActions(QObject):
+    """Undo / Redo, the editing tools and *Clear outline* of a main window."""
+
+    tool_changed = Signal(object)  # the Tool now in use
+
+    def __init__(self, window) -> None:
+        super().__init__(window)
+        self.window = window
+        self.controller = window.controller
+        self.history = UndoActions(self.controller.session.history, window)
+        self.undo_action, self.redo_action = self.history.undo_action, self.history.redo_action
+        window.addAction(self.undo_action)  # listed with the window's shortcuts (F1)
+        window.addAction(self.redo_action)
+        self.tool_label = QLabel("")  # what the current tool does, always in view
+        self.tool_label.setObjectName("toolHint")
+        self.tool_group = QActionGroup(window)
+        self.tool_actions: dict[Tool, QAction] = {}
+        for tool, icon_name, text, key, tip in TOOLS:
+            action = window.add_action(text, lambda _=False, t=tool: self.set_tool(t), key, icon_name,
+                                       f"{tip} ({key})")
+            action.setCheckable(True)
+            self.tool_group.addAction(action)
+            self.tool_actions[tool] = action
+        self.tool_actions[Tool.NAVIGATE].setChecked(True)
+        self._show_tool_hint(Tool.NAVIGATE)
+        self.clear_outline_action = window.add_action("Clear outline of the active component", self.clear_outlines)
+
+    def _show_tool_hint(self, tool: Tool) -> None:
+        text, key, tip = next((t, k, h) for tl, _i, t, k, h in TOOLS if tl == tool)
+        self.tool_label.setText(f"{text} ({key}): {tip}")
+
+    def set_tool(self, tool: Tool) -> None:
+        for panel in self.window.panels:
+            panel.set_tool(tool)
+        self.tool_actions[tool].setChecked(True)
+        self._show_tool_hint(tool)
+        self.tool_changed.emit(tool)
+
+    def clear_outlines(self) -> None:
+        c, s = self.controller, self.controller.session
+        if c.frame is None:
+            return
+        s.history.begin_macro(f"Clear {c.component} outlines")
+        try:
+            for view in range(s.n_views):
+                if s.outline_record(c.outline_key(view)) is not None:
+                    s.set_outline(c.outline_key(view), None, f"Clear {c.component} outline")
+        finally:
+            s.history.end_macro()
