@@ -27,7 +27,7 @@ import numpy as np
 from fluorogui.core.projection.geometry import View
 from fluorogui.core.projection.pose import angles_from_matrix, pose_to_matrix
 from fluorogui.io.calibration import jointtrack_matrix
-from fluorogui.io.errors import InputError
+from fluorogui.io.errors import InputError, warn_input
 from fluorogui.io.files import atomic_write_text, read_text_file
 
 POSE_KEYS = ("x", "y", "z", "alpha", "beta", "gamma")
@@ -156,6 +156,9 @@ def read_jts(path) -> list[np.ndarray | None]:
     content = [(n, line.strip()) for n, line in enumerate(lines, start=1) if line.strip()]
     if not content or content[0][1].upper() != JTS_TITLE:
         raise InputError(path, f"not a JointTrack pose file (the first line must be {JTS_TITLE})")
+    if content[0][1] != JTS_TITLE:
+        warn_input(path, f"the header {content[0][1][:20]!r} is not in capitals as JointTrack writes it; "
+                         f"read as {JTS_TITLE}")
     out = []
     for number, line in content[1:]:
         fields = [f.strip() for f in line.replace("\t", ",").split(",") if f.strip()]
