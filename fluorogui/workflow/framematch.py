@@ -140,6 +140,17 @@ class FrameMatcher:
             state["fields"] = [field_of_view(image, margin_px=2) for image in images]
         return state["fields"]
 
+    def _hidden(self, images, occluded) -> list[np.ndarray]:
+        """Per view, what a component cannot be seen through: the other components (``occluded``,
+        per view or None) and whatever lies beyond the intensifier's field of view (and the
+        image). Segmentation, the match and its checks use only the rest: a component partly
+        out of view is matched on what is visible (judged by ``quality.judge`` on that too)."""
+        out = []
+        for k, field in enumerate(self._fields(images)):
+            other = occluded[k] if occluded is not None and k < len(occluded) else None
+            out.append(~field if other is None else (other | ~field))
+        return out
+
     def _rims_for(self, images, component: str) -> list:
         """The rim models an attempt starts with: those of a matched attempt in this frame
         (an image's rim does not change with the start, and judging it again in every probe
@@ -159,9 +170,10 @@ class FrameMatcher:
         if self.live is not None:
             def step(calls, objective, pose, _c=job.component):
                 self.live(_c, calls, objective, pose)
+        hidden = self._hidden(images, occluded)
         try:
             rims = self._rims_for(images, job.component)
-            out = segment_and_match(images, self.views, job.mesh, start, s.match, loop, job.given, occluded,
+            out = segment_and_match(images, self.views, job.mesh, start, s.match, loop, job.given, hidden,
                                     step, cancel, rims)
         except SegmentationError as exc:
             return FrameResult(0, job.component, None, Status.FAILED, messages.segmentation_failed(job.component, exc),
@@ -172,8 +184,8 @@ class FrameMatcher:
         result = out
         outlines = [sp.sample(max(64, int(sp.length_px)), skip_gaps=True) for sp in out.splines]
         quality = assess(images, self.views, job.mesh, result.pose, result.converged, result.per_view_mean_mm,
-                         outlines, job.start if job.predicted else None, occluded, s.quality.tol_px,
-                         self._fields(images), result.outlines_px)
+                         outlines, job.start if job.predicted else None, hidden, s.quality.tol_px,
+                         self._fields(images), result.outlines_px, result.sd)
         limits = replace(s.quality, max_jump_mm=s.quality.max_jump_mm * max(1, job.gap),
                          max_jump_deg=s.quality.max_jump_deg * max(1, job.gap))
         status, reason = judge(quality, limits, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))])
