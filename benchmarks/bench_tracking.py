@@ -235,6 +235,18 @@ def bench_real(args) -> dict:
             print(f"  jitter {c:8s} (frames 50-69): centroid x/y/z "
                   + " ".join(f"{v:.3f}" for v in jitter[c][:3]) + " mm, turn about the model's x/y/z "
                   + " ".join(f"{v:.3f}" for v in jitter[c][3:]) + " deg")
+            # the reported SD against the frame-to-frame spread, in the pose variables both
+            # are given in: the spread from second differences (white noise: var 6 sigma^2;
+            # the motion's own acceleration adds to it, so a ratio below 1 may be motion)
+            poses = np.array([r.pose for r in run])
+            spread = np.sqrt(((poses[2:] - 2 * poses[1:-1] + poses[:-2]) ** 2).mean(0) / 6.0)
+            sd = np.median(np.array([r.sd for r in run], dtype=float), axis=0)
+            ratio = sd / spread
+            sd_ratio = jitter.setdefault("sd_over_spread", {})
+            sd_ratio[c] = ratio.tolist()
+            print(f"  reported SD / frame-to-frame spread {c:8s} (x y z alpha beta gamma): "
+                  + " ".join(f"{v:.2f}" for v in ratio) + "  (SD " + " ".join(f"{v:.3f}" for v in sd)
+                  + "; spread " + " ".join(f"{v:.3f}" for v in spread) + ")")
     knee = _knee_curves(session, args.figure)
     print()
     return {"seconds": wall, **counts, "jitter": jitter, "reasons": reasons, "kinematics": knee}

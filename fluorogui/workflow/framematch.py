@@ -26,7 +26,7 @@ from scipy.spatial.transform import Rotation
 
 from fluorogui.core.cancel import check_cancel
 from fluorogui.core.matching.loop import SegmentationError, segment_and_match
-from fluorogui.core.matching.quality import assess, judge
+from fluorogui.core.matching.quality import assess, failed_checks
 from fluorogui.core.outlines.field import field_of_view
 from fluorogui.core.outlines.rim import MAYBE_SOFT_BELOW_MU
 from fluorogui.core.outlines.spline import OutlineSpline
@@ -177,10 +177,10 @@ class FrameMatcher:
                                     step, cancel, rims)
         except SegmentationError as exc:
             return FrameResult(0, job.component, None, Status.FAILED, messages.segmentation_failed(job.component, exc),
-                               seconds=time.perf_counter() - t0)
+                               seconds=time.perf_counter() - t0, failed=["segmentation"])
         except ValueError as exc:  # e.g. the model behind the source at this start
             return FrameResult(0, job.component, None, Status.FAILED, messages.match_failed(job.component, exc),
-                               seconds=time.perf_counter() - t0)
+                               seconds=time.perf_counter() - t0, failed=["match"])
         result = out
         outlines = [sp.sample(max(64, int(sp.length_px)), skip_gaps=True) for sp in out.splines]
         quality = assess(images, self.views, job.mesh, result.pose, result.converged, result.per_view_mean_mm,
@@ -188,11 +188,14 @@ class FrameMatcher:
                          self._fields(images), result.outlines_px, result.sd)
         limits = replace(s.quality, max_jump_mm=s.quality.max_jump_mm * max(1, job.gap),
                          max_jump_deg=s.quality.max_jump_deg * max(1, job.gap))
-        status, reason = judge(quality, limits, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))])
+        problems = failed_checks(quality, limits, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))])
+        status = Status.NEEDS_REVIEW if problems else Status.MATCHED
+        reason = "; ".join(text for _, text in problems)
         if status == Status.MATCHED:
             self._frame_state(images)["rims"][job.component] = list(rims)
         return FrameResult(0, job.component, result.pose, status, reason, result, quality, out.image_outlines,
-                           time.perf_counter() - t0, rim_models=rims, outline_weights=out.outline_weights)
+                           time.perf_counter() - t0, rim_models=rims, outline_weights=out.outline_weights,
+                           failed=[name for name, _ in problems])
 
     # -- one component, with recovery ------------------------------------------------------------
     def match_component(self, frame: int, images, job: ComponentInput, occluded=None,
@@ -252,6 +255,7 @@ class FrameMatcher:
                 best.recovered = "probe"
             if other.match.objective_mm <= t.probe_ratio * best.match.objective_mm:
                 best.status = Status.NEEDS_REVIEW
+                best.failed = [*best.failed, "ambiguous"]
                 best.reason = (f"ambiguous: another orientation {turn:.0f}° away fits almost as well "
                                f"(outline distance {other.match.objective_mm:.2f} vs "
                                f"{best.match.objective_mm:.2f} mm) — check which is right")

@@ -42,6 +42,9 @@ class FrameResult:
     #: per view, the component's rim models once its judgement has settled (the project keeps
     #: them, so later runs need not fit them again); None before
     rim_settled: list | None = field(default=None, repr=False)
+    #: the checks it failed (``core.matching.quality.CHECKS``, or "ambiguous", "segmentation",
+    #: "match", "find", "image"): what a measurement of each check's precision counts
+    failed: list[str] = field(default_factory=list)
     #: per view, the automatic outline's point weights (``core.profile_fit.precision_weights``;
     #: None: all alike)
     outline_weights: list | None = field(default=None, repr=False)

@@ -191,7 +191,8 @@ class TrackJob:
         except InputError as exc:
             for c in todo:
                 results[c] = FrameResult(frame, c, self._predicted(c, frame, motion, starts), Status.FAILED,
-                                         f"{exc.path}: {exc.problem}", seconds=time.perf_counter() - t0)
+                                         f"{exc.path}: {exc.problem}", seconds=time.perf_counter() - t0,
+                                         failed=["image"])
             return results
         # components with nothing to start from: find them in this frame
         lost = [c for c in todo if len(motion[c]) == 0 and c not in starts]
@@ -205,7 +206,7 @@ class TrackJob:
                     found_here.add(c)
                 else:
                     results[c] = FrameResult(frame, c, p.pose, Status.FAILED, "find implants could not place it: "
-                                             f"{p.reason}", seconds=time.perf_counter() - t0)
+                                             f"{p.reason}", seconds=time.perf_counter() - t0, failed=["find"])
             todo = [c for c in todo if c not in results]
         fixed = {c: (self.meshes[c], r.pose) for c, r in results.items() if r.kept and r.pose is not None}
         jobs = [self._input(c, frame, motion, residuals, starts, probe=c not in found_here) for c in todo]

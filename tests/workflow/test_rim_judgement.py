@@ -59,7 +59,8 @@ def test_frame_matcher_reuses_the_models_only_after_three_matched_frames(monkeyp
 
     monkeypatch.setattr(framematch, "segment_and_match", fake_loop)
     monkeypatch.setattr(framematch, "assess", lambda *a, **k: None)
-    monkeypatch.setattr(framematch, "judge", lambda *a, **k: (script[state["frame"]][1], ""))
+    monkeypatch.setattr(framematch, "failed_checks", lambda *a, **k: (
+        [] if script[state["frame"]][1] == Status.MATCHED else [("residual", "scripted")]))
     settings = WorkflowSettings()
     settings.tracking.recover = settings.tracking.probe = False
     matcher = FrameMatcher(two_views(image_size=(512, 512), pitch=315.0 / 512), settings)
@@ -92,7 +93,8 @@ def test_the_attempts_of_a_frame_after_a_matched_one_start_from_its_models(monke
 
     monkeypatch.setattr(framematch, "segment_and_match", fake_loop)
     monkeypatch.setattr(framematch, "assess", lambda *a, **k: None)
-    monkeypatch.setattr(framematch, "judge", lambda *a, **k: (next(statuses), ""))
+    monkeypatch.setattr(framematch, "failed_checks", lambda *a, **k: (
+        [] if next(statuses) == Status.MATCHED else [("residual", "scripted")]))
     matcher = FrameMatcher(two_views(image_size=(512, 512), pitch=315.0 / 512), WorkflowSettings())
     job = ComponentInput("femoral", SimpleNamespace(centroid=np.zeros(3)), np.zeros(6))
     first = matcher.match_component(0, [np.zeros((512, 512))] * 2, job)

@@ -50,10 +50,11 @@ class QualityThresholds:
     min_edge_support: float = 0.85
     min_outline_support: float = 0.85
     # a component partly beyond the field of view (or an image's edge) is matched and judged on
-    # what is visible: it passes while its pose stays pinned down (SD within these) and at
-    # least this share of its outline is visible in every view
+    # what is visible: it passes while its pose stays pinned down (SD within these; on a
+    # generated bend the tray stayed within 0.011 mm / 0.04 deg with SDs <= 0.03 deg down to
+    # 45 % visible) and at least this share of its outline is visible in every view
     max_outside_field: float = 0.02  # share beyond the field of view taken as fully visible
-    min_visible_share: float = 0.6
+    min_visible_share: float = 0.35
     partial_sd_mm: float = 0.25
     partial_sd_deg: float = 0.25
     tol_px: float = 1.5
@@ -221,28 +222,43 @@ def judge(quality: Quality, thresholds: QualityThresholds | None = None,
           typical_view_mm: float | None = None, view_names: Sequence[str] | None = None) -> tuple[str, str]:
     """(status, reason): ``matched`` with an empty reason when every check passes, else
     ``needs_review`` with every failed check in plain words."""
+    problems = failed_checks(quality, thresholds, typical_view_mm, view_names)
+    return (Status.NEEDS_REVIEW, "; ".join(text for _, text in problems)) if problems else (Status.MATCHED, "")
+
+
+#: the checks ``judge`` applies, by the name ``failed_checks`` gives them
+CHECKS = ("converged", "residual", "edge_support", "outline_support", "visible", "jump")
+
+
+def failed_checks(quality: Quality, thresholds: QualityThresholds | None = None,
+                  typical_view_mm: float | None = None, view_names: Sequence[str] | None = None
+                  ) -> list[tuple[str, str]]:
+    """The checks (``CHECKS``) a pose fails, each with its reason in plain words (empty:
+    none); what ``judge`` reports, and what a measurement of each check's precision counts."""
     t = thresholds or QualityThresholds()
     names = list(view_names or [f"view {k + 1}" for k in range(len(quality.per_view_mean_mm))])
     problems = []
     if not quality.converged:
-        problems.append("the match did not converge")
+        problems.append(("converged", "the match did not converge"))
     limit = min(t.max_view_mm, t.floor_view_mm)
     if typical_view_mm is not None and np.isfinite(typical_view_mm):
         limit = min(t.max_view_mm, max(t.typical_factor * typical_view_mm, typical_view_mm + t.typical_margin_mm))
     for name, value in zip(names, quality.per_view_mean_mm):
         if not np.isfinite(value) or value > limit:
             typical = f", typical {typical_view_mm:.2f} mm" if typical_view_mm else ""
-            problems.append(f"outline distance {value:.2f} mm in {name} (limit {limit:.2f} mm{typical})")
+            problems.append(("residual", f"outline distance {value:.2f} mm in {name} (limit {limit:.2f} mm{typical})"))
     for name, value in zip(names, quality.edge_support):
         if value < t.min_edge_support:
-            problems.append(f"only {100 * value:.0f} % of the model outline lies on image edges in {name}")
+            problems.append(("edge_support", f"only {100 * value:.0f} % of the model outline lies on image edges "
+                                             f"in {name}"))
     for name, value in zip(names, quality.outline_support):
         if value < t.min_outline_support:
-            problems.append(f"only {100 * value:.0f} % of the image outline lies on the model in {name}")
-    problems += _partly_visible(quality, t, names)
+            problems.append(("outline_support", f"only {100 * value:.0f} % of the image outline lies on the model "
+                                                f"in {name}"))
+    problems += [("visible", text) for text in _partly_visible(quality, t, names)]
     if quality.jump_mm > t.max_jump_mm or quality.jump_deg > t.max_jump_deg:
-        problems.append(f"moved {quality.jump_mm:.1f} mm / {quality.jump_deg:.1f}° from the predicted pose")
-    return (Status.NEEDS_REVIEW, "; ".join(problems)) if problems else (Status.MATCHED, "")
+        problems.append(("jump", f"moved {quality.jump_mm:.1f} mm / {quality.jump_deg:.1f}° from the predicted pose"))
+    return problems
 
 
 _POSE_WORDS = ("translation along x", "translation along y", "translation along z",
