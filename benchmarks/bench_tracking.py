@@ -156,7 +156,8 @@ def _visible_share(session: Session, component: str, pose) -> list[float]:
         pts = mesh_silhouette(session.mesh(component), rotation_matrix(*pose[3:]), pose[:3], view,
                               spacing_px=1.0).points_px
         centre = (np.asarray(view.image_size) - 1) / 2.0
-        out.append(float(np.mean(np.linalg.norm(pts - centre, axis=1) < FIELD_RADIUS_FRACTION * view.image_size[0])))
+        inside = np.linalg.norm(pts - centre, axis=1) < FIELD_RADIUS_FRACTION * view.image_size[0]
+        out.append(float(np.mean(inside)))
     return out
 
 
