@@ -1,9 +1,11 @@
 """Matching the components of one frame, with quality checks and recovery.
 
-This is the step tracking repeats and the app's *Match* runs: for each component, the
-one segment -> match loop (``core.pipeline.segment_and_match``) from a start pose, with
-the other components' current projections masked out where they overlap
-(``occlusion_masks``), then every quality check (``core.quality``). A frame that fails a
+This is the step tracking repeats and the app's *Match* (and ``fluorogui match``) runs:
+for each component, the one segment -> match loop (``core.matching.loop.segment_and_match``)
+from a start pose, with the other components' current projections masked out where they
+overlap (``occlusion_masks``) and so is whatever lies beyond the intensifier's field of
+view (``_hidden``: a component partly out of view is matched on what is visible), then
+every quality check (``core.matching.quality``). A frame that fails a
 check is not given up at once: other starts are tried - the last matched pose when the
 prediction extrapolated, a search near the prediction (*find implants*), the prediction
 turned by a few degrees about the recent motion axis (between neighbouring frames), and
