@@ -87,6 +87,9 @@ class MatchResult:
     #: standard deviations of the six pose variables (mm, deg) from the Gauss-Newton
     #: covariance at the result (``pose_covariance``); inf where the outlines fix nothing
     sd: list[float] | None = None
+    #: the same for the body's own motion: its centroid (world x, y, z, mm) and its turn about
+    #: its own model axes x, y, z (deg), free of the Euler angles' coupling
+    sd_body: list[float] | None = None
     #: did the optimiser itself stop by its criterion (``converged`` also needs the checks)
     optimiser_converged: bool = False
     #: fast method: (pose, evaluation) at the result, reused by the covariance
