@@ -21,6 +21,7 @@ kinematics come from ``KneeMixin`` (``knee.py``).
 from __future__ import annotations
 
 import enum
+import json
 import threading
 from collections import OrderedDict
 from pathlib import Path
@@ -37,7 +38,7 @@ from fluorogui.core.records import ImageSequence, ModelEntry, OutlineRecord, Pos
 from fluorogui.io.corrections import read_view_image
 from fluorogui.io.errors import InputError
 from fluorogui.io.meshes.read import load_mesh
-from fluorogui.io.project.document import load_project, save_project
+from fluorogui.io.project.document import journal_frames, load_project, save_project
 from fluorogui.workflow.history import Command, CommandStack
 from fluorogui.workflow.knee import KneeMixin
 from fluorogui.workflow.results import FrameResult
@@ -127,6 +128,8 @@ class Session(WorkMixin, KneeMixin):
         self._meshes: dict[str, PreparedMesh] = {}
         self._raw_meshes: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self._splines: dict = {}
+        self.dirty_on_disk = False  # frames in the project's journal, not yet in its file
+        self._journaled_settings: str | None = None
 
     # -- project lifecycle ---------------------------------------------------------------------
     @classmethod
@@ -163,9 +166,27 @@ class Session(WorkMixin, KneeMixin):
             raise ValueError("no file name to save to")
         save_project(self.project, target)
         self.path = target
+        self.dirty_on_disk = False
+        self._journaled_settings = json.dumps(self.project.settings, sort_keys=True, default=str)
         self.history.set_clean()
         self._notify("saved", target)
         return target
+
+    def save_frames(self, results) -> None:
+        """Save the stored results' frames without rewriting the project: their pose records
+        and automatic outlines (and the settings, when they changed) are appended to the
+        project's journal (``io.project.journal``), which opening the project takes in and
+        the next full ``save`` folds into the file."""
+        if self.path is None:
+            raise ValueError("no file name to save to")
+        results = [r for r in results if not r.kept]
+        settings = json.dumps(self.project.settings, sort_keys=True, default=str)
+        changed = settings != getattr(self, "_journaled_settings", None)
+        journal_frames(self.project, self.path, [(r.frame, r.component) for r in results],
+                       [(r.frame, v, r.component) for r in results for v in range(self.n_views)], changed)
+        self._journaled_settings = settings
+        self.dirty_on_disk = True
+        self.history.set_clean()
 
     @property
     def dirty(self) -> bool:

@@ -25,6 +25,10 @@ from fluorogui.workflow.results import FrameResult
 from fluorogui.workflow.settings import WorkflowSettings
 from fluorogui.workflow.tracking import TrackJob, TrackProgress, frames_between, read_frame_images
 
+#: a tracking run with autosave saves the whole project this often (frames); in between it
+#: appends each frame to the project's journal
+FULL_SAVE_FRAMES = 50
+
 
 @dataclass
 class MatchJob:
@@ -199,8 +203,10 @@ class WorkMixin:
               progress: TrackProgress | None = None, cancel: Callable[[], bool] | None = None,
               autosave: bool = False, first: int | None = None, last: int | None = None,
               run: str | None = None, workers: int = 1) -> Iterator[FrameResult]:
-        """Track and store frame by frame, yielding every result; with ``autosave`` the
-        project is saved (atomically) after every frame. ``run`` names this run in the
+        """Track and store frame by frame, yielding every result; with ``autosave`` every
+        frame is saved as it is stored (appended to the project's journal, see
+        ``save_frames``) and the whole project is saved every ``FULL_SAVE_FRAMES`` frames and
+        at the end, so a killed run loses at most the frame in progress. ``run`` names this run in the
         stored match records (see ``track_job``). With ``workers`` > 1 the frames are cut
         into that many consecutive runs tracked in parallel processes (``TrackJob.split``:
         every run after the first starts by finding the implants); results then arrive
@@ -222,7 +228,12 @@ class WorkMixin:
                         r.match.settings = dict(r.match.settings, run=run)
             self.store(results, f"Track frame {frame}")
             if autosave and self.path is not None and any(not r.kept for r in results):
-                self.save()
+                if done % FULL_SAVE_FRAMES == 0:
+                    self.save()
+                else:
+                    self.save_frames(results)
             if workers > 1 and progress is not None:
                 progress(done, len(job.frames), frame, f"frame {frame} done")
             yield from results
+        if autosave and self.path is not None and self.dirty_on_disk:
+            self.save()
