@@ -151,7 +151,8 @@ def make_large(folder: Path) -> None:
     stl["corners"] = rng.uniform(-40, 40, (triangles, 3, 3))
     with open(folder / "large.stl", "wb") as handle:
         handle.write(b"\0" * 80 + np.uint32(triangles).tobytes() + stl.tobytes())
-    ball = pv.Sphere(radius=20.0, theta_resolution=500, phi_resolution=252)  # 250,000 triangles (the most accepted), closed
+    # 250,000 triangles (the most accepted), closed
+    ball = pv.Sphere(radius=20.0, theta_resolution=500, phi_resolution=252)
     ball.save(folder / "ball_250k.stl")
     with open(folder / "large.csv", "w") as handle:
         handle.write("u,v\n" + "512.1234,300.5678\n" * 4_800_000)

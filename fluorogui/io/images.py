@@ -148,7 +148,8 @@ def image_info(path) -> ImageInfo:
     if suffix in CV2_SUFFIXES:
         width, height, bits, _ = _pillow_header(path)
         return ImageInfo(suffix.lstrip(".").upper().replace("JPG", "JPEG"), width, height, 1, bits)
-    raise InputError(path, f"unsupported image type '{suffix or '(none)'}' (use TIFF, PNG, JPEG, BMP, DICOM, AVI or MP4)")
+    raise InputError(path, f"unsupported image type '{suffix or '(none)'}' "
+                           "(use TIFF, PNG, JPEG, BMP, DICOM, AVI or MP4)")
 
 
 def frame_count(path) -> int:

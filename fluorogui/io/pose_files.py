@@ -32,7 +32,8 @@ from fluorogui.io.files import atomic_write_text, read_text_file
 
 POSE_KEYS = ("x", "y", "z", "alpha", "beta", "gamma")
 JTS_TITLE = "JT_EULER_312"
-JTS_HEADER = "          x_tran,          y_tran,          z_tran,                   z_rot,           x_rot,           y_rot"
+JTS_HEADER = ("          x_tran,          y_tran,          z_tran,"
+              "                   z_rot,           x_rot,           y_rot")
 NOT_OPTIMIZED = "NOT_OPTIMIZED"
 MAX_ROWS = 1_000_000
 MAX_POSE_VALUE = 1e7  # mm or degrees: anything larger is not a pose
@@ -250,7 +251,8 @@ def read_long_poses(path, components=("femoral", "tibial"), lines: list[str] | N
             raise InputError(path, f"{where}: frame {frame_text[:20]!r} is not a whole number") from None
         component = row["component"].lower()
         if component not in components:
-            raise InputError(path, f"{where}: component {row['component'][:20]!r} is not one of {', '.join(components)}")
+            raise InputError(path, f"{where}: component {row['component'][:20]!r} "
+                                   f"is not one of {', '.join(components)}")
         if (frame, component) in out:
             raise InputError(path, f"{where}: frame {frame} has a second {component} pose")
         pose = np.array([_float(path, row[k], f"{where}, {k}") for k in POSE_KEYS])

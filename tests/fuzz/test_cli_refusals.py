@@ -92,7 +92,8 @@ def test_unwritable_out_is_found_before_the_work(files, capsys, tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("")
     line = one_line(capsys, repeat_args(files, "--out", str(blocker / "results")))
-    assert line == f"fluorogui: error: {blocker / 'results'}: cannot write results here: a part of the path is not a folder"
+    assert line == (f"fluorogui: error: {blocker / 'results'}: cannot write results here: "
+                    "a part of the path is not a folder")
 
 
 def test_ragged_and_binary_pairs(files, capsys, tmp_path):

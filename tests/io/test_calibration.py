@@ -96,7 +96,8 @@ def test_mayacam2_real_files_load():
 
 
 def test_mayacam2_crlf_and_single_row_translation(tmp_path):
-    text = MAYACAM2.replace("36.2384826278\n-134.635431317\n1345.59296415", "36.2384826278,-134.635431317,1345.59296415")
+    text = MAYACAM2.replace("36.2384826278\n-134.635431317\n1345.59296415",
+                            "36.2384826278,-134.635431317,1345.59296415")
     a = load_view(write(tmp_path, MAYACAM2.replace("\n", "\r\n"), "a.txt"))
     b = load_view(write(tmp_path, text, "b.txt"))
     np.testing.assert_allclose(a.source, b.source)
@@ -112,7 +113,8 @@ def test_mayacam2_non_numeric(tmp_path):
 
 
 def test_mayacam2_nan(tmp_path):
-    assert_error(write(tmp_path, MAYACAM2.replace("-134.635431317", "nan")), "NaN or infinite value in section 'translation'")
+    assert_error(write(tmp_path, MAYACAM2.replace("-134.635431317", "nan")),
+                 "NaN or infinite value in section 'translation'")
 
 
 def test_mayacam2_wrong_row_count(tmp_path):
@@ -176,7 +178,8 @@ def test_mayacam1_zero_size_means_1024(tmp_path):
 
 
 def test_mayacam1_non_numeric(tmp_path):
-    assert_error(write(tmp_path, "0,0,1000\n0,0,0\n0,0,-100\n512,abc,-5000\n0,0,0\n"), "non-numeric value 'abc' in line 4")
+    assert_error(write(tmp_path, "0,0,1000\n0,0,0\n0,0,-100\n512,abc,-5000\n0,0,0\n"),
+                 "non-numeric value 'abc' in line 4")
     assert_error(write(tmp_path, "0,0,1000\n0,0,0\n0,0,-100\n512,512,inf\n0,0,0\n"), "NaN or infinite value in line 4")
     assert_error(write(tmp_path, "0,0,1000\n0,0,0\n0,0,-100\n512,512,0\n0,0,0\n"), "camera matrix is singular")
 

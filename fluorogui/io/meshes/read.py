@@ -1,10 +1,11 @@
 """Load implant surface models (STL, PLY, OBJ, VTK, VTP) as triangle arrays in millimetres.
 
-The header is checked first (``mesh_headers``: counts the file cannot hold, and models of
-more faces than the matcher takes within 1.5 GB, are refused before VTK allocates for them). PLY (plyfile) and legacy VTK (``vtk_legacy``) are parsed
-with numpy and their face indices checked, since VTK's readers crash on corrupt ones; the
-others are read through pyvista. The mesh is then reduced to its surface, triangulated and cleaned of
-duplicate points. The local coordinate system is the file's own.
+The header is checked first (``headers``: counts the file cannot hold, and models of more
+faces than the matcher takes within 1.5 GB, are refused before VTK allocates for them). PLY
+(plyfile) and legacy VTK (``vtk_legacy``) are parsed with numpy and their face indices
+checked, since VTK's readers crash on corrupt ones; the others are read through pyvista.
+The mesh is then reduced to its surface, triangulated and cleaned of duplicate points. The
+local coordinate system is the file's own.
 """
 from __future__ import annotations
 
@@ -35,7 +36,8 @@ def load_mesh(path) -> tuple[np.ndarray, np.ndarray]:
         if size == 0:
             raise InputError(path, "file is empty")
         if size > MAX_MESH_BYTES:
-            raise InputError(path, f"mesh file is too large ({size / 1e6:.0f} MB; at most {MAX_MESH_BYTES / 1e6:.0f} MB)")
+            raise InputError(path, f"mesh file is too large ({size / 1e6:.0f} MB; "
+                                   f"at most {MAX_MESH_BYTES / 1e6:.0f} MB)")
         faces = check_mesh_header(path)  # before VTK allocates what the header claims
     except HeaderError as exc:
         raise InputError(path, f"unreadable mesh file: {exc}") from None
@@ -84,7 +86,8 @@ def _read_ply(path: Path):
         vertex = ply["vertex"].data
         vertices = np.column_stack([np.asarray(vertex[k], dtype=np.float64) for k in ("x", "y", "z")])
     except (KeyError, ValueError) as exc:
-        raise InputError(path, f"unreadable PLY file: {' '.join(str(exc).split())[:120] or 'no x, y, z vertices'}") from None
+        reason = " ".join(str(exc).split())[:120] or "no x, y, z vertices"
+        raise InputError(path, f"unreadable PLY file: {reason}") from None
     except OSError as exc:
         raise InputError(path, f"cannot read the file: {describe_os_error(exc)}") from None
     except Exception as exc:  # noqa: BLE001 - plyfile raises several types on corrupt files
