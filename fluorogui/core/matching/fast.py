@@ -12,13 +12,6 @@ precision), by them; the pose is parametrised about the model centroid with
 rotations scaled by the model radius, so rotation and translation steps are equally
 conditioned; Levenberg–Marquardt steps; an initial translation from the outline
 centroids in both views; optional restarts.
-
-Tracing a silhouette is most of an evaluation's cost. A step that turns the model less
-than ``REUSE_DEG`` and moves it less than ``REUSE_MM`` from where the silhouettes were last
-traced reprojects their outline points instead: the outline of a smooth body is where its
-projection is extremal, so the points gliding along the surface move the outline only to
-second order (1 degree on a 20 mm radius: about 0.003 mm). The result is always evaluated
-on silhouettes traced at its own pose, and iterated further from there when it is not.
 """
 from __future__ import annotations
 
@@ -36,7 +29,7 @@ from fluorogui.core.matching.problem import (
     visible_points,
 )
 from fluorogui.core.projection.pose import rotvec_matrix
-from fluorogui.core.projection.silhouette import Silhouette, mesh_silhouette
+from fluorogui.core.projection.silhouette import mesh_silhouette
 
 # -- the fast method ----------------------------------------------------------------------------
 
@@ -58,31 +51,13 @@ def _polyline_normals(points: np.ndarray, at: np.ndarray | None = None) -> np.nd
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
 
 
-#: a step within this turn (deg) and shift (mm) of the last traced silhouettes reprojects them
-REUSE_DEG, REUSE_MM = 2.0, 2.0
-#: a match converged on reprojected silhouettes is evaluated on silhouettes traced at its
-#: pose; only when that costs this much more (relative) is it iterated again from there (the
-#: traced objective itself wavers by about 0.5 % as outline points switch between edges),
-#: at most ``MAX_REFRESHES`` times
-REFRESH_RISE, MAX_REFRESHES = 0.02, 2
-#: on reprojected silhouettes (a smooth objective) a step lowering the cost by less than this
-#: (relative) ends the iteration: below the traced objective's own wavering
-PLATEAU = 1e-4
-
-
 class _FastEvaluation:
-    """Residuals and Jacobian of the fast objective at one pose (correspondences frozen).
-    With ``reuse`` (an evaluation on traced silhouettes) its outline points are reprojected
-    at this pose instead of tracing the silhouettes again (``exact`` is then False)."""
+    """Residuals and Jacobian of the fast objective at one pose (correspondences frozen)."""
 
-    def __init__(self, problem: MatchProblem, R, c, settings: MatchSettings, image_samples, image_params=None,
-                 reuse: "_FastEvaluation | None" = None):
+    def __init__(self, problem: MatchProblem, R, c, settings: MatchSettings, image_samples, image_params=None):
         mesh = problem.mesh
         t = c - R @ mesh.centroid
         rho = mesh.radius
-        self.R, self.c = R, c
-        self.exact = reuse is None
-        self.silhouettes: list[tuple] = []  # per view (outline, its points used forward), traced ones when exact
         self.per_view_mm: list[float] = []
         self.outlines_px: list[np.ndarray] = []
         self.r, self.J, self.w = [], [], []
@@ -92,15 +67,11 @@ class _FastEvaluation:
         self.where: list[np.ndarray | None] = []
         for k, (view, spline, g) in enumerate(zip(problem.views, problem.splines, image_samples)):
             mask = problem.occluder(k)
-            if reuse is not None:
-                sil, fwd = (_reprojected(s, R, t, view) for s in reuse.silhouettes[k])
-            elif settings.outline_points:
+            if settings.outline_points:
                 sil = mesh_silhouette(mesh, R, t, view, spacing_px=1.0)
                 fwd = sil.resample(n=settings.outline_points)
             else:
                 sil = fwd = mesh_silhouette(mesh, R, t, view, spacing_px=settings.model_spacing_px)
-            if reuse is None:
-                self.silhouettes.append((sil, fwd))
             # model outline points to the image spline: signed distance along the spline normal
             X = fwd.model_points @ R.T + t
             uv, Jp = view.project_jacobian(X)
@@ -164,17 +135,6 @@ class _FastEvaluation:
         return H, g
 
 
-def _reprojected(sil: Silhouette, R: np.ndarray, t: np.ndarray, view) -> Silhouette:
-    """A traced silhouette's outline points (their model points) projected at pose (R, t)."""
-    return Silhouette(view.project(sil.model_points @ R.T + t), sil.model_points, sil.segments_px)
-
-
-def _near(R_a, c_a, R_b, c_b) -> bool:
-    """Are two states within ``REUSE_DEG`` of turn and ``REUSE_MM`` of centroid shift?"""
-    cos = np.clip((np.trace(R_a @ R_b.T) - 1.0) / 2.0, -1.0, 1.0)
-    return np.degrees(np.arccos(cos)) < REUSE_DEG and np.linalg.norm(c_a - c_b) < REUSE_MM
-
-
 def _initial_translation(problem: MatchProblem, R, c, image_samples, iterations: int = 3) -> np.ndarray:
     """Shift the centroid so the silhouette centroids meet the image-outline centroids."""
     mesh = problem.mesh
@@ -228,8 +188,6 @@ def match_fast(problem, start, settings, progress, cancel) -> MatchResult:
     lam = 1e-3
     huber = settings.huber_px
     ev = _FastEvaluation(problem, R, c, settings, image_samples, image_params)
-    traced = ev  # the last evaluation on traced silhouettes near the current pose
-    refreshes = 0
     calls += 1
     cost = ev.robust_cost(huber)
     history.append(ev.objective_mm)
@@ -241,57 +199,35 @@ def match_fast(problem, start, settings, progress, cancel) -> MatchResult:
         dc, w = step[:3], step[3:] / mesh.radius
         R_new = rotvec_matrix(w) @ R
         c_new = c + dc
-        reuse = traced if settings.reuse_silhouettes and _near(R_new, c_new, traced.R, traced.c) else None
         try:
-            ev_new = _FastEvaluation(problem, R_new, c_new, settings, image_samples, image_params, reuse)
+            ev_new = _FastEvaluation(problem, R_new, c_new, settings, image_samples, image_params)
         except ValueError:
             ev_new = None
         calls += 1
         new_cost = ev_new.robust_cost(huber) if ev_new is not None else np.inf
         if new_cost <= cost:
             pose_new = _to_pose(R_new, c_new, mesh.centroid)
-            plateau = not ev_new.exact and cost - new_cost < PLATEAU * cost
             R, c, ev, cost = R_new, c_new, ev_new, new_cost
-            if ev.exact:
-                traced = ev
             lam = max(lam / 3.0, 1e-7)
             history.append(ev.objective_mm)
             if progress is not None:
                 progress(calls, ev.objective_mm, pose_new)
             # the change of the variables we move: centroid (mm) and rotation (deg)
             move = np.r_[np.abs(dc), np.degrees(np.abs(w))]
-            if np.all(move < settings.xtol) or plateau:
+            if np.all(move < settings.xtol):
                 converged = True
-                if ev.exact:
-                    break
+                break
         else:
             # a rejected step this small is the objective's noise floor (the outline point
             # set changes from pose to pose): more damping would only spend evaluations
             move = np.r_[np.abs(dc), np.degrees(np.abs(w))]
             if np.all(move < 10 * settings.xtol):
                 converged = True
-            else:
-                lam *= 10.0
-                if lam > 1e8:
-                    converged = bool(np.all(np.abs(step) < 10 * settings.xtol))
-                    if ev.exact or not converged:
-                        break
-        if converged:
-            if ev.exact:
                 break
-            # converged on reprojected silhouettes: trace them at this pose (the result is
-            # judged on traced ones), and go on from there only when they fit clearly worse
-            reprojected_cost = cost
-            ev = traced = _FastEvaluation(problem, R, c, settings, image_samples, image_params)
-            calls += 1
-            cost = ev.robust_cost(huber)
-            refreshes += 1
-            if cost <= reprojected_cost * (1.0 + REFRESH_RISE) or refreshes > MAX_REFRESHES:
+            lam *= 10.0
+            if lam > 1e8:
+                converged = bool(np.all(np.abs(step) < 10 * settings.xtol))
                 break
-            converged = False
-    if not ev.exact:  # stopped (call limit, a stalled step) on reprojected silhouettes
-        ev = _FastEvaluation(problem, R, c, settings, image_samples, image_params)
-        calls += 1
     pose = _to_pose(R, c, mesh.centroid)
     return MatchResult(pose, ev.objective_mm, ev.per_view_mm, calls, 0.0, converged,
                        "fast", settings.to_dict(), "" if converged else "did not converge", history,

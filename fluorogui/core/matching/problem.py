@@ -41,10 +41,6 @@ class MatchSettings:
     starts: int = 1  # independent starts (the given one plus perturbed ones); the best is kept
     restart_sd: tuple[float, float] = (5.0, 5.0)  # mm, deg for the extra starts
     seed: int = 0
-    # fast: steps within REUSE_DEG / REUSE_MM (matching.fast) of the last traced silhouettes
-    # reproject their outline points instead of tracing them again; the result is always
-    # evaluated on traced silhouettes
-    reuse_silhouettes: bool = True
 
     def to_dict(self) -> dict:
         return asdict(self)
