@@ -114,9 +114,11 @@ TIBIA_START_MM = (0.0, -12.0, -16.0)  # tibial origin (tray top) at frame 0, wor
 # -- public API -------------------------------------------------------------------------------
 def build_knee_sequence(directory, femoral_mesh, tibial_mesh, frames: int = 100, image_size: int = 1024,
                         seed: int = 0, side: str = "right", start_frame: int = 0, *, bits: int = 8,
-                        workers: int = 1) -> Path:
+                        workers: int = 1, drift_mm=(0.0, 0.0, 0.0)) -> Path:
     """Write a generated two-view knee-bend sequence into `directory`; return the .fluoro project path.
 
+    ``drift_mm`` (world x, y, z) moves the whole knee by that much over the sequence
+    (linearly in time), e.g. out of an intensifier's field of view.
     ``bits``: 8 or 16-bit PNG images. ``workers`` > 1 renders the frames in that many
     processes (the images are the same: each one has its own random stream). The workers
     are spawned, so a script that asks for them must call this under
@@ -144,6 +146,10 @@ def build_knee_sequence(directory, femoral_mesh, tibial_mesh, frames: int = 100,
         save_view_json(view, directory / "calibration" / f"{view.name}.json")
     flexion = flexion_schedule(frames)
     truth = knee_bend_truth(meshes["femoral"][0], meshes["tibial"][0], flexion, side)
+    drift = np.asarray(drift_mm, dtype=float).reshape(3)
+    for i, poses in enumerate(truth):
+        for pose in poses.values():
+            pose[:3] += drift * (i / max(frames - 1, 1))
     frame_numbers = [start_frame + i for i in range(frames)]
 
     sequences = [ImageSequence([directory / v.name / f"frame_{f:04d}.png" for f in frame_numbers]) for v in views]
@@ -190,6 +196,7 @@ def build_knee_sequence(directory, femoral_mesh, tibial_mesh, frames: int = 100,
                 "meshes": {c: {"path": str(mesh_paths[c]), "sha256": _sha256(mesh_paths[c])} for c in COMPONENTS},
                 "views": [_spec_summary(spec) for spec in _side_specs(side)],
                 "gap_mm": GAP_MM,
+                "drift_mm": [float(x) for x in drift],
                 "flexion_deg": [float(x) for x in flexion],
                 "flexion_step_deg": [float(steps.min()), float(steps.max())],
                 "overlap_view": OVERLAP_VIEW,

@@ -1,9 +1,11 @@
 """Matching the components of one frame, with quality checks and recovery.
 
-This is the step tracking repeats and the app's *Match* runs: for each component, the
-one segment -> match loop (``core.pipeline.segment_and_match``) from a start pose, with
-the other components' current projections masked out where they overlap
-(``occlusion_masks``), then every quality check (``core.quality``). A frame that fails a
+This is the step tracking repeats and the app's *Match* (and ``fluorogui match``) runs:
+for each component, the one segment -> match loop (``core.matching.loop.segment_and_match``)
+from a start pose, with the other components' current projections masked out where they
+overlap (``occlusion_masks``) and so is whatever lies beyond the intensifier's field of
+view (``_hidden``: a component partly out of view is matched on what is visible), then
+every quality check (``core.matching.quality``). A frame that fails a
 check is not given up at once: other starts are tried - the last matched pose when the
 prediction extrapolated, a search near the prediction (*find implants*), the prediction
 turned by a few degrees about the recent motion axis (between neighbouring frames), and
@@ -26,7 +28,7 @@ from scipy.spatial.transform import Rotation
 
 from fluorogui.core.cancel import check_cancel
 from fluorogui.core.matching.loop import SegmentationError, segment_and_match
-from fluorogui.core.matching.quality import assess, judge
+from fluorogui.core.matching.quality import assess, failed_checks
 from fluorogui.core.outlines.field import field_of_view
 from fluorogui.core.outlines.rim import MAYBE_SOFT_BELOW_MU
 from fluorogui.core.outlines.spline import OutlineSpline
@@ -63,6 +65,7 @@ class ComponentInput:
     gap: int = 1  # frame numbers since the last matched frame: the jump allowed grows with it
     probe: bool = True  # look for a second orientation that fits as well (no motion to tell them apart)
     predicted: bool = True  # ``start`` predicts the pose (tracking): far from it is suspect; a hand placement is not
+    search: bool = True  # recovery may search with *find implants* (off where that was tried already)
 
 
 def occlusion_masks(views: Sequence[View], others: Sequence[tuple[PreparedMesh, np.ndarray]], near: np.ndarray | None,
@@ -109,14 +112,18 @@ class FrameMatcher:
     """Matches components in frames of one session set-up (views, settings, find)."""
 
     def __init__(self, views: Sequence[View], settings: WorkflowSettings | None = None,
-                 find_near: Callable | None = None, live: Callable | None = None) -> None:
+                 find_near: Callable | None = None, live: Callable | None = None,
+                 rim: dict[str, list] | None = None) -> None:
         self.views = list(views)
         self.settings = settings or WorkflowSettings()
         # find_near(images, component, mesh, pose or None (a search of the whole image), cancel) -> pose or None
         self.find_near = find_near
         self.live = live  # live(component, calls, objective_mm, pose) at every step of a match
-        # each component's rim models per view (core.rim): judged in its first matched frames, then reused
-        self.rim_judgements: dict[str, RimJudgement] = {}
+        # each component's rim models per view (core.rim): judged in its first matched frames, then
+        # reused; ``rim`` (component -> models per view) are ones judged before (kept in the project)
+        self.rim_judgements: dict[str, RimJudgement] = {
+            c: RimJudgement.settled_with(models) for c, models in (rim or {}).items()
+            if len(models) == len(self.views) and all(m is not None for m in models)}
         self._frame: tuple[list, dict] | None = None  # see _frame_state
 
     def _frame_state(self, images) -> dict:
@@ -134,6 +141,17 @@ class FrameMatcher:
         if "fields" not in state:
             state["fields"] = [field_of_view(image, margin_px=2) for image in images]
         return state["fields"]
+
+    def _hidden(self, images, occluded) -> list[np.ndarray]:
+        """Per view, what a component cannot be seen through: the other components (``occluded``,
+        per view or None) and whatever lies beyond the intensifier's field of view (and the
+        image). Segmentation, the match and its checks use only the rest: a component partly
+        out of view is matched on what is visible (judged by ``quality.judge`` on that too)."""
+        out = []
+        for k, field in enumerate(self._fields(images)):
+            other = occluded[k] if occluded is not None and k < len(occluded) else None
+            out.append(~field if other is None else (other | ~field))
+        return out
 
     def _rims_for(self, images, component: str) -> list:
         """The rim models an attempt starts with: those of a matched attempt in this frame
@@ -154,28 +172,32 @@ class FrameMatcher:
         if self.live is not None:
             def step(calls, objective, pose, _c=job.component):
                 self.live(_c, calls, objective, pose)
+        hidden = self._hidden(images, occluded)
         try:
             rims = self._rims_for(images, job.component)
-            out = segment_and_match(images, self.views, job.mesh, start, s.match, loop, job.given, occluded,
+            out = segment_and_match(images, self.views, job.mesh, start, s.match, loop, job.given, hidden,
                                     step, cancel, rims)
         except SegmentationError as exc:
             return FrameResult(0, job.component, None, Status.FAILED, messages.segmentation_failed(job.component, exc),
-                               seconds=time.perf_counter() - t0)
+                               seconds=time.perf_counter() - t0, failed=["segmentation"])
         except ValueError as exc:  # e.g. the model behind the source at this start
             return FrameResult(0, job.component, None, Status.FAILED, messages.match_failed(job.component, exc),
-                               seconds=time.perf_counter() - t0)
+                               seconds=time.perf_counter() - t0, failed=["match"])
         result = out
         outlines = [sp.sample(max(64, int(sp.length_px)), skip_gaps=True) for sp in out.splines]
         quality = assess(images, self.views, job.mesh, result.pose, result.converged, result.per_view_mean_mm,
-                         outlines, job.start if job.predicted else None, occluded, s.quality.tol_px,
-                         self._fields(images), result.outlines_px)
+                         outlines, job.start if job.predicted else None, hidden, s.quality.tol_px,
+                         self._fields(images), result.outlines_px, result.sd)
         limits = replace(s.quality, max_jump_mm=s.quality.max_jump_mm * max(1, job.gap),
                          max_jump_deg=s.quality.max_jump_deg * max(1, job.gap))
-        status, reason = judge(quality, limits, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))])
+        problems = failed_checks(quality, limits, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))])
+        status = Status.NEEDS_REVIEW if problems else Status.MATCHED
+        reason = "; ".join(text for _, text in problems)
         if status == Status.MATCHED:
             self._frame_state(images)["rims"][job.component] = list(rims)
         return FrameResult(0, job.component, result.pose, status, reason, result, quality, out.image_outlines,
-                           time.perf_counter() - t0, rim_models=rims, outline_weights=out.outline_weights)
+                           time.perf_counter() - t0, rim_models=rims, outline_weights=out.outline_weights,
+                           failed=[name for name, _ in problems])
 
     # -- one component, with recovery ------------------------------------------------------------
     def match_component(self, frame: int, images, job: ComponentInput, occluded=None,
@@ -191,7 +213,7 @@ class FrameMatcher:
             # recovery starts get a shorter loop: most of them lead nowhere
             candidate = self.attempt(images, job, start, occluded, cancel, None if not label else light)
             tried += 1
-            if best is None or _better(candidate, best):
+            if best is None or better_result(candidate, best):
                 best = candidate
                 best.recovered = label
             if best.status == Status.MATCHED:
@@ -201,7 +223,10 @@ class FrameMatcher:
         if best.status == Status.MATCHED and job.probe and self.settings.tracking.probe:
             best, tried = self._probe(images, job, best, occluded, cancel, tried)
         if best.status == Status.MATCHED:  # one vote per frame, from its best result only
-            self.rim_judgements[job.component].add(best.rim_models)
+            judgement = self.rim_judgements[job.component]
+            judgement.add(best.rim_models)
+            if judgement.is_settled:
+                best.rim_settled = list(judgement.settled)  # for the project to keep
         best.frame, best.attempts, best.seconds = frame, tried, time.perf_counter() - t0
         if best.pose is None:
             best.pose = np.asarray(job.start, dtype=float).copy()  # the prediction, as a start for the user
@@ -232,6 +257,7 @@ class FrameMatcher:
                 best.recovered = "probe"
             if other.match.objective_mm <= t.probe_ratio * best.match.objective_mm:
                 best.status = Status.NEEDS_REVIEW
+                best.failed = [*best.failed, "ambiguous"]
                 best.reason = (f"ambiguous: another orientation {turn:.0f}° away fits almost as well "
                                f"(outline distance {other.match.objective_mm:.2f} vs "
                                f"{best.match.objective_mm:.2f} mm) — check which is right")
@@ -247,7 +273,8 @@ class FrameMatcher:
             return
         if job.fallback is not None and np.abs(np.asarray(job.fallback) - job.start).max() > 0.5:
             yield "last pose", np.asarray(job.fallback, dtype=float)
-        if t.find_near and self.find_near is not None:
+        search = t.find_near and self.find_near is not None and job.search
+        if search:
             pose = self.find_near(images, job.component, job.mesh, job.start, cancel)
             if pose is not None:
                 yield "find near the prediction", np.asarray(pose, dtype=float)
@@ -261,7 +288,7 @@ class FrameMatcher:
             for axis in axes:
                 for sign in (1.0, -1.0):
                     yield "turned start", turned(job.start, centroid, axis, sign * t.rotated_start_deg)
-        if t.find_near and self.find_near is not None:
+        if search:
             pose = self.find_near(images, job.component, job.mesh, None, cancel)
             if pose is not None:
                 yield "find implants", np.asarray(pose, dtype=float)
@@ -315,6 +342,17 @@ class RimJudgement:
         self.votes: list[list] = [[] for _ in range(n_views)]
         self.settled: list = [None] * n_views
 
+    @classmethod
+    def settled_with(cls, models: list) -> "RimJudgement":
+        """A judgement made before (e.g. in an earlier run on the same images)."""
+        judgement = cls(len(models))
+        judgement.settled = list(models)
+        return judgement
+
+    @property
+    def is_settled(self) -> bool:
+        return all(m is not None for m in self.settled)
+
     def for_attempt(self) -> list:
         return self.settled if all(m is not None for m in self.settled) else list(self.settled)
 
@@ -329,7 +367,7 @@ class RimJudgement:
                 self.settled[k] = sorted(self.votes[k], key=lambda m: m.mu)[len(self.votes[k]) // 2]
 
 
-def _better(a: FrameResult, b: FrameResult) -> bool:
+def better_result(a: FrameResult, b: FrameResult) -> bool:
     """Is ``a`` a better result than ``b``: a better status, then a lower objective."""
     if _RANK[a.status] != _RANK[b.status]:
         return _RANK[a.status] < _RANK[b.status]

@@ -4,7 +4,8 @@ Constant velocity about the model centroid: the centroid moves and the body turn
 rate of the last two matched frames (per frame number, so gaps in the frame numbers are
 handled), extrapolated at most twice as far as those two frames lie apart so that a
 long gap does not fling the prediction away. With one matched frame the prediction is
-that frame's pose.
+that frame's pose. A frame before every matched one is predicted backward the same way,
+from the two earliest matched frames (tracking back to the start).
 """
 from __future__ import annotations
 
@@ -42,15 +43,17 @@ class MotionModel:
         return self.poses[idx[-1]].copy() if idx else None
 
     def predict(self, frame: int) -> np.ndarray | None:
-        """The pose expected at ``frame`` from the two latest recorded frames before it."""
+        """The pose expected at ``frame`` from the two latest recorded frames before it, or,
+        when none is before it, from the two earliest after it (backward)."""
         idx = [i for i, f in enumerate(self.frames) if f < frame]
         if not idx:
-            later = [i for i, f in enumerate(self.frames) if f > frame]
-            return self.poses[later[0]].copy() if later else None
+            idx = [i for i, f in enumerate(self.frames) if f > frame][:2][::-1]  # nearest last
+        if not idx:
+            return None
         if len(idx) == 1:
             return self.poses[idx[-1]].copy()
         (f1, p1), (f2, p2) = [(self.frames[i], self.poses[i]) for i in idx[-2:]]
-        steps = min(frame - f2, 2 * (f2 - f1)) / (f2 - f1)
+        steps = min(abs(frame - f2), 2 * abs(f2 - f1)) / abs(f2 - f1)
         R1, R2 = rotation_matrix(*p1[3:]), rotation_matrix(*p2[3:])
         c1, c2 = R1 @ self.centroid + p1[:3], R2 @ self.centroid + p2[:3]
         turn = Rotation.from_matrix(R2 @ R1.T).as_rotvec()

@@ -86,6 +86,12 @@ class FrameResult:
     attempts: int = 0  # starts tried (1 when the prediction was right at once)
     recovered: str = ""  # how a lost frame was recovered ("last pose", "rotated start", "find near")
     rim_models: list | None = field(default=None, repr=False)  # per view, the core.rim models it used
+    #: per view, the component's rim models once its judgement has settled (the project keeps
+    #: them, so later runs need not fit them again); None before
+    rim_settled: list | None = field(default=None, repr=False)
+    #: the checks it failed (``core.matching.quality.CHECKS``, or "ambiguous", "segmentation",
+    #: "match", "find", "image"): what a measurement of each check's precision counts
+    failed: list[str] = field(default_factory=list)
     #: per view, the automatic outline's point weights (``core.outlines.profile_fit.precision_weights``;
     #: None: all alike)
     outline_weights: list | None = field(default=None, repr=False)

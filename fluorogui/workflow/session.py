@@ -21,6 +21,7 @@ kinematics come from ``KneeMixin`` (``knee.py``).
 from __future__ import annotations
 
 import enum
+import json
 import threading
 from collections import OrderedDict
 from pathlib import Path
@@ -28,6 +29,7 @@ from typing import Callable, Iterable
 
 import numpy as np
 
+from fluorogui.core.outlines.rim import RimModel
 from fluorogui.core.outlines.spline import OutlineError, OutlineSpline
 from fluorogui.core.projection.geometry import triangulate
 from fluorogui.core.projection.mesh import MeshError, PreparedMesh, check_plausible_mm, prepare_mesh
@@ -36,7 +38,7 @@ from fluorogui.core.records import ImageSequence, ModelEntry, OutlineRecord, Pos
 from fluorogui.io.corrections import read_view_image
 from fluorogui.io.errors import InputError
 from fluorogui.io.meshes.read import load_mesh
-from fluorogui.io.project.document import load_project, save_project
+from fluorogui.io.project.document import journal_frames, load_project, save_project
 from fluorogui.workflow.history import Command, CommandStack
 from fluorogui.workflow.knee import KneeMixin
 from fluorogui.workflow.results import FrameResult
@@ -44,6 +46,8 @@ from fluorogui.workflow.settings import SETTINGS_KEY, WorkflowSettings
 from fluorogui.workflow.work import WorkMixin
 
 COMPONENT_ORDER = ("femoral", "tibial")
+#: ``project.settings`` key of the components' rim models (``Session.rim_models``)
+RIM_KEY = "rim_models"
 IMAGE_CACHE_FRAMES = 6
 #: Default depth of a model along a single view's central ray, as a fraction of the source-intensifier distance.
 SINGLE_PLANE_DEPTH = 0.85
@@ -169,6 +173,8 @@ class Session(WorkMixin, KneeMixin):
         self._meshes: dict[str, PreparedMesh] = {}
         self._raw_meshes: dict[str, tuple[np.ndarray, np.ndarray]] = {}
         self._splines: dict = {}
+        self.dirty_on_disk = False  # frames in the project's journal, not yet in its file
+        self._journaled_settings: str | None = None
 
     # -- project lifecycle ---------------------------------------------------------------------
     @classmethod
@@ -275,9 +281,27 @@ class Session(WorkMixin, KneeMixin):
             raise ValueError("no file name to save to")
         save_project(self.project, target)
         self.path = target
+        self.dirty_on_disk = False
+        self._journaled_settings = json.dumps(self.project.settings, sort_keys=True, default=str)
         self.history.set_clean()
         self._notify("saved", target)
         return target
+
+    def save_frames(self, results) -> None:
+        """Save the stored results' frames without rewriting the project: their pose records
+        and automatic outlines (and the settings, when they changed) are appended to the
+        project's journal (``io.project.journal``), which opening the project takes in and
+        the next full ``save`` folds into the file."""
+        if self.path is None:
+            raise ValueError("no file name to save to")
+        results = [r for r in results if not r.kept]
+        settings = json.dumps(self.project.settings, sort_keys=True, default=str)
+        changed = settings != getattr(self, "_journaled_settings", None)
+        journal_frames(self.project, self.path, [(r.frame, r.component) for r in results],
+                       [(r.frame, v, r.component) for r in results for v in range(self.n_views)], changed)
+        self._journaled_settings = settings
+        self.dirty_on_disk = True
+        self.history.set_clean()
 
     @property
     def dirty(self) -> bool:
@@ -760,8 +784,30 @@ class Session(WorkMixin, KneeMixin):
                 record = r.record()
                 if record is not None:
                     self.set_record(r.component, r.frame, record, "Match")
+                if r.rim_settled is not None and all(m is not None for m in r.rim_settled):
+                    self._keep_rim_models(r.component, r.rim_settled)
         finally:
             self.history.end_macro()
+
+    # -- the images' rim models -----------------------------------------------------------------
+    def rim_models(self) -> dict[str, list[RimModel]]:
+        """Each component's rim models per view (``core.outlines.rim``: the metal's attenuation and
+        the images' blur), judged once in its first matched frames and kept in the project, so
+        that later matches and runs start from them instead of fitting them again."""
+        out = {}
+        for component, models in (self.project.settings.get(RIM_KEY) or {}).items():
+            try:
+                out[component] = [RimModel(float(m["mu"]), float(m["sigma"])) for m in models]
+            except (KeyError, TypeError, ValueError):
+                continue  # a damaged entry is judged again
+            if len(out[component]) != self.n_views:
+                del out[component]
+        return out
+
+    def _keep_rim_models(self, component: str, models: list) -> None:
+        kept = [{"mu": round(float(m.mu), 6), "sigma": round(float(m.sigma), 6)} for m in models]
+        if self.project.settings.get(RIM_KEY, {}).get(component) != kept:
+            self.project.settings.setdefault(RIM_KEY, {})[component] = kept
 
     # -- progress of the work --------------------------------------------------------------------
     def frame_state(self, frame: int) -> FrameState:

@@ -6,11 +6,18 @@ caller's thread; ``run`` can then go on in a worker thread or another process. F
 frame it predicts every component from the frames matched so far (``MotionModel``),
 matches all components together with each other's projections masked
 (``FrameMatcher``), checks every result and recovers what fails (other starts, a search
-near the prediction). A frame that still fails is yielded as ``needs_review`` (or
-``failed`` when no outline could be traced or an image is missing) and tracking goes on:
-the prediction then comes from the last frames that did match. A component with nothing
-to start from is searched for (*find implants*) in the frame, again in every following
-frame until it is found.
+near the prediction). A frame that still fails is ``needs_review`` (or ``failed`` when no
+outline could be traced or an image is missing) and tracking goes on: the prediction then
+comes from the last frames that did match. A component with nothing to start from is
+searched for (*find implants*) in the frame, again in every following frame until it is
+found.
+
+Tracking goes both ways: frames where a component failed are held back until it matches
+again in a later frame, then tracked backward from there (``_fill_back``) - every gap
+between matched frames is filled from both sides and the better result wins, and the
+frames before the first one found are tracked back to the start. Results still come out
+once per frame and component, in frame order (a held frame as soon as nothing before it
+waits).
 
 Accepted poses, and on a resumed run poses already matched, are kept as they are
 (``kept``) and serve as the motion's anchors.
@@ -35,7 +42,7 @@ from fluorogui.core.status import Status
 from fluorogui.io.corrections import read_view_image
 from fluorogui.io.errors import InputError
 from fluorogui.workflow.finding import find_in_frame, near_search
-from fluorogui.workflow.framematch import ComponentInput, FrameMatcher
+from fluorogui.workflow.framematch import ComponentInput, FrameMatcher, better_result
 from fluorogui.workflow.motion import MotionModel
 from fluorogui.workflow.results import FrameResult
 from fluorogui.workflow.settings import WorkflowSettings
@@ -61,6 +68,7 @@ class TrackJob:
     starts: dict[str, np.ndarray] = field(default_factory=dict)  # start poses for components without anchors
     find: bool = True  # search for components with no anchor and no start
     image_counts: list[int] = field(default_factory=list)  # images per camera, for messages
+    rim: dict = field(default_factory=dict)  # component -> rim models per view judged before (the project's)
 
     def run(self, progress: TrackProgress | None = None,
             cancel: Callable[[], bool] | None = None) -> Iterator[FrameResult]:
@@ -68,7 +76,7 @@ class TrackJob:
         ``Cancelled`` when ``cancel()`` turns true (the frame in progress is not yielded,
         the frames before it were)."""
         s = self.settings
-        matcher = FrameMatcher(self.views, s, near_search(self.views, s))
+        matcher = FrameMatcher(self.views, s, near_search(self.views, s), rim=self.rim)
         motion = {c: MotionModel(self.meshes[c].centroid) for c in self.components}
         for c, poses in self.anchors.items():
             for frame, pose in poses:
@@ -77,18 +85,27 @@ class TrackJob:
         starts = {c: np.asarray(p, float) for c, p in self.starts.items()}
         total = len(self.frames)
         t0 = time.perf_counter()
+        held: list[tuple[int, dict[str, FrameResult]]] = []  # frames not yielded yet, in order
+        waiting: dict[str, list[int]] = {c: [] for c in self.components}  # failed frames, per component
         for done, frame in enumerate(self.frames):
             check_cancel(cancel)
             results = self._frame(frame, matcher, motion, residuals, starts, cancel)
+            held.append((frame, results))
             for c in self.components:
-                r = results[c]
-                if r.status == Status.MATCHED or (r.kept and r.pose is not None and self._kept_is_matched(frame, c)):
-                    motion[c].add(frame, r.pose)
-                    if r.match is not None and not r.kept:
-                        residuals[c] = (residuals[c] + list(r.match.per_view_mean_mm))[-2 * s.tracking.typical_window:]
-                yield r
+                if self._is_anchor(frame, results[c]):
+                    self._anchor(c, results[c], motion, residuals)
+                    if waiting[c]:  # it matches again: track back into its gap
+                        self._fill_back(c, frame, waiting[c], dict(held), matcher, motion, residuals, cancel)
+                        waiting[c] = []
+                elif not results[c].kept:
+                    waiting[c].append(frame)
+            while held and not any(held[0][0] in frames for frames in waiting.values()):
+                _, out = held.pop(0)
+                yield from (out[c] for c in self.components)
             if progress is not None:
                 progress(done + 1, total, frame, f"frame {frame} done ({time.perf_counter() - t0:.1f} s)")
+        for _, out in held:  # gaps no later match closes: as tracked forward
+            yield from (out[c] for c in self.components)
 
     def split(self, parts: int) -> list["TrackJob"]:
         """The job as ``parts`` jobs over consecutive runs of frames, to run in parallel. The
@@ -112,6 +129,51 @@ class TrackJob:
         record = self.keep.get((frame, component))
         return record is not None and record.is_matched
 
+    def _is_anchor(self, frame: int, r: FrameResult) -> bool:
+        """A result the motion may go by: matched, or kept as accepted / already matched."""
+        kept_matched = r.kept and r.pose is not None and self._kept_is_matched(frame, r.component)
+        return r.status == Status.MATCHED or kept_matched
+
+    def _anchor(self, c: str, r: FrameResult, motion, residuals) -> None:
+        motion[c].add(r.frame, r.pose)
+        if r.match is not None and not r.kept:
+            window = 2 * self.settings.tracking.typical_window
+            residuals[c] = (residuals[c] + list(r.match.per_view_mean_mm))[-window:]
+
+    def _fill_back(self, c: str, frame: int, gap: list[int], results: dict, matcher, motion, residuals,
+                   cancel) -> None:
+        """Track ``c`` backward from its match in ``frame`` through the ``gap`` frames before
+        it (where it failed), each predicted from the frames after it, with the other
+        components masked at their poses there. A better result replaces the one tracked
+        forward (in ``results``, frame -> component -> result); the first frame that does
+        not match backward either ends the fill (the forward result stands from there)."""
+        back = MotionModel(self.meshes[c].centroid)
+        later = [f for f in motion[c].frames if f >= frame]
+        for f in later[:2]:
+            back.add(f, motion[c].poses[motion[c].frames.index(f)])
+        for f in sorted(gap, reverse=True):
+            check_cancel(cancel)
+            try:
+                images = self._images(f)
+            except InputError:
+                continue  # the forward result says what is missing
+            others = {o: (self.meshes[o], r.pose) for o, r in results[f].items()
+                      if o != c and r.pose is not None and r.status != Status.FAILED}
+            typical = float(np.median(residuals[c])) if len(residuals[c]) >= 2 else None
+            job = ComponentInput(c, self.meshes[c], back.predict(f), back.poses[0].copy(), self.given.get((f, c)),
+                                 typical, None, back.frames[0] - f, probe=False, search=False)
+            found = matcher.match_frame(f, images, [job], others, cancel)[c]
+            if not better_result(found, results[f][c]):
+                if found.status != Status.MATCHED:
+                    break
+                continue
+            found.recovered = "tracked back" + (f" ({found.recovered})" if found.recovered else "")
+            results[f][c] = found
+            if found.status != Status.MATCHED:
+                break
+            back.add(f, found.pose)
+            self._anchor(c, found, motion, residuals)
+
     def _frame(self, frame, matcher, motion, residuals, starts, cancel) -> dict[str, FrameResult]:
         t0 = time.perf_counter()
         results: dict[str, FrameResult] = {}
@@ -129,7 +191,8 @@ class TrackJob:
         except InputError as exc:
             for c in todo:
                 results[c] = FrameResult(frame, c, self._predicted(c, frame, motion, starts), Status.FAILED,
-                                         f"{exc.path}: {exc.problem}", seconds=time.perf_counter() - t0)
+                                         f"{exc.path}: {exc.problem}", seconds=time.perf_counter() - t0,
+                                         failed=["image"])
             return results
         # components with nothing to start from: find them in this frame
         lost = [c for c in todo if len(motion[c]) == 0 and c not in starts]
@@ -143,7 +206,7 @@ class TrackJob:
                     found_here.add(c)
                 else:
                     results[c] = FrameResult(frame, c, p.pose, Status.FAILED, "find implants could not place it: "
-                                             f"{p.reason}", seconds=time.perf_counter() - t0)
+                                             f"{p.reason}", seconds=time.perf_counter() - t0, failed=["find"])
             todo = [c for c in todo if c not in results]
         fixed = {c: (self.meshes[c], r.pose) for c, r in results.items() if r.kept and r.pose is not None}
         jobs = [self._input(c, frame, motion, residuals, starts, probe=c not in found_here) for c in todo]

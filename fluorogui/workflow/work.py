@@ -25,6 +25,10 @@ from fluorogui.workflow.results import FrameResult
 from fluorogui.workflow.settings import WorkflowSettings
 from fluorogui.workflow.tracking import TrackJob, TrackProgress, frames_between, read_frame_images
 
+#: a tracking run with autosave saves the whole project this often (frames); in between it
+#: appends each frame to the project's journal
+FULL_SAVE_FRAMES = 50
+
 
 @dataclass
 class MatchJob:
@@ -36,13 +40,14 @@ class MatchJob:
     inputs: list[ComponentInput]
     fixed: dict = field(default_factory=dict)  # other components (mesh, pose) to mask
     settings: WorkflowSettings = field(default_factory=WorkflowSettings)
+    rim: dict = field(default_factory=dict)  # component -> rim models per view judged before
 
     def run(self, live: Callable | None = None, cancel: Callable[[], bool] | None = None) -> list[FrameResult]:
         """The results, one per component. ``live(component, calls, objective_mm, pose)``
         follows every step of the matcher. Raises InputError for a missing image and
         ``Cancelled`` when ``cancel()`` turns true."""
         images = read_frame_images(self.frame, self.image_paths, len(self.views), views=self.views)
-        matcher = FrameMatcher(self.views, self.settings, near_search(self.views, self.settings), live)
+        matcher = FrameMatcher(self.views, self.settings, near_search(self.views, self.settings), live, self.rim)
         found = matcher.match_frame(self.frame, images, self.inputs, self.fixed, cancel)
         return [found[j.component] for j in self.inputs]
 
@@ -137,7 +142,7 @@ class WorkMixin:
                     fixed[c] = (self.mesh(c), self.pose(c, frame))
                 except InputError:
                     pass
-        return MatchJob(self.views, frame, self.image_paths(frame), inputs, fixed, settings)
+        return MatchJob(self.views, frame, self.image_paths(frame), inputs, fixed, settings, self.rim_models())
 
     def match(self, frame: int, components=None, live=None, cancel=None) -> list[FrameResult]:
         """Match components in one frame from their current poses, and store the results.
@@ -308,7 +313,7 @@ class WorkMixin:
         paths = {f: self.image_paths(f) for f in frames}
         counts = [len(seq.paths) for seq in self.project.sequences]
         return TrackJob(self.views, meshes, frames, paths, names, settings, anchors, keep, given, residuals, starts,
-                        image_counts=counts)
+                        image_counts=counts, rim=self.rim_models())
 
     def track(self, frames: Sequence[int] | None = None, components=None, redo: bool = False,
               progress: TrackProgress | None = None, cancel: Callable[[], bool] | None = None,
@@ -320,9 +325,13 @@ class WorkMixin:
         from a pose placed in the first frame, else it searches (*find implants*). Each frame
         is predicted from the last matched ones, matched with the other components masked,
         checked, and recovered from other starts when a check fails; what still fails is
-        flagged (``needs_review`` or ``failed``) and tracking goes on. Accepted poses are
-        kept, and so are matched ones unless ``redo``, so a stopped run resumes where it
-        stopped. Each frame is stored as one undoable step as it finishes.
+        flagged (``needs_review`` or ``failed``) and tracking goes on. Tracking goes both
+        ways: a component's failed frames are held back until it matches again, then tracked
+        backward from there (the better result of the two directions is kept), and frames
+        before the first one found are tracked back to the start; results still come out
+        once per frame and component, in frame order. Accepted poses are kept, and so are
+        matched ones unless ``redo``, so a stopped run resumes where it stopped. Each frame
+        is stored as one undoable step as it finishes.
 
         Parameters
         ----------
@@ -337,7 +346,9 @@ class WorkMixin:
         cancel : callable, optional
             Polled during the work; tracking stops at the next check.
         autosave : bool, optional
-            Save the project (atomically) after every frame that changed.
+            Save every frame as it is stored: appended to the project's journal
+            (:meth:`save_frames`), with the whole project saved every ``FULL_SAVE_FRAMES``
+            frames and at the end, so a killed run loses at most the frame in progress.
         first, last : int, optional
             The first and last frame numbers (both included) when ``frames`` is not given;
             default the project's first and last.
@@ -389,7 +400,12 @@ class WorkMixin:
                         r.match.settings = dict(r.match.settings, run=run)
             self.store(results, f"Track frame {frame}")
             if autosave and self.path is not None and any(not r.kept for r in results):
-                self.save()
+                if done % FULL_SAVE_FRAMES == 0:
+                    self.save()
+                else:
+                    self.save_frames(results)
             if workers > 1 and progress is not None:
                 progress(done, len(job.frames), frame, f"frame {frame} done")
             yield from results
+        if autosave and self.path is not None and self.dirty_on_disk:
+            self.save()

@@ -56,11 +56,12 @@ def test_frame_matcher_reuses_the_models_only_after_three_matched_frames(monkeyp
             if rims[k] is None:  # judged here, as segment_and_match fills the list
                 rims[k] = script[frame][0] if k == 0 else STEP
         return SimpleNamespace(pose=np.zeros(6), converged=True, per_view_mean_mm=[0.05, 0.05], outlines_px=None,
-                               splines=[], image_outlines=None, outline_weights=None)
+                               splines=[], image_outlines=None, outline_weights=None, sd=None)
 
     monkeypatch.setattr(framematch, "segment_and_match", fake_loop)
     monkeypatch.setattr(framematch, "assess", lambda *a, **k: None)
-    monkeypatch.setattr(framematch, "judge", lambda *a, **k: (script[state["frame"]][1], ""))
+    monkeypatch.setattr(framematch, "failed_checks", lambda *a, **k: (
+        [] if script[state["frame"]][1] == Status.MATCHED else [("residual", "scripted")]))
     settings = WorkflowSettings()
     settings.tracking.recover = settings.tracking.probe = False
     matcher = FrameMatcher(two_views(image_size=(512, 512), pitch=315.0 / 512), settings)
@@ -89,11 +90,12 @@ def test_the_attempts_of_a_frame_after_a_matched_one_start_from_its_models(monke
                 rims[k] = RimModel(1.0 + len(handed), 1.2)  # a model per judging attempt
         return SimpleNamespace(pose=np.zeros(6), converged=True, per_view_mean_mm=[0.05, 0.05], outlines_px=None,
                                objective_mm=0.05, weakest_rotation_axis=lambda: np.array([0.0, 0.0, 1.0]),
-                               splines=[], image_outlines=None, outline_weights=None)
+                               splines=[], image_outlines=None, outline_weights=None, sd=None)
 
     monkeypatch.setattr(framematch, "segment_and_match", fake_loop)
     monkeypatch.setattr(framematch, "assess", lambda *a, **k: None)
-    monkeypatch.setattr(framematch, "judge", lambda *a, **k: (next(statuses), ""))
+    monkeypatch.setattr(framematch, "failed_checks", lambda *a, **k: (
+        [] if next(statuses) == Status.MATCHED else [("residual", "scripted")]))
     matcher = FrameMatcher(two_views(image_size=(512, 512), pitch=315.0 / 512), WorkflowSettings())
     job = ComponentInput("femoral", SimpleNamespace(centroid=np.zeros(3)), np.zeros(6))
     first = matcher.match_component(0, [np.zeros((512, 512))] * 2, job)

@@ -21,7 +21,7 @@ from fluorogui.core.matching.fast import match_fast
 from fluorogui.core.matching.paper import match_paper
 from fluorogui.core.matching.problem import MatchProblem, MatchResult, MatchSettings, ProgressCallback
 from fluorogui.core.matching.quality import check_match
-from fluorogui.core.matching.uncertainty import pose_covariance, pose_sd
+from fluorogui.core.matching.uncertainty import covariances, pose_sd
 from fluorogui.core.projection.pose import as_pose
 
 
@@ -113,9 +113,10 @@ def _judge(problem: MatchProblem, result: MatchResult, settings: MatchSettings) 
     """The result's uncertainty and its own evidence (``core.matching.quality.check_match``): a
     result that fails a check is not converged, and says why in ``message``."""
     try:
-        result.sd = pose_sd(pose_covariance(problem, result.pose, settings, evaluation=result._evaluation))
+        pose_cov, body_cov = covariances(problem, result.pose, settings, evaluation=result._evaluation)
+        result.sd, result.sd_body = pose_sd(pose_cov), pose_sd(body_cov)
     except ValueError:  # the model behind a source at this pose
-        result.sd = [float("inf")] * 6
+        result.sd = result.sd_body = [float("inf")] * 6
     problems = check_match(problem, result)
     if problems:
         result.converged = False

@@ -83,6 +83,9 @@ class MatchResult:
     #: standard deviations of the six pose variables (mm, deg) from the Gauss-Newton
     #: covariance at the result (``pose_covariance``); inf where the outlines fix nothing
     sd: list[float] | None = None
+    #: the same for the body's own motion: its centroid (world x, y, z, mm) and its turn about
+    #: its own model axes x, y, z (deg), free of the Euler angles' coupling
+    sd_body: list[float] | None = None
     #: did the optimiser itself stop by its criterion (``converged`` also needs the checks)
     optimiser_converged: bool = False
     #: fast method: (pose, evaluation) at the result, reused by the covariance
@@ -174,20 +177,20 @@ MIN_VISIBLE_POINTS = 8
 
 
 def mask_at(mask: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """A boolean image's value at points (K, 2) in pixels (nearest pixel; False off the image)."""
+    """A boolean image's value at points (K, 2) in pixels (nearest pixel); beyond the image
+    the mask goes on as its border pixels are (a field-of-view mask hides what lies beyond
+    the image, an occlusion mask does not)."""
     uv = np.asarray(uv, dtype=float).reshape(-1, 2)
     h, w = mask.shape
-    col = np.round(uv[:, 0]).astype(int)
-    row = np.round(uv[:, 1]).astype(int)
-    on = (col >= 0) & (col < w) & (row >= 0) & (row < h)
-    out = np.zeros(len(uv), dtype=bool)
-    out[on] = mask[row[on], col[on]]
-    return out
+    uv = np.nan_to_num(uv, nan=-1.0, posinf=1e9, neginf=-1e9)
+    col = np.clip(np.round(uv[:, 0]), 0, w - 1).astype(int)
+    row = np.clip(np.round(uv[:, 1]), 0, h - 1).astype(int)
+    return mask[row, col].astype(bool)
 
 
 def visible_points(mask: np.ndarray | None, uv: np.ndarray) -> np.ndarray:
-    """True for points (K, 2) in pixels that a boolean ``mask`` does not cover (points off
-    the image count as visible); all True without a mask or when almost nothing is left."""
+    """True for points (K, 2) in pixels that a boolean ``mask`` does not cover (beyond the
+    image as its border pixels are); all True without a mask or when almost nothing is left."""
     uv = np.asarray(uv, dtype=float).reshape(-1, 2)
     if mask is None or len(uv) == 0:
         return np.ones(len(uv), dtype=bool)

@@ -49,7 +49,14 @@ class QualityThresholds:
     typical_margin_mm: float = 0.05  # ... or above typical + margin, whichever is larger
     min_edge_support: float = 0.85
     min_outline_support: float = 0.85
-    max_outside_field: float = 0.02  # share of the model outline allowed beyond the field of view
+    # a component partly beyond the field of view (or an image's edge) is matched and judged on
+    # what is visible: it passes while its pose stays pinned down (SD within these; on a
+    # generated bend the tray stayed within 0.011 mm / 0.04 deg with SDs <= 0.03 deg down to
+    # 45 % visible) and at least this share of its outline is visible in every view
+    max_outside_field: float = 0.02  # share beyond the field of view taken as fully visible
+    min_visible_share: float = 0.35
+    partial_sd_mm: float = 0.25
+    partial_sd_deg: float = 0.25
     tol_px: float = 1.5
     max_jump_mm: float = 15.0  # centroid distance from the prediction
     max_jump_deg: float = 25.0
@@ -77,6 +84,7 @@ class Quality:
     jump_mm: float = 0.0
     jump_deg: float = 0.0
     outside_field: list[float] = field(default_factory=list)  # share of the outline off the field of view
+    sd: list[float] | None = None  # the pose's standard deviations (mm, deg), for a partly visible one
 
     def to_dict(self) -> dict:
         d = asdict(self)
@@ -143,7 +151,8 @@ def pose_jump(mesh: PreparedMesh, pose, predicted) -> tuple[float, float]:
 def assess(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMesh, pose, converged: bool,
            per_view_mean_mm: Sequence[float], image_outlines: Sequence[np.ndarray] | None,
            predicted=None, occluded: Sequence | None = None, tol_px: float = 1.5,
-           fields: Sequence[np.ndarray] | None = None, model_outlines: Sequence[np.ndarray] | None = None) -> Quality:
+           fields: Sequence[np.ndarray] | None = None, model_outlines: Sequence[np.ndarray] | None = None,
+           sd: Sequence[float] | None = None) -> Quality:
     """Every check of a pose. ``image_outlines`` are the outlines it was matched to (dense
     points per view, chords left out; None skips ``outline_support``); ``fields`` are the
     intensifiers' fields of view (bool images): an outline reaching beyond one is cut off
@@ -159,7 +168,8 @@ def assess(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMe
         if fields is not None and k < len(fields) and fields[k] is not None:
             outside.append(outside_share(fields[k], model))
     jump = pose_jump(mesh, pose, predicted) if predicted is not None else (0.0, 0.0)
-    return Quality(bool(converged), [float(v) for v in per_view_mean_mm], edge, support, *jump, outside)
+    return Quality(bool(converged), [float(v) for v in per_view_mean_mm], edge, support, *jump, outside,
+                   None if sd is None else [float(v) for v in sd])
 
 
 def check_match(problem, result, thresholds: QualityThresholds | None = None) -> list[str]:
@@ -212,27 +222,68 @@ def judge(quality: Quality, thresholds: QualityThresholds | None = None,
           typical_view_mm: float | None = None, view_names: Sequence[str] | None = None) -> tuple[str, str]:
     """(status, reason): ``matched`` with an empty reason when every check passes, else
     ``needs_review`` with every failed check in plain words."""
+    problems = failed_checks(quality, thresholds, typical_view_mm, view_names)
+    return (Status.NEEDS_REVIEW, "; ".join(text for _, text in problems)) if problems else (Status.MATCHED, "")
+
+
+#: the checks ``judge`` applies, by the name ``failed_checks`` gives them
+CHECKS = ("converged", "residual", "edge_support", "outline_support", "visible", "jump")
+
+
+def failed_checks(quality: Quality, thresholds: QualityThresholds | None = None,
+                  typical_view_mm: float | None = None, view_names: Sequence[str] | None = None
+                  ) -> list[tuple[str, str]]:
+    """The checks (``CHECKS``) a pose fails, each with its reason in plain words (empty:
+    none); what ``judge`` reports, and what a measurement of each check's precision counts."""
     t = thresholds or QualityThresholds()
     names = list(view_names or [f"view {k + 1}" for k in range(len(quality.per_view_mean_mm))])
     problems = []
     if not quality.converged:
-        problems.append("the match did not converge")
+        problems.append(("converged", "the match did not converge"))
     limit = min(t.max_view_mm, t.floor_view_mm)
     if typical_view_mm is not None and np.isfinite(typical_view_mm):
         limit = min(t.max_view_mm, max(t.typical_factor * typical_view_mm, typical_view_mm + t.typical_margin_mm))
     for name, value in zip(names, quality.per_view_mean_mm):
         if not np.isfinite(value) or value > limit:
             typical = f", typical {typical_view_mm:.2f} mm" if typical_view_mm else ""
-            problems.append(f"outline distance {value:.2f} mm in {name} (limit {limit:.2f} mm{typical})")
+            problems.append(("residual", f"outline distance {value:.2f} mm in {name} (limit {limit:.2f} mm{typical})"))
     for name, value in zip(names, quality.edge_support):
         if value < t.min_edge_support:
-            problems.append(f"only {100 * value:.0f} % of the model outline lies on image edges in {name}")
+            problems.append(("edge_support", f"only {100 * value:.0f} % of the model outline lies on image edges "
+                                             f"in {name}"))
     for name, value in zip(names, quality.outline_support):
         if value < t.min_outline_support:
-            problems.append(f"only {100 * value:.0f} % of the image outline lies on the model in {name}")
-    for name, value in zip(names, quality.outside_field):
-        if value > t.max_outside_field:
-            problems.append(f"{100 * value:.0f} % of the model outline lies beyond the field of view in {name}")
+            problems.append(("outline_support", f"only {100 * value:.0f} % of the image outline lies on the model "
+                                                f"in {name}"))
+    problems += [("visible", text) for text in _partly_visible(quality, t, names)]
     if quality.jump_mm > t.max_jump_mm or quality.jump_deg > t.max_jump_deg:
-        problems.append(f"moved {quality.jump_mm:.1f} mm / {quality.jump_deg:.1f}° from the predicted pose")
-    return (Status.NEEDS_REVIEW, "; ".join(problems)) if problems else (Status.MATCHED, "")
+        problems.append(("jump", f"moved {quality.jump_mm:.1f} mm / {quality.jump_deg:.1f}° from the predicted pose"))
+    return problems
+
+
+_POSE_WORDS = ("translation along x", "translation along y", "translation along z",
+               "rotation about the model's x axis (alpha)", "rotation about the model's y axis (beta)",
+               "rotation about the model's z axis (gamma)")
+
+
+def _partly_visible(quality: Quality, t: QualityThresholds, names: Sequence[str]) -> list[str]:
+    """A component partly beyond the field of view was matched and checked on what is
+    visible; it fails only when too little is left, or when that leaves its pose loose
+    (said from the pose's own uncertainty, naming the loosest direction)."""
+    partial = [(value, name) for name, value in zip(names, quality.outside_field) if value > t.max_outside_field]
+    if not partial:
+        return []
+    outside, name = max(partial)
+    visible = 1.0 - outside
+    where = f"only {100 * visible:.0f} % of the model outline is visible in {name}"
+    loosest = ""
+    if quality.sd is not None and len(quality.sd) == 6:
+        sd = np.asarray(quality.sd, dtype=float)
+        limits = np.array([t.partial_sd_mm] * 3 + [t.partial_sd_deg] * 3)
+        j = int(np.argmax(np.where(np.isfinite(sd), sd / limits, np.inf)))
+        loosest = f"; its {_POSE_WORDS[j]} is uncertain to ±{sd[j]:.2g} {'mm' if j < 3 else '°'}"
+        if not np.isfinite(sd[j]) or sd[j] > limits[j]:
+            return [where + loosest]
+    if visible < t.min_visible_share:
+        return [where + (loosest or "") + f" (at least {100 * t.min_visible_share:.0f} % is needed)"]
+    return []

@@ -23,7 +23,16 @@ MIN_STRETCHES = 8
 
 def pose_covariance(problem: MatchProblem, pose, settings: MatchSettings | None = None,
                     cluster_px: float = CLUSTER_PX, evaluation: tuple | None = None) -> np.ndarray:
-    """Covariance (6x6; mm and degrees) of the pose variables x, y, z, alpha, beta, gamma.
+    """Covariance (6x6; mm and degrees) of the pose variables x, y, z, alpha, beta, gamma
+    (``covariances`` gives it together with the body's)."""
+    return covariances(problem, pose, settings, cluster_px, evaluation)[0]
+
+
+def covariances(problem: MatchProblem, pose, settings: MatchSettings | None = None,
+                cluster_px: float = CLUSTER_PX, evaluation: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Covariances (6x6; mm and degrees) of the pose variables x, y, z, alpha, beta, gamma,
+    and of the body's own motion: its centroid (world x, y, z) and its turn about its own
+    model axes x, y, z (free of the Euler angles' coupling, e.g. near gimbal lock).
 
     Gauss-Newton (Laplace) at ``pose`` with the residuals' own variance, as a sandwich
     H^-1 B H^-1: H is the Gauss-Newton matrix of the fast objective and B sums the
@@ -58,7 +67,7 @@ def pose_covariance(problem: MatchProblem, pose, settings: MatchSettings | None 
     n = len(keys)
     eig = np.linalg.eigvalsh(H)
     if n <= 6 or eig[0] <= 1e-12 * max(eig[-1], 1e-300):
-        return np.full((6, 6), np.inf)
+        return np.full((6, 6), np.inf), np.full((6, 6), np.inf)
     S = np.zeros((n, 6))
     np.add.at(S, group.ravel(), np.vstack(all_scores))
     Hg = np.zeros((n, 6, 6))
@@ -68,7 +77,7 @@ def pose_covariance(problem: MatchProblem, pose, settings: MatchSettings | None 
     # there are few stretches for six variables (a single view: about a dozen).
     left_out = H[None] - Hg
     if np.any(np.linalg.eigvalsh(left_out)[:, 0] <= 1e-12 * max(eig[-1], 1e-300)):
-        return np.full((6, 6), np.inf)  # one stretch alone fixes a direction of motion
+        return np.full((6, 6), np.inf), np.full((6, 6), np.inf)  # one stretch alone fixes a direction
     shifts = np.linalg.solve(left_out, S[..., None])[..., 0]  # (n, 6)
     cov = shifts.T @ shifts * (n - 1) / n
     # from the matcher's variables (centroid shift, rotation vector x radius) to the pose's
@@ -81,7 +90,11 @@ def pose_covariance(problem: MatchProblem, pose, settings: MatchSettings | None 
         d[j] = -h
         minus = _to_pose(rotvec_matrix(d[3:] / mesh.radius) @ R, c + d[:3], mesh.centroid)
         A[:, j] = pose_difference(plus, minus) / (2 * h)
-    return A @ cov @ A.T
+    # the body's own motion: centroid as it is; the world rotation vector (x radius) turned
+    # into the model frame, in degrees
+    B = np.eye(6)
+    B[3:, 3:] = R.T * np.degrees(1.0 / mesh.radius)
+    return A @ cov @ A.T, B @ cov @ B.T
 
 
 def pose_sd(cov: np.ndarray) -> list[float]:

@@ -22,7 +22,13 @@ predicted one (tracking recovery), and say honestly when it could not.
    ``CLOSE_SCORE``) is matched on Canny outlines with the full mesh
    (``core.matching.loop.match_images``, one pass; a second when the pose moved more than
    ``SETTLED`` so that the outline was segmented along a different pose).
-4. *Verdict.* ``found`` only when both views fit: mean outline distance per view at most
+4. *The others masked.* Each component after the first is searched with the projections
+   of those already found masked: in the edge maps (the pixels they cover score as a
+   middling edge, ``MIN_EDGE_SCORE``, so an outline running behind them is neither
+   rewarded nor punished), in its segmentation and fit, and in its verdict (the overlap
+   is judged on what they leave free). A component not found is searched again once the
+   others are.
+5. *Verdict.* ``found`` only when both views fit: mean outline distance per view at most
    ``MAX_VIEW_PX``, IoU of silhouette and image-outline region at least ``MIN_IOU`` and
    edge score at least ``MIN_EDGE_SCORE`` in each view; and when no candidate turned by
    more than 20 degrees fits about as well (a symmetric part, a flipped tibial tray)
@@ -54,6 +60,7 @@ from fluorogui.core.outlines.field import field_of_view
 from fluorogui.core.projection.geometry import View
 from fluorogui.core.projection.mesh import PreparedMesh
 from fluorogui.core.projection.pose import angles_from_matrix, rotation_matrix, rotvec_matrix
+from fluorogui.core.projection.silhouette import projected_region
 from fluorogui.core.search import shape_search as ss
 from fluorogui.core.search.orientation import orientation_grid
 
@@ -65,6 +72,8 @@ MAX_VIEW_PX = 1.0
 MIN_IOU = 0.94
 #: per-view edge score below which a fit is not accepted (nor tried)
 MIN_EDGE_SCORE = 0.6
+#: the projection of a component already found is masked for the next, grown by this (px)
+HIDE_MARGIN_PX = 3
 #: best edge score after refinement below which no Canny fit is tried (right: >= ~0.8)
 MIN_CANDIDATE_SCORE = 0.65
 #: near mode: orientations within this many degrees of the predicted one
@@ -155,6 +164,7 @@ class _Steps:
         self.progress, self.cancel, self.n = progress, cancel, max(1, n_components)
         self.k = 0  # component being searched
         self.name = ""
+        self.hidden: list | None = None  # per view, where the components found so far project
         self.span = (0.0, 1.0)  # part of that component's share being reported
 
     def check(self):
@@ -316,8 +326,9 @@ def _rank_hypotheses(lib, views, maps, hypotheses, steps: _Steps, at: float, spa
 
 
 # -- the final fit and the verdict ---------------------------------------------------------------
-def _outline_iou(mesh, pose, view: View, spline, shape) -> float:
-    """IoU at half resolution of the silhouette at ``pose`` and the region inside ``spline``."""
+def _outline_iou(mesh, pose, view: View, spline, shape, hidden: np.ndarray | None = None) -> float:
+    """IoU at half resolution of the silhouette at ``pose`` and the region inside ``spline``,
+    on the part of the image ``hidden`` (another component's projection) leaves free."""
     h, w = shape[0] // 2, shape[1] // 2
     a = np.zeros((h, w), np.uint8)
     b = np.zeros((h, w), np.uint8)
@@ -326,26 +337,33 @@ def _outline_iou(mesh, pose, view: View, spline, shape) -> float:
     ring = spline.sample(max(64, int(spline.length_px)))
     for canvas, pts in ((a, sil), (b, ring)):
         cv2.fillPoly(canvas, [np.round((pts * 0.5 - 0.25) * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
+    if hidden is not None:
+        free = cv2.resize(np.asarray(hidden, np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) == 0
+        a &= free
+        b &= free
     union = np.count_nonzero(a | b)
     return float(np.count_nonzero(a & b) / union) if union else 0.0
 
 
 def _fit(images, views, mesh, pose, steps: _Steps):
-    """One segment-and-match pass on Canny outlines from ``pose``: (result, splines), or
-    None when no usable outline is found along it."""
+    """One segment-and-match pass on Canny outlines from ``pose``, with the components found
+    before masked (``steps.hidden``): (result, splines), or None when no usable outline is
+    found along it."""
     try:
-        res, splines = match_images(images, views, mesh, pose, passes=1, cancel=steps.cancel)
+        res, splines = match_images(images, views, mesh, pose, passes=1, cancel=steps.cancel, occluded=steps.hidden)
     except ValueError:  # EdgeError / OutlineError / SegmentationError: nothing to match here
         return None
     return res, splines
 
 
-def _assess(images, views, mesh, lib, maps, res, splines):
-    """Per-view IoU of silhouette and outline region, and edge scores, at ``res.pose``."""
+def _assess(images, views, mesh, lib, maps, res, splines, hidden=None):
+    """Per-view IoU of silhouette and outline region, and edge scores, at ``res.pose``, on
+    what the components found before (``hidden``, per view) leave free."""
     pose = res.pose
     R = rotation_matrix(*pose[3:])
-    iou = [_outline_iou(mesh, pose, v, s, img.shape[:2]) for v, s, img in zip(views, splines, images)]
-    return iou, ss.pose_edge_score(lib.coarse, R, R @ mesh.centroid + pose[:3], views, maps)
+    hidden = hidden or [None] * len(views)
+    iou = [_outline_iou(mesh, pose, v, s, img.shape[:2], m) for v, s, img, m in zip(views, splines, images, hidden)]
+    return iou, ss.pose_edge_score(lib.coarse, R, R @ mesh.centroid + pose[:3], views, maps, hidden=hidden)
 
 
 def _objective_px(res, views, maps) -> float:
@@ -397,13 +415,14 @@ def _conclude(name, mesh, lib, images, views, maps, cands, steps: _Steps, t0: fl
     if max(_pose_change(mesh, start, first.pose)) > SETTLED:
         # the outline was segmented along a pose that then moved: once more along the fit
         res, splines = _fit(images, views, mesh, first.pose, steps) or fits[0][:2]
-    iou, edge = _assess(images, views, mesh, lib, maps, res, splines)
+    iou, edge = _assess(images, views, mesh, lib, maps, res, splines, steps.hidden)
     reason = _verdict(res, iou, edge, views, maps)
     if not reason and len(fits) > 1:
         other, other_splines, _ = fits[1]
         apart = _angle_deg(rotation_matrix(*first.pose[3:]), rotation_matrix(*other.pose[3:]))
         if (apart > 20.0 and _objective_px(other, views, maps) - _objective_px(first, views, maps) < CLEAR_OBJECTIVE_PX
-                and not _verdict(other, *_assess(images, views, mesh, lib, maps, other, other_splines), views, maps)):
+                and not _verdict(other, *_assess(images, views, mesh, lib, maps, other, other_splines, steps.hidden),
+                                 views, maps)):
             reason = f"two orientations {apart:.0f}° apart fit equally well"
     steps.report(1.0, f"{name}: done")
     return Placement(name, res.pose, not reason, iou, float(res.objective_mm), list(res.per_view_mean_mm),
@@ -534,13 +553,33 @@ def find_components(images: Sequence[np.ndarray], views: Sequence[View], meshes:
     steps.check()
     out: dict[str, Placement] = {}
     occupied = []
-    for name, mesh in meshes.items():
+    found_meshes: list = []  # (mesh, R, t) of the components found, masked for the others
+
+    def search(name, mesh):
         steps.name = name
-        out[name] = p = _find_one(name, mesh, images, views, maps, rounds, near.get(name), steps, occupied)
+        seen = maps
+        if found_meshes:
+            steps.hidden = [projected_region(view, found_meshes, HIDE_MARGIN_PX) for view in views]
+            seen = [m.with_hidden(h, MIN_EDGE_SCORE) for m, h in zip(maps, steps.hidden)]
+        out[name] = p = _find_one(name, mesh, images, views, seen, rounds, near.get(name), steps, occupied)
+        steps.hidden = None
         if p.found:
             R = rotation_matrix(*p.pose[3:])
             occupied.append((R @ mesh.centroid + p.pose[:3], mesh.radius))
+            found_meshes.append((mesh, R, p.pose[:3]))
+
+    for name, mesh in meshes.items():
+        search(name, mesh)
         steps.k += 1
+    # a component the others hid: searched again with those found masked out of its outline,
+    # its fit and its verdict (the overlap is judged on what the others leave free)
+    again = [name for name in meshes if not out[name].found]
+    if again and found_meshes and len(again) < len(meshes):
+        for name in again:
+            first = out[name]
+            search(name, meshes[name])
+            if not out[name].found and first.pose is not None and out[name].pose is None:
+                out[name] = first  # keep the closer miss to report
     if progress is not None:
         progress(1.0, "done")
     return out

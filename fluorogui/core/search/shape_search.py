@@ -28,6 +28,7 @@ Speed comes from three things:
 """
 from __future__ import annotations
 
+import copy
 import dataclasses
 import threading
 import weakref
@@ -37,6 +38,7 @@ import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
+from fluorogui.core.matching.problem import visible_points
 from fluorogui.core.outlines.field import image_unit, to_unit_float
 from fluorogui.core.outlines.spline import outward_normals
 from fluorogui.core.projection.geometry import View
@@ -211,6 +213,22 @@ class EdgeMaps:
                 maps[k, PAD:-PAD, PAD:-PAD] = np.rint(v)
             self.levels[name] = (scale, maps.ravel(), maps.shape[1], maps.shape[2], s.shape)
 
+    def with_hidden(self, hidden: np.ndarray | None, neutral: float) -> "EdgeMaps":
+        """These maps with the pixels under ``hidden`` (full resolution, bool: where another
+        component lies) scoring ``neutral`` in every direction: an outline passing behind it
+        is neither rewarded by its edges nor punished for the edges it hides."""
+        if hidden is None or not np.any(hidden):
+            return self
+        out = copy.copy(self)
+        out.levels = {}
+        value = np.int8(round(127 * neutral))
+        for name, (scale, flat, H, W, (h, w)) in self.levels.items():
+            maps = flat.reshape(-1, H, W).copy()
+            small = cv2.resize(np.asarray(hidden, np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0
+            maps[:, PAD:PAD + h, PAD:PAD + w][:, small] = value
+            out.levels[name] = (scale, maps.ravel(), H, W, (h, w))
+        return out
+
     def index(self, level: str, points_px: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """Flat look-up indices of full-resolution points with their normals."""
         scale, _, H, W, (h, w) = self.levels[level]
@@ -351,15 +369,20 @@ def outline(mesh: PreparedMesh, R: np.ndarray, c: np.ndarray, view: View, spacin
     return pts, outward_normals(pts), mesh.vertices[ends[nearest]]
 
 
-def pose_edge_score(mesh: PreparedMesh, R, c, views, maps, level: str = "fine") -> list[float]:
-    """Per-view edge score of the exact outline at (R, centroid c)."""
+def pose_edge_score(mesh: PreparedMesh, R, c, views, maps, level: str = "fine", hidden=None) -> list[float]:
+    """Per-view edge score of the exact outline at (R, centroid c); ``hidden`` (per view, a
+    boolean image or None) leaves out the outline points another component covers."""
     out = []
-    for view, m in zip(views, maps):
+    for k, (view, m) in enumerate(zip(views, maps)):
         try:
             p, n, _ = outline(mesh, R, c, view, spacing_px=4.0 * m.unit)
         except ValueError:
             out.append(-1.0)
             continue
+        mask = hidden[k] if hidden is not None and k < len(hidden) else None
+        if mask is not None:
+            seen = visible_points(mask, p)
+            p, n = p[seen], n[seen]
         out.append(edge_score(m, p, n, level))
     return out
 

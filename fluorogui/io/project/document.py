@@ -58,6 +58,7 @@ from fluorogui.core.records import (
 from fluorogui.io.errors import InputError, warn_input
 from fluorogui.io.files import atomic_write_text, clean_stale_temps, read_input_bytes
 from fluorogui.io.plausible import view_problem
+from fluorogui.io.project import journal
 from fluorogui.io.schema import (
     DocumentError,
     PoseDocument,
@@ -189,6 +190,7 @@ def load_project(path) -> Project:
     path = Path(path)
     raw = read_input_bytes(path, "project file", MAX_PROJECT_BYTES)
     clean_stale_temps(path)
+    stamp = journal.stamp_of(raw)
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
@@ -200,6 +202,8 @@ def load_project(path) -> Project:
         except DocumentError as exc:
             raise InputError(path, str(exc)) from None
         del text
+        if isinstance(document, dict):
+            journal.merge(document, path, stamp)  # frames a run stored since the last full save
         return _project_from_parsed(document, path)
     except InputError:
         raise
@@ -246,6 +250,35 @@ def save_project(project: Project, path) -> None:
     except TypeError as exc:
         raise InputError(path, f"cannot save: a setting is not plain JSON data ({exc})") from None
     atomic_write_text(path, text + "\n", backup=True)
+    journal.discard(path)  # what it held is in the file now
+
+
+def journal_frames(project: Project, path, poses, records, settings: bool = False) -> None:
+    """Append to the journal of the project file ``path`` the pose records ``poses`` and
+    outline records ``records`` (keys) as the file would hold them, and the settings when
+    ``settings`` (see ``io.project.journal``): a frame stored without rewriting the project."""
+    path = Path(path)
+    base = path.parent.absolute()
+    entry = {"stamp": _stamp_of_file(path),
+             "records": [_record_entry(key, project.records[key], base) for key in records if key in project.records],
+             "poses": [_pose_entry(key, project.poses[key]) for key in poses if key in project.poses]}
+    if settings:
+        entry["settings"] = project.settings
+    try:
+        journal.append(path, entry)
+    except ValueError:
+        raise InputError(path, "cannot save: the project contains NaN or infinite numbers") from None
+
+
+_STAMPS: dict = {}  # path -> (size, mtime_ns, stamp) of project files journaled over
+
+
+def _stamp_of_file(path: Path) -> str:
+    info = path.stat()
+    known = _STAMPS.get(path)
+    if known is None or known[:2] != (info.st_size, info.st_mtime_ns):
+        known = _STAMPS[path] = (info.st_size, info.st_mtime_ns, journal.stamp_of(path.read_bytes()))
+    return known[2]
 
 
 def _compact_json(document: dict) -> str:
@@ -287,30 +320,34 @@ def project_to_document(project: Project, base: Path) -> dict:
             }
             for m in project.models
         ],
-        "records": [
-            {
-                "frame": int(frame),
-                "view": int(view),
-                "component": component,
-                "points": pack_array(record.points),
-                "spline": None if record.spline is None else _spline_to_dict(record.spline),
-                "reviewed": bool(record.reviewed),
-            } | ({} if record.weights is None else {"weights": pack_array(record.weights)})
-            for (frame, view, component), record in sorted(project.records.items(), key=_sort_key)
-        ],
-        "poses": [
-            {
-                "frame": int(frame),
-                "component": component,
-                "pose": record.pose.tolist(),
-                "match": None if record.match is None else _match_to_dict(record.match),
-                "reviewed": bool(record.reviewed),
-                "status": record.status,
-                "reason": record.reason,
-            }
-            for (frame, component), record in sorted(project.poses.items(), key=_sort_key)
-        ],
+        "records": [_record_entry(key, record, base) for key, record in sorted(project.records.items(), key=_sort_key)],
+        "poses": [_pose_entry(key, record) for key, record in sorted(project.poses.items(), key=_sort_key)],
         "settings": project.settings,
+    }
+
+
+def _record_entry(key, record: OutlineRecord, base: Path) -> dict:
+    frame, view, component = key
+    return {
+        "frame": int(frame),
+        "view": int(view),
+        "component": component,
+        "points": pack_array(record.points),
+        "spline": None if record.spline is None else _spline_to_dict(record.spline),
+        "reviewed": bool(record.reviewed),
+    } | ({} if record.weights is None else {"weights": pack_array(record.weights)})
+
+
+def _pose_entry(key, record: PoseRecord) -> dict:
+    frame, component = key
+    return {
+        "frame": int(frame),
+        "component": component,
+        "pose": record.pose.tolist(),
+        "match": None if record.match is None else _match_to_dict(record.match),
+        "reviewed": bool(record.reviewed),
+        "status": str(record.status),
+        "reason": record.reason,
     }
 
 
