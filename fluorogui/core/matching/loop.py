@@ -114,10 +114,10 @@ def refine_rims(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.n
                 models: list[RimModel | None] | None = None,
                 only: Sequence[int] | None = None) -> tuple[list[np.ndarray | None], list[RimModel | None], list]:
     """Automatic outlines moved to the boundary the metal's rim profile gives at ``pose``
-    (``core.rim``), per view (None stays None; views not in ``only`` stay as they are),
+    (``core.outlines.rim``), per view (None stays None; views not in ``only`` stay as they are),
     each image's rim model (fitted unless given in ``models``; the views fitted
     together, one attenuation for the component's metal) and each outline's point
-    weights (``core.profile_fit.precision_weights``; None for the outlines not refined), for
+    weights (``core.outlines.profile_fit.precision_weights``; None for the outlines not refined), for
     ``fit_splines``."""
     models = list(models) if models is not None else [None] * len(views)
     refined = list(outlines)
@@ -135,11 +135,11 @@ def refine_rims(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.n
 
 def soft_edge_views(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.ndarray | None],
                     occluded=None, models: list[RimModel | None] | None = None) -> tuple[list[int], list]:
-    """The views (with an outline) whose edge is a soft rim (``core.rim.is_soft``), judged
+    """The views (with an outline) whose edge is a soft rim (``core.outlines.rim.is_soft``), judged
     at ``pose`` by each image's rim model: the one in ``models`` or, where that is None,
-    ``core.rim.edge_model`` (a quick fit where that finds a step, else the full one the
+    ``core.outlines.rim.edge_model`` (a quick fit where that finds a step, else the full one the
     refinement uses). Where two or more views judged here are soft, their models are
-    fitted again together (``core.rim.rim_models_together``: one attenuation for the
+    fitted again together (``core.outlines.rim.rim_models_together``: one attenuation for the
     component's metal: a noisy view's own varies by several per cent, and over three
     noise draws the views' own moved a 15 % smaller femur 0.004-0.024 deg further from
     the truth than the shared one). Returns the views and the models."""
