@@ -288,10 +288,25 @@ class Session(WorkMixin, KneeMixin):
         return target
 
     def save_frames(self, results) -> None:
-        """Save the stored results' frames without rewriting the project: their pose records
-        and automatic outlines (and the settings, when they changed) are appended to the
-        project's journal (``io.project.journal``), which opening the project takes in and
-        the next full ``save`` folds into the file."""
+        """Save the stored results' frames without rewriting the project.
+
+        Their pose records and automatic outlines (and the settings, when they changed) are
+        appended to the project's journal (``io.project.journal``), which opening the
+        project takes in and the next full :meth:`save` folds into the file. What
+        :meth:`track` does with ``autosave`` between full saves.
+
+        Parameters
+        ----------
+        results : iterable of FrameResult
+            Results already stored (:meth:`store`); kept ones are left out.
+
+        Raises
+        ------
+        ValueError
+            The session has no file name yet (save it once with :meth:`save`).
+        fluorogui.io.errors.InputError
+            The journal cannot be written.
+        """
         if self.path is None:
             raise ValueError("no file name to save to")
         results = [r for r in results if not r.kept]
@@ -791,9 +806,19 @@ class Session(WorkMixin, KneeMixin):
 
     # -- the images' rim models -----------------------------------------------------------------
     def rim_models(self) -> dict[str, list[RimModel]]:
-        """Each component's rim models per view (``core.outlines.rim``: the metal's attenuation and
-        the images' blur), judged once in its first matched frames and kept in the project, so
-        that later matches and runs start from them instead of fitting them again."""
+        """Each component's rim models per view, as kept in the project.
+
+        The models (``core.outlines.rim.RimModel``: the metal's attenuation in 1/mm and the
+        images' blur in px) are judged in a component's first matched frames and kept in
+        ``project.settings["rim_models"]``, so that later matches and runs start from them
+        instead of fitting them again.
+
+        Returns
+        -------
+        dict of str to list of RimModel
+            By component, one model per view; components not judged yet (or whose entry
+            is damaged or has another number of views) are absent.
+        """
         out = {}
         for component, models in (self.project.settings.get(RIM_KEY) or {}).items():
             try:
