@@ -14,13 +14,16 @@ Sections (all by default, or name some):
   field of view (down to ~45 % of its outline visible); per frame the visible share, the
   error against the truth and the status: matched within 0.1 mm / 0.2 deg while the
   visible part pins the pose, flagged (naming the loose direction) when it does not.
+* ``batch``: ``fluorogui batch --workers 2`` over two generated knee bends (``--frames``
+  frames each, other seeds) whose components overlap in one view; every frame matched
+  (target), none more than 1 mm / 1 deg from the truth, and the wall time.
 * ``real``: all pairs of ../shared/data/biplane-tka, both components, from nothing;
   every frame either within 0.5 mm / 0.5 deg of tests/data/biplane_reference_poses.csv
   or flagged; flagged frames and why; frame-to-frame jitter per degree of freedom; the six
   knee kinematics curves and their jitter (``--figure`` saves their figure).
 
 Errors are body-fixed (``core.pose.pose_error``): translation mm, rotation angles deg.
-Usage: .venv/bin/python benchmarks/bench_tracking.py [demo] [synthetic] [partial] [real]
+Usage: .venv/bin/python benchmarks/bench_tracking.py [demo] [synthetic] [partial] [batch] [real]
            [--workers N] [--frames N] [--no-occlusion] [--json OUT] [--figure OUT.png]
 """
 from __future__ import annotations
@@ -263,6 +266,39 @@ def _body_spread(centroid, poses, window: int = 7) -> np.ndarray:
     return np.sqrt(np.mean(np.square(residuals), axis=0) / (1.0 - centre[half]))
 
 
+def bench_batch(args) -> dict:
+    """Two generated bends through the command line's batch run, then each frame against its truth."""
+    from fluorogui.cli import main as cli_main
+    from fluorogui.simulation.knee_bend import build_knee_sequence
+
+    models = DATA / "biplane-tka" / "models"
+    folder = Path(tempfile.mkdtemp(prefix="bench-batch-"))
+    paths = [build_knee_sequence(folder / f"bend{seed}", models / "femoral_component.stl",
+                                 models / "tibial_component.stl", frames=args.frames, seed=seed, workers=2)
+             for seed in (1, 2)]
+    t0 = time.perf_counter()
+    code = cli_main(["batch", *map(str, paths), "--workers", str(args.workers)])
+    wall = time.perf_counter() - t0
+    out = {"exit_code": code, "wall_seconds": wall, "frames": 2 * args.frames, "not_matched": 0, "wrong_matched": 0}
+    for path in paths:
+        session = Session.open(path)
+        truth = session.project.settings["truth"]
+        for frame in session.frames:
+            for c in COMPONENTS:
+                record = session.pose_record(c, frame)
+                if record is None or record.status != "matched":
+                    out["not_matched"] += 1
+                    print(f"  {path.parent.name} frame {frame} {c}: {record.status if record else 'no result'}")
+                    continue
+                mm, deg, _ = _errors(record.pose, np.asarray(truth[str(frame)][c]))
+                if mm > 1.0 or deg > 1.0:
+                    out["wrong_matched"] += 1
+    print(f"batch: 2 generated bends x {args.frames} frames x 2 components, --workers {args.workers}: exit "
+          f"{code} in {wall:.1f} s; not matched {out['not_matched']} (target 0); matched but more than "
+          f"1 mm / 1 deg off {out['wrong_matched']} (target 0)")
+    return out
+
+
 def bench_real(args) -> dict:
     from fluorogui.io.importer import import_folder
     from fluorogui.io.project.document import save_project
@@ -334,7 +370,7 @@ def bench_real(args) -> dict:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("sections", nargs="*", choices=["demo", "synthetic", "partial", "real"], default=[])
+    ap.add_argument("sections", nargs="*", choices=["demo", "synthetic", "partial", "batch", "real"], default=[])
     ap.add_argument("--workers", type=int, default=2, help="processes for the synthetic sequence (default 2)")
     ap.add_argument("--frames", type=int, default=100, help="frames of the synthetic sequence")
     ap.add_argument("--no-occlusion", action="store_true",
@@ -342,8 +378,8 @@ def main(argv=None) -> int:
     ap.add_argument("--json", type=Path, help="write the numbers here")
     ap.add_argument("--figure", type=Path, help="write the real sequence's kinematics figure here (png/svg/pdf)")
     args = ap.parse_args(argv)
-    sections = args.sections or ["demo", "synthetic", "partial", "real"]
-    if any(s in sections for s in ("synthetic", "partial", "real")) and not DATA.is_dir():
+    sections = args.sections or ["demo", "synthetic", "partial", "batch", "real"]
+    if any(s in sections for s in ("synthetic", "partial", "batch", "real")) and not DATA.is_dir():
         print(f"bench_tracking: {DATA} not found; only the demo can run", file=sys.stderr)
         sections = [s for s in sections if s == "demo"]
     out = {s: globals()[f"bench_{s}"](args) for s in sections}
