@@ -22,7 +22,7 @@ Sections (all by default, or name some):
   or flagged; flagged frames and why; frame-to-frame jitter per degree of freedom; the six
   knee kinematics curves and their jitter (``--figure`` saves their figure).
 
-Errors are body-fixed (``core.pose.pose_error``): translation mm, rotation angles deg.
+Errors are body-fixed (``core.projection.pose.pose_error``): translation mm, rotation angles deg.
 Usage: .venv/bin/python benchmarks/bench_tracking.py [demo] [synthetic] [partial] [batch] [real]
            [--workers N] [--frames N] [--no-occlusion] [--json OUT] [--figure OUT.png]
 """

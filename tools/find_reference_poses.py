@@ -14,7 +14,7 @@ an existing ``--out`` file are kept unchanged (first, in their order), the tibia
 are replaced.
 
 ``--refine`` instead re-matches every row of an existing ``--out`` file from its own pose
-with the current segment -> match loop (``core.pipeline.segment_and_match``, the one the
+with the current segment -> match loop (``core.matching.loop.segment_and_match``, the one the
 app, the command line and tracking use) and rewrites the file: after a change to the
 segmentation or the matcher, the reference poses are where a careful single-frame match
 from the old reference lands today, independent of tracking, prediction and find.

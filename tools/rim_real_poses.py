@@ -2,7 +2,7 @@
 the rim refinement (``LoopSettings.rim``), for ``tools/reference_poses.py --poses``.
 
 Each frame of ``tests/data/biplane_reference_poses.csv`` (the matcher's own poses) is
-matched again from its listed pose by ``core.pipeline.segment_and_match``, the other
+matched again from its listed pose by ``core.matching.loop.segment_and_match``, the other
 component masked at its listed pose as tracking does, once with plain outlines and once
 with the rim refinement (its rim models fitted on the first frame and kept, as
 ``FrameMatcher`` keeps them). Prints per frame the objective, the per-view residual and

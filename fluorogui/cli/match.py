@@ -1,7 +1,7 @@
 """``fluorogui match``: one component in one image pair, through the same per-frame matcher
 as tracking, ``Session.match`` and the app's *Match* (recovery, the ambiguity probe,
 occlusion masks, the rim judgement and every quality check). Its JSON object is a
-contract (README, Command line)."""
+contract (``docs/cli/match.rst``)."""
 from __future__ import annotations
 
 import json

@@ -1,8 +1,9 @@
 """``fluorogui track``: track components through the frames of a project, over
 ``Session.track``.
 
-Holds the project's lock while it runs and writes the project atomically after every
-frame, so a killed run loses at most the frame in progress and resumes where it stopped
+Holds the project's lock while it runs and saves every frame as it finishes (appended to
+the project's journal, with a full atomic save every 50 frames and at the end), so a
+killed run loses at most the frame in progress and resumes where it stopped
 (frames already matched are kept unless ``--redo``). With ``--json`` stdout gets one JSON
 object per frame and component as it finishes; frames that need review or failed are
 also reported on stderr, one line each. Exit status: 0 when every frame matched, 3 when

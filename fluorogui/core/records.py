@@ -65,7 +65,7 @@ class SplineRecord:
 class OutlineRecord:
     """An edited image outline: ordered points (K, 2) in pixels, its spline, review state,
     and optionally how much each point counts in a match (``weights``, K positive numbers:
-    the rim refinement's ``core.profile_fit.precision_weights``; None: all alike)."""
+    the rim refinement's ``core.outlines.profile_fit.precision_weights``; None: all alike)."""
 
     points: np.ndarray
     spline: SplineRecord | None = None

@@ -1,6 +1,7 @@
 """Open the real main window, show a session and save a screenshot of the screen it is on.
 
-Used for the README's pictures, the Xvfb pixel test and start-up timing::
+Used for quick pictures, the Xvfb pixel test and start-up timing (the docs' screenshots
+are made by ``docs/screenshots/make_screenshots.py``)::
 
     python -m fluorogui.gui.snapshot OUT.png [--project FILE | --import-folder DIR]
         [--size 1280x800] [--frame N] [--find] [--match | --match-both] [--track-both]

@@ -1,7 +1,7 @@
 """An X-ray image model for validation that shares no code with the matcher.
 
-The matcher fits the silhouette of a mesh (``core.silhouette``) and the old validation
-images were drawn with the same idea (``core.render``: a filled silhouette), so a bias of
+The matcher fits the silhouette of a mesh (``core.projection.silhouette``) and the old validation
+images were drawn with the same idea (``simulation.render``: a filled silhouette), so a bias of
 that model would cancel out. This module images the physics instead:
 
 * every detector sample (``supersample`` x ``supersample`` per pixel) gets the length

@@ -1,6 +1,6 @@
 """Procedural variants of an implant mesh for validation, so overfitting to one design shows.
 
-Meshes are in the component frame of ``core.phantoms`` and the shipped models: x
+Meshes are in the component frame of ``simulation.phantoms`` and the shipped models: x
 mediolateral, y anteroposterior (+y anterior), z proximodistal (+z proximal).
 
 * ``ps_box``: a posterior-stabilised femoral component - a closed box (the housing of

@@ -86,7 +86,7 @@ def mesh_variant(vertices, faces, variant: str) -> tuple[np.ndarray, np.ndarray]
     made posterior-stabilised: a closed intercondylar box), ``symmetric`` (the medial,
     +x, half mirrored onto the lateral), ``symmetric-ap`` (the anterior half mirrored onto
     the posterior: a tray that looks the same turned 180 deg about its axis), or ``""``
-    as it is (``core.implant_variants``)."""
+    as it is (``simulation.implant_variants``)."""
     from fluorogui.simulation.implant_variants import mirrored_half, ps_box
 
     v, f = np.asarray(vertices, dtype=float), np.asarray(faces)
@@ -254,7 +254,7 @@ def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings,
     """One row of Table 1/2: render, segment, match from perturbed starts, compare with the truth.
 
     ``render(view, [(world_vertices, faces)], rng) -> image`` makes the images; the
-    default is ``core.render.render_fluoro`` (a filled silhouette: the matcher's own model
+    default is ``simulation.render.render_fluoro`` (a filled silhouette: the matcher's own model
     of the image, so a bias of that model cancels out); the command line passes the
     independent ``fluorogui.reference.xray`` model.
 

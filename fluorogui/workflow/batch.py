@@ -4,7 +4,7 @@ A study is many trials (knees x activities x frames); ``run_batch`` tracks each 
 as one Dask task: on a ``LocalCluster`` using this machine's cores by default, or on an
 existing scheduler (``scheduler="tcp://host:8786"``) so the same call runs on a cluster
 whose workers see the same files. Each task opens its project under the project lock,
-tracks with the project saved after every frame, and returns a summary; a project that
+tracks with every frame saved as it finishes (the journal), and returns a summary; a project that
 cannot be opened or is in use elsewhere becomes a summary row with the reason, and the
 batch goes on.
 

@@ -43,7 +43,7 @@ from fluorogui.workflow.settings import WorkflowSettings
 
 _RANK = {Status.MATCHED: 0, Status.NEEDS_REVIEW: 1, Status.FAILED: 2}
 
-#: a component's rim judgement (``core.rim``: per view, is the edge a soft rim, and its
+#: a component's rim judgement (``core.outlines.rim``: per view, is the edge a soft rim, and its
 #: attenuation and blur) is the same for a whole sequence; unless its first matched frame
 #: finds a clear step it rests on this many matched frames, each judged on its own, not on
 #: the first attempt alone (which may land at a wrong pose, and 4 of 106 real views fitted
@@ -332,11 +332,11 @@ class FrameMatcher:
 class RimJudgement:
     """One component's rim models per view through a sequence, judged in its matched
     frames. A view whose first matched frame finds a clear step (an attenuation of
-    ``core.rim.MAYBE_SOFT_BELOW_MU`` or more: not refined, and most real views) keeps that;
+    ``core.outlines.rim.MAYBE_SOFT_BELOW_MU`` or more: not refined, and most real views) keeps that;
     any other view is judged again in each matched frame until ``RIM_JUDGE_FRAMES`` have,
     then keeps the model of median attenuation among theirs. ``for_attempt`` hands each
     attempt the settled views' models and None where its own frame is to judge (the list
-    ``core.pipeline.segment_and_match`` fills)."""
+    ``core.matching.loop.segment_and_match`` fills)."""
 
     def __init__(self, n_views: int) -> None:
         self.votes: list[list] = [[] for _ in range(n_views)]

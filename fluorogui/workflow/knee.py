@@ -37,7 +37,25 @@ KNEE_COMPONENTS = ("femoral", "tibial")
 
 @dataclass
 class KneeRow:
-    """One frame's kinematics with what it rests on."""
+    """One frame's kinematics with what it rests on (:meth:`Session.knee_rows`).
+
+    Attributes
+    ----------
+    frame : int
+    values : fluorogui.core.knee.kinematics.KneeKinematics
+        Flexion, varus, internal rotation (degrees), medial, anterior and distraction
+        translations (mm); NaN when ``status`` is ``missing``.
+    status : str
+        ``matched`` (both poses passed their checks), ``needs_review`` (one did not, or was
+        placed by hand) or ``missing`` (a pose is absent or failed).
+    reason : str
+        Why, when not ``matched``.
+    records : dict
+        Component name to its :class:`~fluorogui.core.records.PoseRecord` (or None).
+    sd : numpy.ndarray
+        The six values' standard deviations, propagated from the poses' SDs (NaN where a
+        match gave none).
+    """
 
     frame: int
     values: KneeKinematics
@@ -94,12 +112,34 @@ class KneeMixin:
     # -- side -------------------------------------------------------------------------------
     @property
     def side(self) -> str | None:
-        """``right``, ``left``, or None when nobody said (kinematics then assume right)."""
+        """The knee's side: ``"right"``, ``"left"``, or None when nobody said (kinematics are
+        then computed as a right knee)."""
         value = self._knee().get("side")
         return value if value in ("right", "left") else None
 
     def set_side(self, side: str) -> None:
-        """Set the knee's side (an undoable edit)."""
+        """Set the knee's side, as one undoable edit; it sets the signs of the kinematics.
+
+        Parameters
+        ----------
+        side : {"right", "left"}
+
+        Raises
+        ------
+        fluorogui.core.knee.kinematics.KinematicsError
+            Neither right nor left.
+
+        Examples
+        --------
+        >>> from fluorogui import Session
+        >>> from fluorogui.simulation.demo import demo_project_path
+        >>> session = Session.open(demo_project_path("cache", frames=2, image_size=256))
+        >>> session.side is None
+        True
+        >>> session.set_side("left")
+        >>> session.side
+        'left'
+        """
         self._push_knee("side", check_side(side), "Set knee side")
 
     def _push_knee(self, key: str, after, text: str) -> None:
@@ -119,7 +159,25 @@ class KneeMixin:
 
     # -- anatomical frames ----------------------------------------------------------------------
     def anatomical_frame(self, component: str) -> np.ndarray:
-        """The component's anatomical frame (4×4, anatomical → model): stored, else default."""
+        """The component's anatomical frame: the one a user set, else the default from its mesh.
+
+        Parameters
+        ----------
+        component : {"femoral", "tibial"}
+
+        Returns
+        -------
+        numpy.ndarray
+            4×4 rigid transform, anatomical → model coordinates (x to the subject's right,
+            y anterior, z proximal, origin at the joint centre).
+
+        Raises
+        ------
+        fluorogui.core.knee.kinematics.KinematicsError
+            No default frame can be found on the mesh.
+        fluorogui.io.errors.InputError
+            The mesh cannot be read.
+        """
         stored = self._knee().get("frames", {}).get(component)
         if isinstance(stored, dict) and "matrix" in stored:
             try:
@@ -141,7 +199,20 @@ class KneeMixin:
         return "user" if isinstance(stored, dict) and "matrix" in stored else "default"
 
     def set_anatomical_frame(self, component: str, matrix) -> None:
-        """Keep a user's frame (checked: rigid, det +1) in the project (an undoable edit)."""
+        """Keep a user's anatomical frame in the project, as one undoable edit.
+
+        Parameters
+        ----------
+        component : {"femoral", "tibial"}
+        matrix : array_like of shape (4, 4)
+            Anatomical → model coordinates.
+
+        Raises
+        ------
+        fluorogui.core.knee.kinematics.KinematicsError
+            The matrix is not a rigid transform (orthonormal, determinant +1, bottom row
+            0 0 0 1) within 1e-6.
+        """
         matrix = check_frame(matrix)
         self._push_knee(component, {"matrix": matrix.tolist(), "source": "user"},
                         f"Set {component} anatomical frame")
@@ -152,7 +223,31 @@ class KneeMixin:
 
     # -- kinematics ----------------------------------------------------------------------------
     def knee_rows(self, frames=None) -> list[KneeRow]:
-        """Kinematics of every frame (NaN with a reason where a component has no pose)."""
+        """The knee's kinematics frame by frame (Grood & Suntay), from the stored poses.
+
+        Parameters
+        ----------
+        frames : iterable of int, optional
+            Frame numbers; all by default.
+
+        Returns
+        -------
+        list of KneeRow
+            One per frame; NaN values with a reason where a component has no pose.
+
+        Examples
+        --------
+        >>> from fluorogui import Session
+        >>> from fluorogui.simulation.demo import demo_project_path
+        >>> session = Session.open(demo_project_path("cache", frames=2, image_size=256))
+        >>> session.set_pose("femoral", 1, [1.53, 7.51, 20.53, 28.03, 1.2, -1.58])
+        >>> session.set_pose("tibial", 1, [0.8, 1.0, -20.0, -12.02, 0.73, 3.42])
+        >>> row = session.knee_rows([1])[0]
+        >>> row.status
+        'needs_review'
+        >>> round(row.values.flexion_deg, 1)
+        40.0
+        """
         side = self.side or "right"
         absent = [c for c in KNEE_COMPONENTS if self.project.model(c) is None]
         anat = {c: self.anatomical_frame(c) for c in KNEE_COMPONENTS if c not in absent}

@@ -116,7 +116,52 @@ def fitted_outline(points: np.ndarray, weights: np.ndarray | None = None) -> Out
 
 
 class Session(WorkMixin, KneeMixin):
-    """One open project, its undo history and the work done on it."""
+    """One open project, its undo history and the work done on it.
+
+    The object the desktop app, the command line and scripts share: the same frame and
+    settings give the same pose in all three. Frames are addressed by their frame numbers
+    (the ``frame`` column of ``pairs.csv``), never by position. Every edit (a pose, an
+    outline, a review flag, a stored result) is an undoable command on ``history``.
+
+    Parameters
+    ----------
+    project : fluorogui.core.records.Project, optional
+        The project to work on; a new, empty one when omitted.
+    path : str or os.PathLike, optional
+        The project's file, where :meth:`save` writes by default.
+
+    Attributes
+    ----------
+    project : fluorogui.core.records.Project
+        Views, image sequences, models, outlines, poses and settings.
+    path : pathlib.Path or None
+        The project file, or None for a session never saved.
+    history : fluorogui.workflow.history.CommandStack
+        The undo history: ``history.undo()``, ``history.redo()``.
+    listeners : list of callable
+        Called as ``listener(event, what)`` on every change: ``("pose", (frame,
+        component))``, ``("outline", (frame, view, component))``, ``("knee", ...)``,
+        ``("project", None)``, ``("saved", path)``.
+
+    See Also
+    --------
+    Session.open : A session on a project file.
+    fluorogui.io.importer.import_folder : A project from a data folder.
+
+    Examples
+    --------
+    The built-in demo, built once into ``cache/`` (here at 256 × 256 pixels):
+
+        >>> from fluorogui import Session
+        >>> from fluorogui.simulation.demo import demo_project_path
+        >>> session = Session.open(demo_project_path("cache", frames=2, image_size=256))
+        >>> session.frames
+        [0, 1]
+        >>> session.components()
+        ['femoral', 'tibial']
+        >>> session.n_views
+        2
+    """
 
     def __init__(self, project: Project | None = None, path=None) -> None:
         self.project = project or Project()
@@ -134,14 +179,53 @@ class Session(WorkMixin, KneeMixin):
     # -- project lifecycle ---------------------------------------------------------------------
     @classmethod
     def open(cls, path) -> "Session":
-        """A session on a project file; raises InputError naming the file."""
+        """A session on a project file.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            A ``.fluoro`` project. Older schemas are upgraded in memory (and written in the
+            current schema on the next save).
+
+        Returns
+        -------
+        Session
+
+        Raises
+        ------
+        fluorogui.io.errors.InputError
+            The file is missing, unreadable, not a project, of a newer schema, or
+            contradicts itself; the message names the file and the field.
+
+        Examples
+        --------
+        >>> from fluorogui import Session
+        >>> from fluorogui.simulation.demo import demo_project_path
+        >>> session = Session.open(demo_project_path("cache", frames=2, image_size=256))
+        >>> session.path.name
+        'demo.fluoro'
+        """
         return cls(load_project(path), Path(path))
 
     @classmethod
     def of_images(cls, views, image_paths, models: dict) -> "Session":
-        """A session of one frame (numbered 0): one image file per view (``FILE@N`` for a
-        frame of a multi-frame file) and the models (component name -> mesh file). What
-        ``fluorogui match`` works on; nothing is saved unless asked."""
+        """A session of one frame (numbered 0) from files: what ``fluorogui match`` works on.
+
+        Parameters
+        ----------
+        views : sequence of fluorogui.core.projection.geometry.View
+            The calibrated views (one or two), e.g. from
+            :func:`fluorogui.io.calibration.load_view`.
+        image_paths : sequence of str or os.PathLike
+            One image per view; ``FILE@N`` is frame N of a multi-frame file or video.
+        models : dict of str to path
+            Component name (``"femoral"``, ``"tibial"``) to mesh file.
+
+        Returns
+        -------
+        Session
+            Unsaved (``path`` is None) until :meth:`save` is given a path.
+        """
         project = Project(views=list(views), sequences=[ImageSequence([Path(p)]) for p in image_paths], frames=[0],
                           models=[ModelEntry(name, Path(path)) for name, path in models.items()])
         return cls(project)
@@ -160,7 +244,38 @@ class Session(WorkMixin, KneeMixin):
         self._notify("project", None)
 
     def save(self, path=None) -> Path:
-        """Save atomically to ``path`` or the session's file (a backup of the old file is kept)."""
+        """Save the project atomically; the previous file is kept as ``NAME.fluoro.bak``.
+
+        Parameters
+        ----------
+        path : str or os.PathLike, optional
+            Where to save; by default the session's own file. Becomes the session's file.
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+
+        Raises
+        ------
+        ValueError
+            No path was given and the session has none.
+        fluorogui.io.errors.InputError
+            The file could not be written (the message names it).
+
+        Examples
+        --------
+        >>> from fluorogui import Session
+        >>> from fluorogui.simulation.demo import demo_project_path
+        >>> session = Session.open(demo_project_path("cache", frames=2, image_size=256))
+        >>> session.set_pose("femoral", 1, [1.5, 7.5, 20.5, 28.0, 1.2, -1.6])
+        >>> session.dirty
+        True
+        >>> session.save("edited.fluoro").name
+        'edited.fluoro'
+        >>> session.dirty
+        False
+        """
         target = Path(path) if path else self.path
         if target is None:
             raise ValueError("no file name to save to")
@@ -173,10 +288,25 @@ class Session(WorkMixin, KneeMixin):
         return target
 
     def save_frames(self, results) -> None:
-        """Save the stored results' frames without rewriting the project: their pose records
-        and automatic outlines (and the settings, when they changed) are appended to the
-        project's journal (``io.project.journal``), which opening the project takes in and
-        the next full ``save`` folds into the file."""
+        """Save the stored results' frames without rewriting the project.
+
+        Their pose records and automatic outlines (and the settings, when they changed) are
+        appended to the project's journal (``io.project.journal``), which opening the
+        project takes in and the next full :meth:`save` folds into the file. What
+        :meth:`track` does with ``autosave`` between full saves.
+
+        Parameters
+        ----------
+        results : iterable of FrameResult
+            Results already stored (:meth:`store`); kept ones are left out.
+
+        Raises
+        ------
+        ValueError
+            The session has no file name yet (save it once with :meth:`save`).
+        fluorogui.io.errors.InputError
+            The journal cannot be written.
+        """
         if self.path is None:
             raise ValueError("no file name to save to")
         results = [r for r in results if not r.kept]
@@ -190,6 +320,7 @@ class Session(WorkMixin, KneeMixin):
 
     @property
     def dirty(self) -> bool:
+        """True when there are edits since the last save (or since opening)."""
         return self.history.dirty
 
     def _notify(self, event: str, what) -> None:
@@ -199,19 +330,42 @@ class Session(WorkMixin, KneeMixin):
     # -- settings ----------------------------------------------------------------------------------
     @property
     def settings(self) -> WorkflowSettings:
+        """A copy of the workflow's settings kept in the project.
+
+        Change the copy and give it back with :meth:`set_settings`.
+
+        Examples
+        --------
+        >>> from fluorogui import Session
+        >>> from fluorogui.simulation.demo import demo_project_path
+        >>> session = Session.open(demo_project_path("cache", frames=2, image_size=256))
+        >>> settings = session.settings
+        >>> settings.loop.rim = "off"
+        >>> session.set_settings(settings)
+        >>> session.settings.loop.rim
+        'off'
+        """
         return WorkflowSettings.from_dict(self.project.settings.get(SETTINGS_KEY))
 
     def set_settings(self, settings: WorkflowSettings) -> None:
-        """Keep ``settings`` in the project (saved with it; not an undoable edit)."""
+        """Keep ``settings`` in the project (saved with it; not an undoable edit).
+
+        Parameters
+        ----------
+        settings : WorkflowSettings
+            The matcher, loop, quality and tracking settings every later match uses.
+        """
         self.project.settings[SETTINGS_KEY] = settings.to_dict()
 
     # -- frames, views, components -------------------------------------------------------------
     @property
     def frames(self) -> list[int]:
+        """The frame numbers, in order (a copy)."""
         return list(self.project.frames)
 
     @property
     def views(self):
+        """The calibrated views (:class:`~fluorogui.core.projection.geometry.View`), one per camera."""
         return list(self.project.views)
 
     @property
@@ -235,6 +389,7 @@ class Session(WorkMixin, KneeMixin):
         return frames[i]
 
     def components(self) -> list[str]:
+        """The components with a model, femoral first, then tibial, then any others."""
         names = [m.component for m in self.project.models]
         return sorted(names, key=lambda n: (COMPONENT_ORDER.index(n) if n in COMPONENT_ORDER else 99, n))
 
@@ -250,7 +405,33 @@ class Session(WorkMixin, KneeMixin):
         return [self.image_path(frame, v) for v in range(self.n_views)]
 
     def image(self, frame: int, view: int) -> np.ndarray:
-        """One image (cached); raises InputError naming the file, or saying it is missing."""
+        """One image of a frame, distortion-corrected for its view (cached).
+
+        Parameters
+        ----------
+        frame : int
+            A frame number.
+        view : int
+            The view's index (0 for the first camera).
+
+        Returns
+        -------
+        numpy.ndarray
+            2-D float32 in [0, 1], indexed ``[v, u]``.
+
+        Raises
+        ------
+        fluorogui.io.errors.InputError
+            The file cannot be read, or the camera has no image for this frame.
+
+        Examples
+        --------
+        >>> from fluorogui import Session
+        >>> from fluorogui.simulation.demo import demo_project_path
+        >>> session = Session.open(demo_project_path("cache", frames=2, image_size=256))
+        >>> session.image(0, 1).shape
+        (256, 256)
+        """
         path = self.image_path(frame, view)
         if path is None:
             n = len(self.project.sequences[view].paths) if view < len(self.project.sequences) else 0
@@ -268,7 +449,13 @@ class Session(WorkMixin, KneeMixin):
         return image
 
     def images(self, frame: int) -> list[np.ndarray]:
-        """The images of a frame, one per view; raises InputError."""
+        """The images of a frame, one per view (see :meth:`image`).
+
+        Raises
+        ------
+        fluorogui.io.errors.InputError
+            An image cannot be read or is missing.
+        """
         return [self.image(frame, v) for v in range(self.n_views)]
 
     def raw_mesh(self, component: str) -> tuple[np.ndarray, np.ndarray]:
@@ -298,7 +485,25 @@ class Session(WorkMixin, KneeMixin):
         self._notify("model", component)
 
     def mesh(self, component: str) -> PreparedMesh:
-        """The prepared mesh of a component (cached); raises InputError naming the file."""
+        """The component's mesh prepared for matching (cached).
+
+        Parameters
+        ----------
+        component : str
+            ``"femoral"``, ``"tibial"`` or another model's name.
+
+        Returns
+        -------
+        fluorogui.core.projection.mesh.PreparedMesh
+            Vertices (mm, the model's frame), faces, normals and edge adjacency.
+
+        Raises
+        ------
+        fluorogui.io.errors.InputError
+            The mesh file cannot be read or is not an implant-sized closed surface.
+        KeyError
+            The session has no such component.
+        """
         if component not in self._meshes:
             self._meshes[component] = prepared_model(self.project.model(component).mesh_path,
                                                      *self.raw_mesh(component))
@@ -306,11 +511,45 @@ class Session(WorkMixin, KneeMixin):
 
     # -- poses ---------------------------------------------------------------------------------
     def pose_record(self, component: str, frame: int) -> PoseRecord | None:
+        """The stored pose with its status, reason, review flag and match record, or None.
+
+        Examples
+        --------
+        >>> from fluorogui import Session
+        >>> from fluorogui.simulation.demo import demo_project_path
+        >>> session = Session.open(demo_project_path("cache", frames=2, image_size=256))
+        >>> record = session.pose_record("femoral", 0)
+        >>> str(record.status), record.reviewed
+        ('placed', False)
+        """
         return self.project.poses.get((frame, component))
 
     def pose(self, component: str, frame: int) -> np.ndarray:
-        """The component's pose in a frame: its own, else the nearest earlier (then later)
-        frame's, else a default placing the model where the two central rays meet."""
+        """The component's pose in a frame, or the best stand-in for one.
+
+        Its own stored pose; else the nearest earlier (then later) frame's; else a default
+        that puts the model where the views' central rays meet (one view: on its central
+        ray at 85 % of the source-intensifier distance).
+
+        Parameters
+        ----------
+        component : str
+        frame : int
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(x, y, z, alpha, beta, gamma)`` in mm and degrees: ``X = R m + t`` with
+            ``R = Ry(beta) Rz(gamma) Rx(alpha)``.
+
+        Examples
+        --------
+        >>> from fluorogui import Session
+        >>> from fluorogui.simulation.demo import demo_project_path
+        >>> session = Session.open(demo_project_path("cache", frames=2, image_size=256))
+        >>> session.pose("tibial", 0).round(1).tolist()
+        [2.5, -4.9, -15.0, -1.2, 2.1, 4.2]
+        """
         record = self.project.poses.get((frame, component))
         if record is not None:
             return record.pose.copy()
@@ -340,7 +579,31 @@ class Session(WorkMixin, KneeMixin):
         return np.concatenate([point - centroid, np.zeros(3)])
 
     def set_pose(self, component: str, frame: int, pose, text: str = "Move model", mergeable: bool = False) -> None:
-        """Set a pose by hand (status ``placed``) through the history."""
+        """Set a pose by hand (status ``placed``), as one undoable edit.
+
+        Parameters
+        ----------
+        component : str
+        frame : int
+        pose : array_like of 6 float
+            mm and degrees (the pose convention).
+        text : str, optional
+            The edit's name in the undo history.
+        mergeable : bool, optional
+            Merge with the previous edit if it was also a mergeable move (nudges).
+
+        Examples
+        --------
+        >>> from fluorogui import Session
+        >>> from fluorogui.simulation.demo import demo_project_path
+        >>> session = Session.open(demo_project_path("cache", frames=2, image_size=256))
+        >>> session.set_pose("femoral", 1, [1.5, 7.5, 20.5, 28.0, 1.2, -1.6])
+        >>> str(session.pose_record("femoral", 1).status)
+        'placed'
+        >>> session.history.undo()
+        >>> session.pose_record("femoral", 1) is None
+        True
+        """
         self._push_pose(component, frame, PoseRecord(as_pose(pose)), text, "move" if mergeable else None)
 
     def set_record(self, component: str, frame: int, record: PoseRecord | None, text: str) -> None:
@@ -348,7 +611,18 @@ class Session(WorkMixin, KneeMixin):
         self._push_pose(component, frame, record, text, None)
 
     def set_reviewed(self, component: str, frame: int, reviewed: bool = True) -> None:
-        """Accept (or reopen) a component's pose in a frame."""
+        """Accept (or reopen) a component's pose in a frame, as one undoable edit.
+
+        An accepted pose is never changed by matching or tracking, and flagged poses that
+        were accepted are written to ``.tra`` and ``.jts`` exports.
+
+        Parameters
+        ----------
+        component : str
+        frame : int
+        reviewed : bool, optional
+            True to accept, False to reopen.
+        """
         before = self.project.poses.get((frame, component))
         if before is None:
             after = PoseRecord(self.pose(component, frame), None, reviewed=reviewed)
@@ -358,8 +632,24 @@ class Session(WorkMixin, KneeMixin):
         self._push_pose(component, frame, after, "Accept pose" if reviewed else "Reopen pose", None)
 
     def place_at(self, component: str, frame: int, pixels) -> float:
-        """Point-and-click placement: move the model's centroid to where the rays through
-        ``pixels`` (one per view) meet, keeping its orientation. Returns the rays' miss (mm)."""
+        """Point-and-click placement in two views, keeping the model's orientation.
+
+        The model's centroid moves to where the rays through ``pixels`` meet (the middle of
+        their shortest connection); one undoable edit.
+
+        Parameters
+        ----------
+        component : str
+        frame : int
+        pixels : sequence of 2 (u, v)
+            The component's centre clicked in view 1 and in view 2 (pixels).
+
+        Returns
+        -------
+        float
+            How far the two rays miss each other (mm): large means the clicks do not show
+            the same point.
+        """
         point, miss = triangulate(self.project.views[:2], [np.asarray(p, float) for p in pixels])
         pose = self.pose(component, frame)
         R = rotation_matrix(*pose[3:])
@@ -395,16 +685,37 @@ class Session(WorkMixin, KneeMixin):
         return self.project.records.get(tuple(key))
 
     def outline_points(self, key) -> np.ndarray | None:
+        """A copy of an outline's points, ``(K, 2)`` pixels, or None.
+
+        Parameters
+        ----------
+        key : tuple
+            ``(frame, view, component)``.
+        """
         record = self.project.records.get(tuple(key))
         return None if record is None else record.points.copy()
 
     def set_outline(self, key, points, text: str = "Edit outline", reviewed: bool | None = True,
                     weights: np.ndarray | None = None) -> None:
-        """Change an outline through the history (None removes it). A user's edit marks the
-        outline reviewed (it is then used as it is); ``reviewed=None`` keeps the flag.
-        ``weights``: the points' weights in a match (``OutlineRecord.weights``); without
-        them an outline whose points stay the same keeps its weights (marking it reviewed
-        does not change how it matches), an edited one has none."""
+        """Change an outline, as one undoable edit.
+
+        Parameters
+        ----------
+        key : tuple
+            ``(frame, view, component)``.
+        points : array_like of shape (K, 2) or None
+            Ordered, closed outline in pixels (the last point not a repeat of the first);
+            None removes the outline.
+        text : str, optional
+            The edit's name in the undo history.
+        reviewed : bool or None, optional
+            True (a user's edit) marks the outline reviewed: matching then uses it as it
+            is. None keeps the flag it had.
+        weights : array_like of shape (K,), optional
+            The points' weights in a match (``OutlineRecord.weights``). Without them an
+            outline whose points stay the same keeps its weights (marking it reviewed does
+            not change how it matches); an edited one has none.
+        """
         key = (int(key[0]), int(key[1]), str(key[2]))
         before = self.project.records.get(key)
         if points is None:
@@ -451,9 +762,19 @@ class Session(WorkMixin, KneeMixin):
 
     # -- results -------------------------------------------------------------------------------
     def store(self, results: FrameResult | Iterable[FrameResult], text: str | None = None) -> None:
-        """Put match or tracking results into the project as one undoable step: the pose
-        record with its status and reason, and the automatic outlines (never replacing a
-        reviewed outline, never touching a pose the user accepted)."""
+        """Put match or tracking results into the project as one undoable step.
+
+        Each result's pose record (with its status and reason) and automatic outlines are
+        stored; a reviewed outline is never replaced and an accepted pose never touched.
+        Results marked ``kept`` are skipped. This is how the results of a job that ran
+        elsewhere (:meth:`match_job`, :meth:`track_job`) come back.
+
+        Parameters
+        ----------
+        results : FrameResult or iterable of FrameResult
+        text : str, optional
+            The step's name in the undo history (default: "Match ...").
+        """
         results = [results] if isinstance(results, FrameResult) else list(results)
         todo = [r for r in results if not r.kept]
         if not todo:
@@ -485,9 +806,19 @@ class Session(WorkMixin, KneeMixin):
 
     # -- the images' rim models -----------------------------------------------------------------
     def rim_models(self) -> dict[str, list[RimModel]]:
-        """Each component's rim models per view (``core.outlines.rim``: the metal's attenuation and
-        the images' blur), judged once in its first matched frames and kept in the project, so
-        that later matches and runs start from them instead of fitting them again."""
+        """Each component's rim models per view, as kept in the project.
+
+        The models (``core.outlines.rim.RimModel``: the metal's attenuation in 1/mm and the
+        images' blur in px) are judged in a component's first matched frames and kept in
+        ``project.settings["rim_models"]``, so that later matches and runs start from them
+        instead of fitting them again.
+
+        Returns
+        -------
+        dict of str to list of RimModel
+            By component, one model per view; components not judged yet (or whose entry
+            is damaged or has another number of views) are absent.
+        """
         out = {}
         for component, models in (self.project.settings.get(RIM_KEY) or {}).items():
             try:
@@ -505,6 +836,16 @@ class Session(WorkMixin, KneeMixin):
 
     # -- progress of the work --------------------------------------------------------------------
     def frame_state(self, frame: int) -> FrameState:
+        """How far the work on a frame has got (the timeline's colour).
+
+        Returns
+        -------
+        FrameState
+            ``NEEDS_REVIEW`` if any component needs review; ``REVIEWED`` if every
+            component is matched and accepted; ``MATCHED`` if every one is matched;
+            ``OUTLINED`` if any component has an outline in the frame; else ``EMPTY``
+            (also when a pose is only placed).
+        """
         names = self.components()
         if not names:
             return FrameState.EMPTY

@@ -13,7 +13,29 @@ SETTINGS_KEY = "workflow"
 
 @dataclass
 class TrackingSettings:
-    """How tracking predicts, recovers and treats overlapping components."""
+    """How tracking predicts, recovers and treats overlapping components.
+
+    Attributes
+    ----------
+    occlusion : bool
+        Mask the other component's projection out of segmentation and matching.
+    occlusion_margin_px : int
+        The mask grows by this much around the other's silhouette.
+    recover : bool
+        Try other starts when a frame fails its checks.
+    rotated_start_deg : float
+        Size of the turned starts tried in recovery.
+    find_near : bool
+        Last resort: search near the prediction (*find implants*).
+    typical_window : int
+        Matched frames whose residuals set the "typical" residual of the checks.
+    probe : bool
+        Without motion to go by, look for a second orientation that fits as well ...
+    probe_deg : float
+        ... this far either way about the least constrained axis ...
+    probe_ratio : float
+        ... and call the pose ambiguous when one fits within this factor.
+    """
 
     occlusion: bool = True  # mask the other component's projection out of segmentation and matching
     occlusion_margin_px: int = 3  # the mask grows by this much around the other's silhouette
@@ -37,17 +59,49 @@ class TrackingSettings:
 
 @dataclass
 class WorkflowSettings:
+    """Everything a match, a track and their checks are set by; kept in the project.
+
+    Read a copy with :attr:`Session.settings <fluorogui.workflow.session.Session.settings>`,
+    change it, and give it back with :meth:`Session.set_settings
+    <fluorogui.workflow.session.Session.set_settings>`.
+
+    Parameters
+    ----------
+    match : fluorogui.core.matching.problem.MatchSettings
+        The matcher: ``method`` (``"fast"`` or ``"paper"``), outline and model points,
+        convergence, robust loss, restarts.
+    loop : fluorogui.core.matching.loop.LoopSettings
+        The segment-match loop: passes, when it has settled, search bands, and ``rim``
+        (``"auto"``, ``"on"``, ``"off"``).
+    quality : fluorogui.core.matching.quality.QualityThresholds
+        The limits of the quality checks.
+    tracking : TrackingSettings
+        Prediction, recovery and occlusion in tracking.
+
+    Examples
+    --------
+    >>> from fluorogui import WorkflowSettings
+    >>> settings = WorkflowSettings()
+    >>> settings.match.method, settings.loop.rim, settings.quality.max_view_mm
+    ('fast', 'auto', 0.6)
+    >>> settings.loop.rim = "off"
+    >>> WorkflowSettings.from_dict(settings.to_dict()).loop.rim
+    'off'
+    """
+
     match: MatchSettings = field(default_factory=MatchSettings)
     loop: LoopSettings = field(default_factory=LoopSettings)
     quality: QualityThresholds = field(default_factory=QualityThresholds)
     tracking: TrackingSettings = field(default_factory=TrackingSettings)
 
     def to_dict(self) -> dict:
+        """Plain JSON-ready data, as the project stores it."""
         return {"match": self.match.to_dict(), "loop": self.loop.to_dict(), "quality": self.quality.to_dict(),
                 "tracking": asdict(self.tracking)}
 
     @classmethod
     def from_dict(cls, d: dict | None) -> "WorkflowSettings":
+        """Settings from :meth:`to_dict`'s data; missing or unknown entries take their defaults."""
         d = d if isinstance(d, dict) else {}
         match = MatchSettings()
         raw = d.get("match") if isinstance(d.get("match"), dict) else {}

@@ -104,8 +104,30 @@ class WorkMixin:
 
     # -- match -------------------------------------------------------------------------------------
     def match_job(self, frame: int, components=None) -> MatchJob:
-        """Match components in ``frame`` from their current poses (``pose`` fallback), with
-        their reviewed outlines as they are and the others masked where they overlap."""
+        """A job that matches components in ``frame``, to run anywhere (see :meth:`match`).
+
+        A snapshot of plain data (views, image paths, meshes, start poses, reviewed
+        outlines, the other components to mask, the settings) taken now; ``job.run()``
+        returns the results without touching the session, so it can run in a worker thread
+        or another process; :meth:`store` puts them in.
+
+        Parameters
+        ----------
+        frame : int
+        components : str or sequence of str, optional
+            As for :meth:`match`.
+
+        Returns
+        -------
+        MatchJob
+
+        Raises
+        ------
+        KeyError
+            The frame or a component is not in the project.
+        fluorogui.io.errors.InputError
+            A mesh cannot be read.
+        """
         frame = self._check_frame(frame)
         names = self._components(components)
         settings = self.settings
@@ -123,20 +145,77 @@ class WorkMixin:
         return MatchJob(self.views, frame, self.image_paths(frame), inputs, fixed, settings, self.rim_models())
 
     def match(self, frame: int, components=None, live=None, cancel=None) -> list[FrameResult]:
-        """Match and store (one undoable step); returns the results. Raises ``Cancelled``
-        (nothing stored) when ``cancel()`` turns true."""
+        """Match components in one frame from their current poses, and store the results.
+
+        Each component goes through the one per-frame matcher of the app, the command line
+        and tracking: from :meth:`pose` (its own, else a neighbour's, else a default), its
+        reviewed outlines as they are and the rest segmented automatically, the other
+        components masked where they overlap, every quality check, and recovery from other
+        starts when a check fails. The results are stored as one undoable step.
+
+        Parameters
+        ----------
+        frame : int
+            A frame number.
+        components : str or sequence of str, optional
+            ``"femoral"``, ``"tibial"``, a list of them, or ``"both"``; all by default.
+        live : callable, optional
+            ``live(component, calls, objective_mm, pose)`` after every step of the
+            optimiser (the app's live overlay).
+        cancel : callable, optional
+            Polled during the work; when it returns True the match stops.
+
+        Returns
+        -------
+        list of FrameResult
+            One per component, in the session's component order.
+
+        Raises
+        ------
+        fluorogui.core.cancel.Cancelled
+            ``cancel()`` turned true; nothing is stored.
+        fluorogui.io.errors.InputError
+            An image or mesh is missing or unreadable.
+        KeyError
+            The frame or a component is not in the project.
+
+        Examples
+        --------
+        >>> from fluorogui import Session
+        >>> from fluorogui.simulation.demo import demo_project_path
+        >>> session = Session.open(demo_project_path("cache", frames=2, image_size=256))
+        >>> result, = session.match(0, "femoral")
+        >>> result.component, str(result.status)
+        ('femoral', 'matched')
+        >>> truth = session.project.settings["demo_truth"]["0"]["femoral"]  # the demo knows
+        >>> max(abs(a - b) for a, b in zip(result.pose, truth)) < 0.25      # mm and degrees
+        True
+        >>> session.history.undo()                  # the match was one undoable step
+        """
         results = self.match_job(frame, components).run(live, cancel)
         self.store(results)
         return results
 
     # -- find --------------------------------------------------------------------------------------
     def find_job(self, frame: int, components=None) -> FindJob:
+        """A job that finds components in ``frame`` with no start, to run anywhere.
+
+        ``job.run()`` returns the placements (see :meth:`find`) without touching the
+        session; :meth:`store_placements` puts the confident ones in.
+        """
         frame = self._check_frame(frame)
         meshes = {c: self.mesh(c) for c in self._components(components)}
         return FindJob(self.views, frame, self.image_paths(frame), meshes)
 
     def store_placements(self, placements: dict[str, Placement]) -> None:
-        """Put the confidently found components at their poses (status ``placed``)."""
+        """Put the confidently found components at their poses (status ``placed``), as one
+        undoable step; placements that are not ``found`` are left out.
+
+        Parameters
+        ----------
+        placements : dict of str to Placement
+            What :meth:`find` or a find job returned.
+        """
         found = [p for p in placements.values() if p.found and p.pose is not None]
         if not found:
             return
@@ -148,8 +227,37 @@ class WorkMixin:
             self.history.end_macro()
 
     def find(self, frame: int, components=None, progress=None, cancel=None) -> dict[str, Placement]:
-        """Find and store the confident placements; returns every placement. Raises
-        ``Cancelled`` (nothing stored) when ``cancel()`` turns true."""
+        """Find the components in a frame with no start pose (*find implants*).
+
+        Only confident placements are stored (status ``placed``, one undoable step); the
+        others say why in their ``reason``. Needs two views.
+
+        Parameters
+        ----------
+        frame : int
+        components : str or sequence of str, optional
+            As for :meth:`match`; all by default.
+        progress : callable, optional
+            ``progress(fraction, text)`` as the search goes.
+        cancel : callable, optional
+            Polled during the search.
+
+        Returns
+        -------
+        dict of str to Placement
+            Every component's placement, found or not.
+
+        Raises
+        ------
+        fluorogui.core.cancel.Cancelled
+            ``cancel()`` turned true; nothing is stored.
+        ValueError
+            The session does not have two views.
+
+        See Also
+        --------
+        fluorogui.core.search.find.find_components : The search itself.
+        """
         placements = self.find_job(frame, components).run(progress, cancel)
         self.store_placements(placements)
         return placements
@@ -157,12 +265,20 @@ class WorkMixin:
     # -- track -------------------------------------------------------------------------------------
     def track_job(self, frames: Sequence[int] | None = None, components=None, redo: bool = False,
                   first: int | None = None, last: int | None = None, run: str | None = None) -> TrackJob:
-        """Tracking of ``components`` through ``frames`` (default: ``first``..``last`` of the
-        project's frames, both included). Starts from the nearest matched frame at or before
-        the first; where there is none, from a pose placed in the first frame, else it
-        searches (*find implants*). Accepted poses are kept; with ``redo`` False, so are
-        poses already matched (a killed run resumes where it stopped); with ``run``, so are
-        poses this same run (a retried batch task) already matched, even with ``redo``."""
+        """A tracking job, to run anywhere (see :meth:`track` for the parameters).
+
+        A snapshot of everything tracking needs; ``job.run(progress, cancel)`` yields
+        results per frame without touching the session, so the app runs it in its worker
+        thread and ``fluorogui batch`` in Dask workers. Starts from the nearest matched frame
+        at or before the first; where there is none, from a pose placed in the first frame,
+        else it searches (*find implants*). Accepted poses are kept; with ``redo`` False, so
+        are poses already matched; with ``run``, so are poses this same run (a retried batch
+        task) already matched, even with ``redo``.
+
+        Returns
+        -------
+        fluorogui.workflow.tracking.TrackJob
+        """
         names = self._components(components)
         if frames is None:
             frames = frames_between(self.project.frames, first, last)
@@ -203,14 +319,70 @@ class WorkMixin:
               progress: TrackProgress | None = None, cancel: Callable[[], bool] | None = None,
               autosave: bool = False, first: int | None = None, last: int | None = None,
               run: str | None = None, workers: int = 1) -> Iterator[FrameResult]:
-        """Track and store frame by frame, yielding every result; with ``autosave`` every
-        frame is saved as it is stored (appended to the project's journal, see
-        ``save_frames``) and the whole project is saved every ``FULL_SAVE_FRAMES`` frames and
-        at the end, so a killed run loses at most the frame in progress. ``run`` names this run in the
-        stored match records (see ``track_job``). With ``workers`` > 1 the frames are cut
-        into that many consecutive runs tracked in parallel processes (``TrackJob.split``:
-        every run after the first starts by finding the implants); results then arrive
-        frame by frame but not in frame order."""
+        """Track components through frames, storing and yielding every result.
+
+        Starts from the nearest matched frame at or before the first; where there is none,
+        from a pose placed in the first frame, else it searches (*find implants*). Each frame
+        is predicted from the last matched ones, matched with the other components masked,
+        checked, and recovered from other starts when a check fails; what still fails is
+        flagged (``needs_review`` or ``failed``) and tracking goes on. Tracking goes both
+        ways: a component's failed frames are held back until it matches again, then tracked
+        backward from there (the better result of the two directions is kept), and frames
+        before the first one found are tracked back to the start; results still come out
+        once per frame and component, in frame order. Accepted poses are kept, and so are
+        matched ones unless ``redo``, so a stopped run resumes where it stopped. Each frame
+        is stored as one undoable step as it finishes.
+
+        Parameters
+        ----------
+        frames : sequence of int, optional
+            The frame numbers to track, in order; default ``first`` .. ``last``.
+        components : str or sequence of str, optional
+            As for :meth:`match`; all by default.
+        redo : bool, optional
+            Match again frames already matched (accepted ones are still kept).
+        progress : callable, optional
+            ``progress(done, total, frame, text)`` after every frame.
+        cancel : callable, optional
+            Polled during the work; tracking stops at the next check.
+        autosave : bool, optional
+            Save every frame as it is stored: appended to the project's journal
+            (:meth:`save_frames`), with the whole project saved every ``FULL_SAVE_FRAMES``
+            frames and at the end, so a killed run loses at most the frame in progress.
+        first, last : int, optional
+            The first and last frame numbers (both included) when ``frames`` is not given;
+            default the project's first and last.
+        run : str, optional
+            Names this run in the stored match records (a retried batch task keeps the
+            frames its run already matched).
+        workers : int, optional
+            With more than 1, the frames are cut into that many consecutive runs tracked
+            in parallel processes (every run after the first starts by finding the
+            implants); results then arrive frame by frame but not in frame order.
+
+        Yields
+        ------
+        FrameResult
+            One per frame and component, as each frame finishes.
+
+        Raises
+        ------
+        fluorogui.core.cancel.Cancelled
+            ``cancel()`` turned true; the frames finished before stay stored.
+        KeyError
+            A frame or component is not in the project.
+
+        Examples
+        --------
+        >>> from fluorogui import Session
+        >>> from fluorogui.simulation.demo import demo_project_path
+        >>> session = Session.open(demo_project_path("cache", frames=2, image_size=256))
+        >>> results = list(session.track(components="femoral"))
+        >>> [(r.frame, str(r.status)) for r in results]
+        [(0, 'matched'), (1, 'matched')]
+        >>> session.frame_state(1).name
+        'OUTLINED'
+        """
         job = self.track_job(frames, components, redo, first, last, run)
         if workers > 1 and len(job.frames) >= 4:
             from fluorogui.workflow.tracking import run_parallel

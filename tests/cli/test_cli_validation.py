@@ -50,7 +50,7 @@ def test_small_idealized_case_on_xray_images(tray, tmp_path, capsys):
     mean_deg = max(abs(float(r[f"{d}_mean"])) for r in rows for d in ("dalpha", "dbeta", "dgamma"))
     assert f"/ {mean_deg:.3f} deg (mean over cases" in out
     # the edges of real (blurred, thin-rimmed) metal sit inside its silhouette, which plain
-    # Canny outlines do not model: measured worst 0.181 mm / 0.232 deg at 512 px (see README)
+    # Canny outlines do not model: measured worst 0.181 mm / 0.232 deg at 512 px
     err = _errors(payload)
     assert err[:, :3].max() < 0.36 and err[:, 3:].max() < 0.46, err
 

@@ -42,7 +42,15 @@ class KinematicsError(ValueError):
 
 @dataclass(frozen=True)
 class KneeKinematics:
-    """The six joint values of one frame (degrees, millimetres)."""
+    """The six joint values of one frame (degrees, millimetres).
+
+    Attributes
+    ----------
+    flexion_deg, varus_deg, internal_deg : float
+        Flexion, varus (adduction) and internal rotation of the tibia, degrees.
+    medial_mm, anterior_mm, distraction_mm : float
+        Medial, anterior and distal (distraction) translation of the tibia, mm.
+    """
 
     flexion_deg: float
     varus_deg: float
@@ -89,8 +97,30 @@ def check_frame(matrix, tolerance: float = 1e-6) -> np.ndarray:
 
 
 def joint_kinematics(femur_world, tibia_world, side: str = "right") -> KneeKinematics:
-    """Grood & Suntay values from the anatomical frames placed in the world (4×4 each:
-    anatomical → world, i.e. pose matrix @ anatomical frame)."""
+    """Grood & Suntay values from the two anatomical frames placed in the world.
+
+    Parameters
+    ----------
+    femur_world, tibia_world : array_like of shape (4, 4)
+        Anatomical → world: the component's pose matrix times its anatomical frame.
+    side : {"right", "left"}, optional
+        The knee's side; for a left knee varus, internal rotation and medial are mirrored
+        back so the names keep their meaning.
+
+    Returns
+    -------
+    KneeKinematics
+        All NaN when a frame is not finite or at gimbal lock (varus of ±90°).
+
+    Examples
+    --------
+    The tibia's frame built from six values, and the values back:
+
+    >>> import numpy as np
+    >>> tibia = relative_pose_from_kinematics([30, 2, 5, 1, 3, 40])
+    >>> np.round(joint_kinematics(np.eye(4), tibia).values(), 6).tolist()
+    [30.0, 2.0, 5.0, 1.0, 3.0, 40.0]
+    """
     side = check_side(side)
     F = np.asarray(femur_world, dtype=float)
     T = np.asarray(tibia_world, dtype=float)
@@ -123,8 +153,40 @@ def joint_kinematics(femur_world, tibia_world, side: str = "right") -> KneeKinem
 
 def knee_kinematics(femoral_pose_matrix, tibial_pose_matrix, femoral_frame, tibial_frame,
                     side: str = "right") -> KneeKinematics:
-    """Kinematics from the two model poses (4×4, model → world) and anatomical frames
-    (4×4, anatomical → model)."""
+    """Knee kinematics (Grood & Suntay) from the two components' poses and anatomical frames.
+
+    Parameters
+    ----------
+    femoral_pose_matrix, tibial_pose_matrix : array_like of shape (4, 4)
+        The components' poses as model → world matrices
+        (:func:`fluorogui.core.projection.pose.pose_to_matrix`).
+    femoral_frame, tibial_frame : array_like of shape (4, 4)
+        Anatomical → model frames (:func:`fluorogui.core.knee.anatomy.default_frame`, or
+        the user's; :func:`check_frame` checks one).
+    side : {"right", "left"}, optional
+
+    Returns
+    -------
+    KneeKinematics
+
+    Raises
+    ------
+    KinematicsError
+        ``side`` is neither right nor left.
+
+    Examples
+    --------
+    Both components upright and 40 mm apart along the tibial axis: no flexion, 40 mm of
+    distraction.
+
+    >>> import numpy as np
+    >>> from fluorogui.core.projection.pose import pose_to_matrix
+    >>> femur = pose_to_matrix([0, 0, 40, 0, 0, 0])
+    >>> tibia = pose_to_matrix([0, 0, 0, 0, 0, 0])
+    >>> k = knee_kinematics(femur, tibia, np.eye(4), np.eye(4), side="right")
+    >>> round(k.flexion_deg, 6), round(k.distraction_mm, 6)
+    (0.0, 40.0)
+    """
     return joint_kinematics(np.asarray(femoral_pose_matrix) @ femoral_frame,
                             np.asarray(tibial_pose_matrix) @ tibial_frame, side)
 

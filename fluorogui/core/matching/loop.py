@@ -114,10 +114,10 @@ def refine_rims(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.n
                 models: list[RimModel | None] | None = None,
                 only: Sequence[int] | None = None) -> tuple[list[np.ndarray | None], list[RimModel | None], list]:
     """Automatic outlines moved to the boundary the metal's rim profile gives at ``pose``
-    (``core.rim``), per view (None stays None; views not in ``only`` stay as they are),
+    (``core.outlines.rim``), per view (None stays None; views not in ``only`` stay as they are),
     each image's rim model (fitted unless given in ``models``; the views fitted
     together, one attenuation for the component's metal) and each outline's point
-    weights (``core.profile_fit.precision_weights``; None for the outlines not refined), for
+    weights (``core.outlines.profile_fit.precision_weights``; None for the outlines not refined), for
     ``fit_splines``."""
     models = list(models) if models is not None else [None] * len(views)
     refined = list(outlines)
@@ -135,11 +135,11 @@ def refine_rims(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.n
 
 def soft_edge_views(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.ndarray | None],
                     occluded=None, models: list[RimModel | None] | None = None) -> tuple[list[int], list]:
-    """The views (with an outline) whose edge is a soft rim (``core.rim.is_soft``), judged
+    """The views (with an outline) whose edge is a soft rim (``core.outlines.rim.is_soft``), judged
     at ``pose`` by each image's rim model: the one in ``models`` or, where that is None,
-    ``core.rim.edge_model`` (a quick fit where that finds a step, else the full one the
+    ``core.outlines.rim.edge_model`` (a quick fit where that finds a step, else the full one the
     refinement uses). Where two or more views judged here are soft, their models are
-    fitted again together (``core.rim.rim_models_together``: one attenuation for the
+    fitted again together (``core.outlines.rim.rim_models_together``: one attenuation for the
     component's metal: a noisy view's own varies by several per cent, and over three
     noise draws the views' own moved a 15 % smaller femur 0.004-0.024 deg further from
     the truth than the shared one). Returns the views and the models."""
@@ -188,8 +188,49 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
                       loop: LoopSettings | None = None, splines: Sequence[OutlineSpline | None] | None = None,
                       occluded: Sequence | None = None, progress=None, cancel=None,
                       rim_models: list[RimModel | None] | None = None) -> MatchResult:
-    """Match one component in one frame from ``start`` (mm, degrees).
+    """Match one component in one frame from ``start`` (mm, degrees), segmenting its outlines.
 
+    The one segment -> match -> re-segment loop of the app, the command line, tracking and
+    scripts.
+
+    Parameters
+    ----------
+    images : sequence of numpy.ndarray
+        One image per view, float in [0, 1].
+    views : sequence of View
+    mesh : PreparedMesh
+    start : array_like of 6 float
+        The start pose, mm and degrees.
+    settings : MatchSettings, optional
+        The matcher's settings (default: the fast method).
+    loop : LoopSettings, optional
+        Passes, when the loop has settled, search bands and the rim refinement.
+    splines : sequence of OutlineSpline or None, optional
+        Reviewed outlines per view (None where a view has none): used as they are.
+    occluded : sequence of numpy.ndarray or None, optional
+        Per view, a boolean mask of where another component hides this one.
+    progress, cancel : callable, optional
+        As for :func:`~fluorogui.core.matching.matcher.match`.
+    rim_models : list, optional
+        Per view, the rim model fitted in an earlier frame of the sequence (None entries
+        are filled in here, for the next frame).
+
+    Returns
+    -------
+    MatchResult
+        As :func:`~fluorogui.core.matching.matcher.match` returns, plus ``splines`` (the
+        outlines it was matched on), ``image_outlines`` (the automatic ones), their
+        ``outline_weights`` and ``passes``.
+
+    Raises
+    ------
+    SegmentationError
+        No outline could be traced in the first pass.
+    fluorogui.core.cancel.Cancelled
+        ``cancel()`` turned true.
+
+    Notes
+    -----
     ``splines`` are given (reviewed) outlines, per view, None where a view has none. With
     a given outline in every view: one match on them. Otherwise the missing views are
     segmented along the pose and matched, again and again (at least ``loop.min_passes``,
@@ -201,7 +242,7 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
     points' weights and the number of passes.
 
     With ``loop.rim`` "on" the passes after the first move the automatic outlines to the
-    boundary the metal's rim profile gives (``core.rim``); with "auto" (the default) only
+    boundary the metal's rim profile gives (``core.outlines.rim``); with "auto" (the default) only
     in the views whose edge the second pass finds soft (``soft_edge_views``: a thin rim
     darkening inside the silhouette, where Canny's outline lies inside it and the pose
     would be biased; real images have shown step edges, which stay as Canny puts them).
@@ -211,7 +252,25 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
     first refining pass also matches the plain outlines and the refined ones are kept only
     when they fit the model better (a lower objective); otherwise the loop goes on without
     them. ``result.settings["rim_refined"]`` says per view whether the result's outline
-    was refined."""
+    was refined.
+
+    Examples
+    --------
+    The demo's femoral component from a start 2-3 mm / degrees off:
+
+    >>> import numpy as np
+    >>> from fluorogui import Session
+    >>> from fluorogui.core.matching.loop import LoopSettings
+    >>> from fluorogui.simulation.demo import demo_project_path
+    >>> session = Session.open(demo_project_path("cache", frames=2, image_size=256))
+    >>> truth = np.array(session.project.settings["demo_truth"]["0"]["femoral"])
+    >>> result = segment_and_match(session.images(0), session.views, session.mesh("femoral"),
+    ...                            truth + [2, -2, 1, 3, -2, 2], loop=LoopSettings(rim="off"))
+    >>> result.converged, result.passes >= 2
+    (True, True)
+    >>> bool(np.abs(result.pose - truth).max() < 0.5)
+    True
+    """
     settings = settings or MatchSettings()
     loop = loop or LoopSettings()
     pose = np.asarray(start, dtype=float)

@@ -27,8 +27,62 @@ from fluorogui.core.projection.pose import as_pose
 
 def match(problem: MatchProblem, start, settings: MatchSettings | None = None,
           progress: ProgressCallback | None = None, cancel: Callable[[], bool] | None = None) -> MatchResult:
-    """Find the pose of ``problem``'s component from ``start`` (mm, degrees); raises
-    ``Cancelled`` when ``cancel()`` turns true."""
+    """The pose of one component from its outlines in one or two views (Eq. 4-6).
+
+    Runs the method ``settings.method`` from ``start`` (and ``settings.starts - 1``
+    perturbed starts; the best is kept), then judges the result on its own evidence
+    (:func:`~fluorogui.core.matching.quality.check_match`) and computes its uncertainty.
+
+    Parameters
+    ----------
+    problem : MatchProblem
+        The mesh, the views and one image outline spline per view (and optional
+        occlusion masks).
+    start : array_like of 6 float
+        The start pose, mm and degrees.
+    settings : MatchSettings, optional
+        Defaults to ``MatchSettings()`` (the fast method).
+    progress : callable, optional
+        ``progress(calls, objective_mm, pose)`` after every step.
+    cancel : callable, optional
+        Polled; when it returns True the match stops.
+
+    Returns
+    -------
+    MatchResult
+        ``pose``, ``objective_mm`` (sum over views of the mean outline distance, mm on the
+        intensifier), ``per_view_mean_mm``, ``calls``, ``seconds``, ``sd`` (six SDs) and
+        ``converged``: the optimiser stopped *and* the checks passed (else ``message``
+        says what failed).
+
+    Raises
+    ------
+    ValueError
+        An unknown method or settings no match can use (e.g. fewer than 8 outline points).
+    fluorogui.core.cancel.Cancelled
+        ``cancel()`` turned true.
+
+    See Also
+    --------
+    fluorogui.core.matching.loop.segment_and_match : From images, with automatic outlines.
+
+    Examples
+    --------
+    Match the demo's femoral component on its outlines traced at the true pose:
+
+    >>> import numpy as np
+    >>> from fluorogui import Session
+    >>> from fluorogui.core.matching.loop import splines_from_images
+    >>> from fluorogui.core.matching.problem import MatchProblem
+    >>> from fluorogui.simulation.demo import demo_project_path
+    >>> session = Session.open(demo_project_path("cache", frames=2, image_size=256))
+    >>> truth = np.array(session.project.settings["demo_truth"]["0"]["femoral"])
+    >>> mesh = session.mesh("femoral")
+    >>> splines = splines_from_images(session.images(0), session.views, mesh, truth)
+    >>> result = match(MatchProblem(mesh, session.views, splines), truth + [2, -1, 1, 3, -2, 2])
+    >>> result.converged, bool(np.abs(result.pose - truth).max() < 0.5)
+    (True, True)
+    """
     settings = settings or MatchSettings()
     start = as_pose(start)
     if settings.method not in ("fast", "paper"):

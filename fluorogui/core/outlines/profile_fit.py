@@ -1,4 +1,4 @@
-"""Numeric helpers the rim fit (``core.rim``) and the second-edge fit (``core.second_edge``)
+"""Numeric helpers the rim fit (``core.outlines.rim``) and the second-edge fit (``core.outlines.second_edge``)
 share: batched linear least squares over per-point basis functions, a median along a
 closed outline, the precision of the fits along it (the rim's point weights), a closed
 outline's curvature, and the rule that leaves out fits pulled off by another edge."""

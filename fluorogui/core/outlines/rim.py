@@ -15,7 +15,7 @@ This module moves every outline point to the boundary that explains the image ar
 
 1. At the matched pose, the model's own path length profile ``L_i(x)`` is cast along
    the model outline's outward normal at the point (rays from the source through the
-   mesh, ``core.path_length.path_lengths``): how the metal thickens with the distance ``x`` inside.
+   mesh, ``core.projection.path_length.path_lengths``): how the metal thickens with the distance ``x`` inside.
 2. The pixels around the point (exact pixel values, no interpolation) are compared
    with ``(B + G s)(1 - t) + O t``, ``t = blur_sigma[1 - exp(-mu L_i(s0 - s))]``, for
    candidate boundary positions ``s0`` along the normal: ``B`` the background, ``G`` its
@@ -42,11 +42,11 @@ This module moves every outline point to the boundary that explains the image ar
    rim; with even weights those stretches set the pose's noise.
 
 A bone's edge within a few pixels outside the outline is part of the model instead
-(``core.second_edge``): found on the image's outer profile, its light ``exp(-k sqrt)``
+(``core.outlines.second_edge``): found on the image's outer profile, its light ``exp(-k sqrt)``
 multiplies the background of the points beside it.
 
 The profile shape comes from the mesh at the current pose, so the refinement runs in the
-automatic outline loop's later passes (``core.pipeline``, where the refined outline is
+automatic outline loop's later passes (``core.matching.loop``, where the refined outline is
 kept only if it fits the model better than the plain one), never on reviewed outlines.
 On the X-ray model the refined outline lies within about 0.05 px of the silhouette on
 average. Real images (edge enhancement, scatter, an unknown display curve) are not yet
@@ -518,7 +518,7 @@ def _fit_models(views_pts: list[_Points], usable: list[np.ndarray], smooth: int,
 #: a fitted attenuation (1/mm) below this is a soft rim (``is_soft``). The X-ray model's
 #: cobalt-chrome (1/mm) fits 1.0-1.4; the real biplane views 2-50 (76 of 106 the grid's
 #: step of 50) but 3 of 106 at 1.0-1.4 (the full fit, ``rim_model``, at the listed poses
-#: of every frame, ad hoc): a narrow margin, see the README
+#: of every frame, ad hoc): a narrow margin (docs/methods/outlines.rst, When the loop refines)
 SOFT_BELOW_MU = 1.7
 #: the quick fit (``edge_model``) calls an edge a step above this, and the full fit decides
 #: below it: it saw soft rims in 40 % of the real views the full fit calls steps, fits of

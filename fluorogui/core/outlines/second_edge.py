@@ -1,6 +1,6 @@
 """A second edge just outside a component's rim: a bone's cortex beside the metal.
 
-The rim fit (``core.rim``) explains the pixels around each outline point by the metal's
+The rim fit (``core.outlines.rim``) explains the pixels around each outline point by the metal's
 blurred profile over a background with a slope. Where a bone's edge runs within a few
 pixels outside the outline, the background is not a slope: behind a cylinder-like bone
 the path length grows like the square root of the distance inside its edge, so the light

@@ -29,7 +29,7 @@ class PreparedMesh:
     centroid: np.ndarray  # (3,) area-weighted surface centroid
     radius: float  # RMS distance of the surface from the centroid
     area: float
-    #: derived data kept between calls (``core.silhouette``'s facing references); not part
+    #: derived data kept between calls (``core.projection.silhouette``'s facing references); not part
     #: of the mesh's identity, and a copy (``dataclasses.replace``) starts without it
     cache: dict = field(default_factory=dict, init=False, compare=False, repr=False)
 

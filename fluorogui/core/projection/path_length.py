@@ -1,5 +1,5 @@
 """Path lengths through a closed mesh along a view's rays: how much metal each pixel's ray
-crosses, the quantity the rim profile model (``core.rim``) turns into darkening."""
+crosses, the quantity the rim profile model (``core.outlines.rim``) turns into darkening."""
 from __future__ import annotations
 
 import numpy as np

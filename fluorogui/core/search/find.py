@@ -20,7 +20,7 @@ predicted one (tracking recovery), and say honestly when it could not.
    edge score.
 3. *Final fit.* The best candidate (and the runner-up when its edge score is within
    ``CLOSE_SCORE``) is matched on Canny outlines with the full mesh
-   (``pipeline.match_images``, one pass; a second when the pose moved more than
+   (``core.matching.loop.match_images``, one pass; a second when the pose moved more than
    ``SETTLED`` so that the outline was segmented along a different pose).
 4. *The others masked.* Each component after the first is searched with the projections
    of those already found masked: in the edge maps (the pixels they cover score as a
@@ -101,7 +101,33 @@ ProgressFn = Callable[[float, str], None]
 
 @dataclass
 class Placement:
-    """Where ``find_components`` put one component, and how sure it is."""
+    """Where :func:`find_components` put one component, and how sure it is.
+
+    Attributes
+    ----------
+    component : str
+    pose : numpy.ndarray or None
+        mm and degrees (the pose convention), refined on Canny outlines; None if nothing
+        usable was found.
+    found : bool
+        True only when the search is confident (both views fit, no other orientation fits
+        about as well); only then is the pose stored.
+    iou : list of float
+        Per view, the overlap of the silhouette with the region inside the image outline.
+    objective_mm : float
+        The match objective on the Canny outlines at ``pose`` (NaN if none).
+    per_view_mean_mm : list of float
+        Mean outline distance per view.
+    reason : str
+        Empty when found; otherwise why not, in plain words.
+    seconds : float
+    edge_score : list of float
+        Per view, the oriented edge score (about 0.8-1 at a right pose).
+    alternatives : list
+        ``(edge score, pose)`` of the candidates considered, best first.
+    frame : int
+        The frame it was searched in.
+    """
 
     component: str
     pose: np.ndarray | None  # mm, deg (DESIGN.md convention), refined on Canny outlines; None if nothing usable
@@ -116,7 +142,15 @@ class Placement:
     frame: int = 0  # the frame it was searched in (the workflow's frame number)
 
     def describe(self) -> str:
-        """One line for the user: found (with its overlap) or why not."""
+        """One line for the user: found (with its overlap) or why not.
+
+        Examples
+        --------
+        >>> from fluorogui import Placement
+        >>> Placement("tibial", None, False, [0.81, 0.77], float("nan"), [], "no candidate fits both views",
+        ...           1.2).describe()
+        'tibial: not placed (no candidate fits both views; overlap 79 %)'
+        """
         overlap = f"overlap {100 * float(np.mean(self.iou)):.0f} %" if self.iou else "no overlap"
         if self.found:
             return f"{self.component}: found ({overlap})"
@@ -462,10 +496,51 @@ def _find_one(name, mesh, images, views, maps, rounds, near_pose, steps: _Steps,
 def find_components(images: Sequence[np.ndarray], views: Sequence[View], meshes: dict[str, PreparedMesh],
                     near: dict[str, np.ndarray] | None = None, progress: ProgressFn | None = None,
                     cancel: Callable[[], bool] | None = None) -> dict[str, Placement]:
-    """Every component in ``meshes`` (name -> PreparedMesh) located in the two images.
-    With ``near`` (name -> predicted pose), search only near those poses (tracking
-    recovery). ``progress(fraction, text)`` is called as it goes; when ``cancel()``
-    returns True it raises Cancelled."""
+    """Locate every component in an image pair with no start pose (*find implants*).
+
+    Dark regions propose positions, thousands of orientations are scored on oriented edge
+    maps, the best candidates are refined on the image edges and matched on Canny
+    outlines, and each is judged; see the methods page *Find implants*. Positions where a
+    component was already found are skipped for the next one.
+
+    Parameters
+    ----------
+    images : sequence of 2 numpy.ndarray
+        The frame's images, float in [0, 1].
+    views : sequence of 2 View
+        Their calibrated views.
+    meshes : dict of str to PreparedMesh
+        Component name to its prepared mesh.
+    near : dict of str to array_like, optional
+        Component name to a predicted pose: search only near it (tracking's recovery).
+    progress : callable, optional
+        ``progress(fraction, text)`` as it goes.
+    cancel : callable, optional
+        Polled; when it returns True the search stops.
+
+    Returns
+    -------
+    dict of str to Placement
+        Every component's placement; ``found`` says which are confident.
+
+    Raises
+    ------
+    ValueError
+        Not exactly two images and two views.
+    fluorogui.core.cancel.Cancelled
+        ``cancel()`` turned true.
+
+    Examples
+    --------
+    The demo's femoral component, found with no start (seconds per component):
+
+    >>> from fluorogui import Session
+    >>> from fluorogui.simulation.demo import demo_project_path
+    >>> session = Session.open(demo_project_path("cache", frames=2, image_size=256))
+    >>> found = find_components(session.images(0), session.views, {"femoral": session.mesh("femoral")})
+    >>> found["femoral"].found, found["femoral"].reason
+    (True, '')
+    """
     if len(images) != 2 or len(views) != 2:
         raise ValueError("finding implants needs two images and two views")
     near = near or {}
