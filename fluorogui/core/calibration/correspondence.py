@@ -1,0 +1,350 @@
+"""Which detected blob is which phantom bead: the correspondence search of the bead calibration.
+
+The contract is the phantom file's: bead centres in 3D (mm), at least ``MIN_BEADS`` of
+them, not (nearly) coplanar, the first one larger (the marker). Nothing else is assumed,
+so regular grids on parallel plates, helices and scattered beads are all handled alike:
+
+1. **Marker.** The largest blob, if its area is at least ``MARKER_AREA_RATIO`` times the
+   median blob's; when the next-largest blobs come close to it, each is tried in turn.
+2. **Affine hypotheses seeded at the marker.** A few bases, each the marker and three
+   phantom beads spanning a large tetrahedron with it (chosen to share few beads, so one
+   hidden or merged bead does not sink them all), are paired with every ordered triple of
+   other detections. The affine camera through the four pairs projects the whole phantom;
+   a hypothesis scores the number of *distinct* detections that some projected bead lands
+   near. Counting distinct detections matters on regular grids: there an affine camera
+   that squeezes the phantom onto a few blobs would otherwise outscore the true one.
+3. **Perspective check.** On a deep cage an affine camera is off by tens of pixels (a
+   120 mm cage seen from 750 mm), so the affine winner is often wrong. The best
+   ``HYPOTHESES`` (up to ``MORE_HYPOTHESES`` while none has matched) are each refined
+   perspectively: tentative pairs from the affine camera, then a small seeded RANSAC over
+   DLT cameras through the four seed pairs and two tentative ones; the camera landing
+   most beads on distinct detections is kept, then the beads are re-paired (mutually
+   nearest) and the DLT refitted until the pairs stop changing, pairs whose residual
+   stands out (a merged blob, a speck) being dropped one by one.
+4. **Choice.** Most inlier pairs, then the smallest RMS, among cameras a fluoroscope can
+   be (``_is_plausible``): proper (beads in front, ``det(P[:, :3]) > 0``; a mirrored
+   camera is what a left-handed phantom file or a mirror-symmetric wrong match gives),
+   with nearly zero skew and nearly square pixels. That rules out the ambiguity of two
+   parallel grids, one plate matched a node over: the DLT absorbs that parallax with a
+   skew of a few percent. The marker must project onto the marker blob (within the
+   pairing tolerance, not necessarily as an inlier: a marker touching a bead is a merged
+   blob whose centre is off), which rules out a whole grid matched a node over. And the
+   match must pair at least ``MIN_BEADS`` beads and ``MIN_SHARE`` of the detections (of
+   the phantom's beads, if fewer): a DLT fits eight to ten wrong pairs of an unrelated
+   phantom to a couple of pixels now and then, and a partly symmetric dense grid half of
+   its beads. Otherwise a ``BeadError`` says what is missing; when the phantom mirrored
+   would match, it says so.
+
+Limits (measured on generated cages, ``fluorogui.simulation.cages``): a dense 72-bead
+grid (two 6x6 plates, 20 mm pitch) is matched in about three views of four and refused in
+the others, never matched wrongly; the affine enumeration grows as the cube of the number
+of blobs (about 20 s for 70).
+"""
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+MIN_BEADS = 8
+MARKER_AREA_RATIO = 1.8
+BASES = 5  # phantom bases (marker + 3 beads) tried
+HYPOTHESES = 40  # affine hypotheses refined perspectively ...
+MORE_HYPOTHESES = 400  # ... and how far down the list to go while none has matched
+SAMPLES = 16  # RANSAC samples per refined hypothesis
+MARKER_CANDIDATES = 3
+SCORED_BEADS = 32  # phantom beads (spread out) an affine hypothesis is scored on
+WORK = 15_000_000  # projected beads over all affine hypotheses: fewer bases for a dense phantom
+SAMPLE_SKEW, SAMPLE_ASPECT = 0.05, 1.25  # what a six-bead DLT of a fluoroscope can be
+MAX_SKEW, MAX_ASPECT = 0.01, 1.12  # what the match's DLT can be (right matches: < 1e-4, 1.0001)
+MIN_SHARE = 0.7  # of the detections (or of the phantom's beads, if fewer) a match must pair
+OUTLIER_FACTOR, RESIDUAL_FLOOR_PX = 4.0, 0.25  # a 2D residual 4x its median: 1 in 60000 for round noise
+# a pair is an inlier within INLIER_SPACING x the median bead spacing in the image (at least
+# INLIER_MIN_PX): right matches leave ~0.02 px on generated cages and a few tenths of a pixel on
+# distortion-corrected images; a regular grid matched wrongly (a plate a node over, the cage
+# seen as from its other side, a file whose marker is not first) leaves 2-5 % of the spacing
+INLIER_SPACING, INLIER_MIN_PX = 0.02, 1.0
+
+
+class BeadError(ValueError):
+    """No calibration from these beads; ``about_phantom`` when the phantom file is at fault."""
+
+    def __init__(self, message: str, about_phantom: bool = False):
+        super().__init__(message)
+        self.about_phantom = about_phantom
+
+
+# ----------------------------------------------------------------------------- cameras
+
+
+def dlt(points3, points2) -> np.ndarray:
+    """Hartley-normalised DLT: 3x4 P with points2 ~ P [points3; 1], beads in front (z > 0)."""
+    return _dlt_conditioned(points3, points2)[0]
+
+
+def _dlt_conditioned(points3, points2) -> tuple[np.ndarray, float]:
+    """The DLT and how well it is determined (the ratio of the two smallest singular values
+    of the normalised system; near 1 when two cameras fit equally, a degenerate sample)."""
+    def normaliser(p):
+        mean = p.mean(axis=0)
+        spread = np.mean(np.linalg.norm(p - mean, axis=1))
+        scale = np.sqrt(p.shape[1]) / spread if spread > 0 else 1.0
+        T = np.eye(p.shape[1] + 1)
+        T[:-1, :-1] *= scale
+        T[:-1, -1] = -scale * mean
+        return T
+
+    points3, points2 = np.asarray(points3, dtype=float), np.asarray(points2, dtype=float)
+    T3, T2 = normaliser(points3), normaliser(points2)
+    X = np.column_stack([points3, np.ones(len(points3))]) @ T3.T
+    x = np.column_stack([points2, np.ones(len(points2))]) @ T2.T
+    zeros = np.zeros((len(X), 4))
+    rows = np.empty((2 * len(X), 12))
+    rows[0::2] = np.hstack([zeros, -x[:, 2:] * X, x[:, 1:2] * X])
+    rows[1::2] = np.hstack([x[:, 2:] * X, zeros, -x[:, 0:1] * X])
+    _, s, Vt = np.linalg.svd(rows, full_matrices=len(rows) < 12)
+    s = np.concatenate([s, np.zeros(12 - len(s))])
+    P = np.linalg.inv(T2) @ Vt[-1].reshape(3, 4) @ T3
+    if np.mean(np.column_stack([points3, np.ones(len(points3))]) @ P[2]) < 0:
+        P = -P  # beads in front of the source
+    return P, float(s[-1] / s[-2]) if s[-2] > 0 else 1.0
+
+
+def project(P, points3) -> np.ndarray:
+    """Pixels of ``points3`` through P; a point on the source's plane lands far away (1e12)."""
+    h = np.column_stack([points3, np.ones(len(points3))]) @ P.T
+    w = h[:, 2:]
+    safe = np.where(np.abs(w) > 1e-12 * np.abs(h[:, :2]).max(axis=1, keepdims=True), w, np.nan)
+    return np.nan_to_num(h[:, :2] / safe, nan=1e12, posinf=1e12, neginf=-1e12)
+
+
+def _is_proper(P, points3) -> bool:
+    """Beads in front and a right-handed camera (K with positive focal lengths, det R = +1)."""
+    depth = np.column_stack([points3, np.ones(len(points3))]) @ P[2]
+    return bool(np.all(depth > 0) and np.linalg.det(P[:, :3]) > 0)
+
+
+def _is_plausible(P, max_skew=SAMPLE_SKEW, max_aspect=SAMPLE_ASPECT) -> bool:
+    """A fluoroscope's camera: skew below ``max_skew`` of the focal length and pixels within
+    ``max_aspect`` of square. ``K K^T`` comes from ``M M^T`` (M = P[:, :3] = K R) scaled to
+    a unit last row, without a decomposition. A wrong correspondence that an 11-parameter
+    DLT still fits gives absurd intrinsics (skew of several focal lengths, aspect 3); on
+    two parallel grids, one plate matched a node over is a camera moved sideways whose
+    parallax the DLT absorbs with a skew of a few percent (``MAX_SKEW`` for the match)."""
+    M = P[:, :3] / np.linalg.norm(P[2, :3])
+    A = M @ M.T
+    cx, cy = A[0, 2], A[1, 2]
+    fy2 = A[1, 1] - cy * cy
+    if fy2 <= 0:
+        return False
+    fy = np.sqrt(fy2)
+    skew = (A[0, 1] - cx * cy) / fy
+    fx2 = A[0, 0] - skew * skew - cx * cx
+    if fx2 <= 0:
+        return False
+    fx = np.sqrt(fx2)
+    return bool(abs(skew) <= max_skew * fx and 1 / max_aspect <= fx / fy <= max_aspect)
+
+
+def mutual_pairs(projected, detections, tolerance) -> list[tuple[int, int]]:
+    """Mutually nearest (phantom bead, detection) pairs closer than ``tolerance``."""
+    dist, nearest = cKDTree(detections).query(projected)
+    back = cKDTree(projected).query(detections)[1]
+    return [(i, int(j)) for i, (d, j) in enumerate(zip(dist, nearest)) if d < tolerance and back[j] == i]
+
+
+def _distinct_hits(tree: cKDTree, projected, tolerance) -> int:
+    j = tree.query(projected, distance_upper_bound=tolerance)[1]
+    return len(np.unique(j[j < tree.n]))
+
+
+# ---------------------------------------------------------------------------- the search
+
+
+def _marker_candidates(centres, areas) -> list[int]:
+    typical = float(np.median(areas))
+    order = np.argsort(-areas, kind="stable")
+    if areas[order[0]] < MARKER_AREA_RATIO * typical:
+        ratio = areas[order[0]] / typical
+        raise BeadError(f"found {len(centres)} beads; the marker bead (the phantom's first, larger one) could not be "
+                        f"told apart: the largest blob is only {ratio:.1f}\u00d7 the median (need "
+                        f"{MARKER_AREA_RATIO:.1f}\u00d7)")
+    return [int(k) for k in order[:MARKER_CANDIDATES] if areas[k] >= max(MARKER_AREA_RATIO * typical,
+                                                                        0.7 * areas[order[0]])]
+
+
+def _bases(beads, count=BASES) -> list[tuple[int, int, int]]:
+    """Triples of phantom beads spanning large tetrahedra with the marker, greedily chosen so
+    that each shares few beads with those before it (volume halved per shared bead)."""
+    triples = np.array(list(itertools.combinations(range(1, len(beads)), 3)), dtype=int)
+    edges = beads[triples] - beads[0]
+    volume = np.abs(np.linalg.det(edges))
+    used = np.zeros(len(beads), dtype=int)
+    chosen = []
+    for _ in range(min(count, len(triples))):
+        overlap = used[triples].sum(axis=1)
+        k = int(np.argmax(volume * 0.5**overlap))
+        if volume[k] <= 0:
+            break
+        chosen.append(tuple(int(i) for i in triples[k]))
+        used[triples[k]] += 1
+        volume[k] = -1.0
+    return chosen
+
+
+def _spread(beads, count) -> np.ndarray:
+    """Indices of ``count`` beads spread over the phantom (farthest-point order from the marker)."""
+    if len(beads) <= count:
+        return np.arange(len(beads))
+    chosen = [0]
+    distance = np.linalg.norm(beads - beads[0], axis=1)
+    while len(chosen) < count:
+        k = int(np.argmax(distance))
+        chosen.append(k)
+        distance = np.minimum(distance, np.linalg.norm(beads - beads[k], axis=1))
+    return np.array(chosen)
+
+
+def _affine_hypotheses(beads, centres, marker, tolerance, keep) -> list[tuple[int, tuple, np.ndarray]]:
+    """The ``keep`` best (score, basis, detection quadruple) over the bases and every
+    ordered triple of detections other than the marker. A dense phantom seen with many
+    blobs is scored on ``SCORED_BEADS`` of its beads and with fewer bases (``WORK``)."""
+    tree = cKDTree(centres)
+    others = [k for k in range(len(centres)) if k != marker]
+    combos = np.array(list(itertools.permutations(others, 3)), dtype=int).reshape(-1, 3)
+    scored = _spread(beads, SCORED_BEADS)
+    homogeneous = np.column_stack([beads[scored], np.ones(len(scored))])
+    bases = _bases(beads, int(np.clip(WORK // max(len(combos) * len(scored), 1), 1, BASES)))
+    scores, owners = [], []
+    for b, basis in enumerate(bases):
+        seeds = np.column_stack([beads[[0, *basis]], np.ones(4)])
+        C = homogeneous @ np.linalg.inv(seeds)  # the scored beads in terms of the 4 seeds
+        for start in range(0, len(combos), 20000):
+            chunk = combos[start:start + 20000]
+            corners = np.concatenate([np.repeat(centres[marker][None, None], len(chunk), 0), centres[chunk]], axis=1)
+            projected = np.einsum("nk,qkd->qnd", C, corners)  # the affine camera of each hypothesis
+            hit = tree.query(projected.reshape(-1, 2), distance_upper_bound=tolerance)[1].reshape(len(chunk), -1)
+            hit = np.sort(hit, axis=1)
+            distinct = np.concatenate([np.ones((len(chunk), 1), bool), np.diff(hit, axis=1) != 0], axis=1)
+            scores.append(((hit < len(centres)) & distinct).sum(axis=1))
+            owners.append(np.column_stack([np.full(len(chunk), b), np.arange(start, start + len(chunk))]))
+    scores, owners = np.concatenate(scores), np.concatenate(owners)
+    best = np.argsort(-scores, kind="stable")[:keep]
+    return [(int(scores[q]), bases[owners[q, 0]], np.array([marker, *combos[owners[q, 1]]])) for q in best]
+
+
+def _inliers(beads, centres, pairs, spacing) -> tuple[list[tuple[int, int]], np.ndarray | None]:
+    """The pairs left when the worst one is dropped, and the DLT refitted, while it stands
+    out: beyond ``OUTLIER_FACTOR`` times the median residual (at least ``RESIDUAL_FLOOR_PX``),
+    or beyond ``INLIER_SPACING`` of the bead spacing (at least ``INLIER_MIN_PX``), since an
+    11-parameter DLT fits a wrong match of a regular grid to a few percent of the spacing.
+    One at a time, because the DLT bends towards a bad pair (a merged blob a few pixels
+    off) and hides it among the good ones' residuals until the worse ones are gone."""
+    pairs = list(pairs)
+    cap = max(INLIER_MIN_PX, INLIER_SPACING * spacing)
+    while len(pairs) >= 6:
+        idx3, idx2 = [i for i, _ in pairs], [j for _, j in pairs]
+        P = dlt(beads[idx3], centres[idx2])
+        residual = np.linalg.norm(project(P, beads[idx3]) - centres[idx2], axis=1)
+        worst = int(np.argmax(residual))
+        if residual[worst] <= min(max(RESIDUAL_FLOOR_PX, OUTLIER_FACTOR * float(np.median(residual))), cap):
+            return pairs, P
+        del pairs[worst]
+    return pairs, None
+
+
+def _converge(P, beads, centres, tolerance) -> tuple[list[tuple[int, int]], np.ndarray | None]:
+    """Re-pair and refit until the pairs stop changing; the inlier pairs and their DLT."""
+    pairs: list[tuple[int, int]] = []
+    for _ in range(12):
+        kept, P = _inliers(beads, centres, mutual_pairs(project(P, beads), centres, tolerance), tolerance / 0.35)
+        if P is None or not _is_proper(P, beads):
+            return kept, None
+        if kept == pairs:
+            break
+        pairs = kept
+    return pairs, P
+
+
+def _refine_hypothesis(basis, quadruple, beads, centres, tolerance, rng):
+    """Perspective refinement of one affine hypothesis: (pairs, P) or ([], None)."""
+    seeds3, seeds2 = [0, *basis], list(quadruple)
+    X = np.column_stack([beads[seeds3], np.ones(4)])
+    affine = np.linalg.solve(X, centres[seeds2]).T  # 2x4
+    predicted = np.column_stack([beads, np.ones(len(beads))]) @ affine.T
+    dist, nearest = cKDTree(centres).query(predicted, distance_upper_bound=1.5 * tolerance)
+    order = np.argsort(dist)
+    taken, tentative = set(seeds2), []
+    for i in order:
+        j = int(nearest[i])
+        if i in seeds3 or j >= len(centres) or j in taken:
+            continue
+        taken.add(j)
+        tentative.append((int(i), j))
+    if len(tentative) < 2:
+        return [], None
+    tree = cKDTree(centres)
+    best, best_hits = None, 0
+    all_pairs = list(itertools.combinations(range(len(tentative)), 2))
+    picks = all_pairs if len(all_pairs) <= SAMPLES else [all_pairs[k] for k in
+                                                         rng.choice(len(all_pairs), SAMPLES, replace=False)]
+    for a, b in picks:
+        idx3 = seeds3 + [tentative[a][0], tentative[b][0]]
+        idx2 = seeds2 + [tentative[a][1], tentative[b][1]]
+        P, conditioning = _dlt_conditioned(beads[idx3], centres[idx2])
+        if conditioning > 0.1 or not _is_proper(P, beads) or not _is_plausible(P):
+            continue  # a degenerate sample, a mirrored or behind-the-source camera, or no fluoroscope
+        hits = _distinct_hits(tree, project(P, beads), 0.5 * tolerance)
+        if hits > best_hits:
+            best, best_hits = P, hits
+    if best is None:
+        return [], None
+    return _converge(best, beads, centres, tolerance)
+
+
+def _search(beads, centres, markers, tolerance, need) -> tuple[list[tuple[int, int]], int]:
+    """The best inlier pairs over every marker candidate's hypotheses, and their count."""
+    rng = np.random.default_rng(0)
+    best, best_key = [], (0, 0.0)
+    for marker in markers:
+        for rank, (_, basis, quadruple) in enumerate(_affine_hypotheses(beads, centres, marker, tolerance,
+                                                                        MORE_HYPOTHESES)):
+            if rank >= HYPOTHESES and best_key[0] >= need:
+                break  # the first ones matched; more only while nothing has
+            pairs, P = _refine_hypothesis(basis, quadruple, beads, centres, tolerance, rng)
+            if P is None or not _is_proper(P, beads) or not _is_plausible(P, MAX_SKEW, MAX_ASPECT):
+                continue
+            if any(j == marker and i != 0 for i, j in pairs):
+                continue  # the marker blob taken for a small bead: not this hypothesis's world
+            if np.linalg.norm(project(P, beads[:1])[0] - centres[marker]) > tolerance:
+                continue  # the marker elsewhere: a grid matched one node over, say
+            residual = np.linalg.norm(project(P, beads[[i for i, _ in pairs]]) - centres[[j for _, j in pairs]], axis=1)
+            key = (len(pairs), -float(np.sqrt(np.mean(residual**2))))
+            if key > best_key:
+                best, best_key = pairs, key
+        if best_key[0] >= need:
+            break  # this blob did serve as the marker
+    return sorted(best), best_key[0]
+
+
+def match_beads(beads: np.ndarray, centres: np.ndarray, areas: np.ndarray) -> list[tuple[int, int]]:
+    """(phantom index, detection index) pairs, outliers left out; raises BeadError."""
+    beads = np.asarray(beads, dtype=float)
+    if len(centres) < MIN_BEADS:
+        raise BeadError(f"too few beads found in the image: {len(centres)} (need at least {MIN_BEADS}; the "
+                        f"phantom has {len(beads)})")
+    markers = _marker_candidates(centres, areas)
+    spacing = float(np.median(cKDTree(centres).query(centres, k=2)[0][:, 1]))
+    tolerance = 0.35 * spacing
+    need = max(MIN_BEADS, int(np.ceil(MIN_SHARE * min(len(beads), len(centres)))))
+    pairs, found = _search(beads, centres, markers, tolerance, need)
+    if found >= need:
+        return pairs
+    if _search(beads * [1.0, 1.0, -1.0], centres, markers, tolerance, need)[1] >= need:
+        raise BeadError("the beads match the phantom only mirrored: are the phantom file's coordinates "
+                        "left-handed?", about_phantom=True)
+    fit = f"at most {found}" if found else "none"
+    raise BeadError(f"the beads cannot be matched to the phantom: {fit} of the {len(centres)} detected "
+                    f"beads fit one camera with the phantom's {len(beads)} (need {need}; is the phantom file's first "
+                    "bead the large marker?)")
