@@ -129,7 +129,7 @@ def main(argv=None) -> int:
         return [read_image(args.data / pairs[frame][k]) for k in ("cam1", "cam2")]
 
     for name, mesh in meshes.items():  # one-time cost, cached per mesh
-        _, wall, cpu = timed(lambda: shape_search.shape_library(mesh), 1)
+        _, wall, cpu = timed(lambda mesh=mesh: shape_search.shape_library(mesh), 1)
         print(f"shape library {name}: {wall:.2f} s wall, {cpu:.2f} s CPU ({len(mesh.faces)} faces)")
 
     print(f"\n== from nothing: {len(frames)} frames, both components ==")
@@ -139,7 +139,7 @@ def main(argv=None) -> int:
     confident_wrong, unscored_found, not_found_scored = [], [], []
     for frame in frames:
         images = images_of(frame)
-        out, wall, cpu = timed(lambda: find_components(images, views, meshes), args.repeat)
+        out, wall, cpu = timed(lambda images=images: find_components(images, views, meshes), args.repeat)
         walls.append(wall)
         cpus.append(cpu)
         print(f"frame {frame:>4}: {wall:5.2f} s wall {cpu:5.2f} s CPU")
@@ -185,8 +185,10 @@ def main(argv=None) -> int:
                 continue
             images = images_of(frame)
             for name, start in near.items():
-                out, wall, cpu = timed(lambda: find_components(images, views, {name: meshes[name]},
-                                                               near={name: start}), args.repeat)
+                def near_one(images=images, name=name, start=start):
+                    return find_components(images, views, {name: meshes[name]}, near={name: start})
+
+                out, wall, cpu = timed(near_one, args.repeat)
                 p = out[name]
                 per_component.append((wall, cpu))
                 truth = ref[(frame, name)]
@@ -196,8 +198,8 @@ def main(argv=None) -> int:
                 near_wrong += bool(p.found and not ok)
                 print(f"frame {frame:>4}: {wall:5.2f} s wall {cpu:5.2f} s CPU  " + describe(p, truth))
         w = np.array(per_component)
-        print(f"\n== summary (near=) ==\nseconds per component: median {np.median(w[:, 0]):.2f}, max {w[:, 0].max():.2f} "
-              f"wall; median {np.median(w[:, 1]):.2f}, max {w[:, 1].max():.2f} CPU")
+        print(f"\n== summary (near=) ==\nseconds per component: median {np.median(w[:, 0]):.2f}, "
+              f"max {w[:, 0].max():.2f} wall; median {np.median(w[:, 1]):.2f}, max {w[:, 1].max():.2f} CPU")
         print(f"right and found {near_ok}/{near_total}; confident but wrong: {near_wrong}")
     return 0
 

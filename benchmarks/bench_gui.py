@@ -135,7 +135,7 @@ def main() -> int:
     for _ in range(args.repeats):
         fired = []
 
-        def cancel_once(_payload):
+        def cancel_once(_payload, fired=fired):
             if not fired:
                 fired.append(1)
                 window.runner.cancel()

@@ -71,7 +71,8 @@ def bench_demo(args) -> dict:
 
     folder = Path(tempfile.mkdtemp(prefix="bench-demo-"))
     session = Session.open(build_demo_project(folder))
-    truth = {int(f): {c: np.asarray(p) for c, p in by.items()} for f, by in session.project.settings["demo_truth"].items()}
+    truth = {int(f): {c: np.asarray(p) for c, p in by.items()}
+             for f, by in session.project.settings["demo_truth"].items()}
     t0 = time.perf_counter()
     first = session.match(0)
     t_first = time.perf_counter() - t0
@@ -167,7 +168,8 @@ def _knee_curves(session: Session, figure: Path | None) -> dict:
     from fluorogui.workflow.knee_plot import save_kinematics_figure
 
     rows = session.knee_rows()
-    print("  kinematics (right knee, default anatomical frames): frame " + " ".join(f"{c:>14s}" for c in KINEMATICS_COLUMNS))
+    print("  kinematics (right knee, default anatomical frames): frame "
+          + " ".join(f"{c:>14s}" for c in KINEMATICS_COLUMNS))
     for row in rows:
         print(f"    {row.frame:4d} {row.status[:7]:7s} " + " ".join(f"{v:14.2f}" for v in row.values.values()))
     run = [r for r in rows if 50 <= r.frame <= 69 and r.status == "matched"]
@@ -192,7 +194,8 @@ def bench_real(args) -> dict:
     path = folder / "real.fluoro"
     save_project(import_folder(DATA / "biplane-tka"), path)
     session = Session.open(path)
-    refs = {(int(r["frame"]), r["component"]): np.array([float(r[k]) for k in ("x", "y", "z", "alpha", "beta", "gamma")])
+    keys = ("x", "y", "z", "alpha", "beta", "gamma")
+    refs = {(int(r["frame"]), r["component"]): np.array([float(r[k]) for k in keys])
             for r in csv.DictReader(open(REFERENCE))}
     results, wall = _track(session, 1)
     session.save()
@@ -218,7 +221,8 @@ def bench_real(args) -> dict:
                 counts["within"] += 1
             else:
                 counts["matched_off"] += 1
-                reasons.append(f"frame {r.frame} {r.component} MATCHED but {mm:.2f} mm / {deg:.2f} deg off the reference")
+                reasons.append(f"frame {r.frame} {r.component} MATCHED but {mm:.2f} mm / {deg:.2f} deg "
+                               "off the reference")
     print(f"  within 0.5 mm / 0.5 deg of the reference: {counts['within']}; flagged: {counts['flagged']}; "
           f"matched without a reference: {counts['matched_no_reference']}; "
           f"matched but off the reference: {counts['matched_off']} (target 0)")

@@ -55,8 +55,8 @@ def main(argv=None) -> int:
     for component in session.components():
         reference_rows = load_jointtrack_poses(args.data / POSE_FILES[component])
         differences, spreads = [], []
-        print(f"\n{component}: frame status  " + "  ".join(f"{l:>7}" for l in LABELS) + "   | spread "
-              + " ".join(f"{l:>6}" for l in LABELS))
+        print(f"\n{component}: frame status  " + "  ".join(f"{label:>7}" for label in LABELS) + "   | spread "
+              + " ".join(f"{label:>6}" for label in LABELS))
         for index, frame in enumerate(session.frames):
             reference = jointtrack_to_pose(reference_rows[index])
             pose, status = matched_pose(session, component, frame, reference)

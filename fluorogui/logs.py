@@ -1,5 +1,18 @@
-"""The log file: one rotating file in the user's data folder that keeps internal errors'
+"""The app's folders and its log file: one rotating file that keeps internal errors'
 tracebacks and third-party warnings (VTK, libpng, tifffile) off the terminal.
+
+The folders are where each operating system expects an application's files
+(``platformdirs``; no vendor folder; local rather than roaming on Windows):
+
+* data (the crash-recovery autosave, the demo): ``~/.local/share/fluorogui`` on Linux,
+  ``~/Library/Application Support/fluorogui`` on macOS, ``%LOCALAPPDATA%\\fluorogui`` on Windows;
+* log: ``~/.local/state/fluorogui/log``, ``~/Library/Logs/fluorogui``,
+  ``%LOCALAPPDATA%\\fluorogui\\Logs``;
+* cache: ``~/.cache/fluorogui``, ``~/Library/Caches/fluorogui``, ``%LOCALAPPDATA%\\fluorogui\\Cache``
+
+(on Linux the ``XDG_DATA_HOME`` / ``XDG_STATE_HOME`` / ``XDG_CACHE_HOME`` variables move them).
+``FLUOROGUI_DATA_DIR`` puts all three in one folder (``logs/`` and ``cache/`` inside it):
+tests, the build check and portable installs use it.
 
 The command line and the app call ``setup_logging()`` once at start; ``log_file_path()``
 is what the About dialog and error messages show. Qt-free.
@@ -12,23 +25,41 @@ import os
 import warnings
 from pathlib import Path
 
+import platformdirs
+
+APP_NAME = "fluorogui"
+DATA_DIR_ENV = "FLUOROGUI_DATA_DIR"
 LOG_NAME = "fluorogui.log"
 _MAX_BYTES = 2_000_000
 _BACKUPS = 3
 
 
+def _override() -> Path | None:
+    value = os.environ.get(DATA_DIR_ENV)
+    return Path(value) if value else None
+
+
 def data_dir() -> Path:
-    """The user's fluorogui data folder (``FLUOROGUI_DATA_DIR`` overrides)."""
-    override = os.environ.get("FLUOROGUI_DATA_DIR")
-    if override:
-        return Path(override)
-    base = os.environ.get("XDG_DATA_HOME") or str(Path.home() / ".local" / "share")
-    return Path(base) / "fluorogui"
+    """The user's fluorogui data folder: the crash-recovery autosave and the demo."""
+    override = _override()
+    return override if override is not None else Path(platformdirs.user_data_dir(APP_NAME, appauthor=False))
+
+
+def log_dir() -> Path:
+    """The folder of the log file."""
+    override = _override()
+    return override / "logs" if override is not None else Path(platformdirs.user_log_dir(APP_NAME, appauthor=False))
+
+
+def cache_dir() -> Path:
+    """The folder for what can be made again (generated files)."""
+    override = _override()
+    return override / "cache" if override is not None else Path(platformdirs.user_cache_dir(APP_NAME, appauthor=False))
 
 
 def log_file_path() -> Path:
     """Where the log file is (or will be, once something is logged)."""
-    return data_dir() / "logs" / LOG_NAME
+    return log_dir() / LOG_NAME
 
 
 def setup_logging(verbose: bool = False) -> Path | None:

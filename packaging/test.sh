@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
 # Set up if needed, then run the test suite (under Xvfb, Qt offscreen by default).
 # Usage: bash packaging/test.sh [pytest args]
+#   bash packaging/test.sh                  everything (what CI runs, through .ci/run)
+#   bash packaging/test.sh -m "not slow"    the development loop: without the end-to-end
+#                                           validations marked slow (pyproject.toml)
 set -euo pipefail
 REPO_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$REPO_ROOT/packaging/setup.sh"

@@ -1,11 +1,11 @@
 """Developer tool: reference poses of both components on the real biplane data.
 
-Frame 1: global search (*find implants*: ``core.search.find.find_components``), then two passes of Canny outlines along the found pose
-and the fast matcher. Following frames: start from the previous frame's pose, Canny
-outlines along it, fast matcher, twice. A component whose match fails or whose objective
-exceeds ``--max-objective`` is lost; with ``--reinit`` (default) the global search runs
-again for it in the next frames until it is found. A pose is written only when its mean
-outline residual is at most ``--max-view-px`` in both views (frames where it is not are
+Frame 1: global search (*find implants*: ``core.search.find.find_components``), then two
+passes of Canny outlines along the found pose and the fast matcher. Following frames: start
+from the previous frame's pose, Canny outlines along it, fast matcher, twice. A component
+whose match fails or whose objective exceeds ``--max-objective`` is lost; with ``--reinit``
+(default) the global search runs again for it in the next frames until it is found. A pose
+is written only when its mean outline residual is at most ``--max-view-px`` in both views (frames where it is not are
 reported and skipped). Writes ``tests/data/biplane_reference_poses.csv`` and overlay PNGs
 (projected silhouettes on both images) to ``--overlays``.
 

@@ -25,6 +25,7 @@ from fluorogui.cli import (
     validate,
 )
 from fluorogui.cli.common import Parser, UsageError, native_stderr_to_log
+from fluorogui.cli.inputs import input_warnings_on_stderr
 
 #: the commands in the order ``fluorogui --help`` lists them; each module has
 #: ``add_parser(sub) -> parser`` and ``run(args) -> exit status``
@@ -52,7 +53,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     log_path = setup_logging(verbose=verbose)
     try:
-        with native_stderr_to_log(None if verbose else log_path):
+        with native_stderr_to_log(None if verbose else log_path), input_warnings_on_stderr():
             return _run(argv)
     except UsageError as exc:
         print(str(exc), file=sys.stderr)

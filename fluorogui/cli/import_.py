@@ -1,9 +1,11 @@
-"""``fluorogui import``: make a project from a session folder or from explicit files."""
+"""``fluorogui import``: make a project from a session folder or from explicit files, with its
+frame rate (``--fps``, else what a video or DICOM declares)."""
 from __future__ import annotations
 
 from pathlib import Path
 
 from fluorogui.cli.common import UsageError, warn
+from fluorogui.cli.export import fps_value
 from fluorogui.io.files import check_output_file
 
 
@@ -20,6 +22,9 @@ def add_parser(sub):
     i.add_argument("--side", choices=("right", "left"), help="which knee (sets the signs of the kinematics)")
     i.add_argument("--correction", action="append", metavar="CORR.json",
                    help="distortion correction per camera, stored with its view in the project")
+    i.add_argument("--fps", type=fps_value, metavar="N",
+                   help="the images' frame rate (frames per second; time = frame / N) for C3D, .trc and .mot exports; "
+                        "default: what a video or DICOM declares")
     i.add_argument("--force", action="store_true", help="replace an existing project file")
     return i
 
@@ -71,11 +76,34 @@ def run(args) -> int:
         short = min(range(len(counts)), key=lambda k: counts[k])
         warn(f"camera {short + 1} has {counts[short]} images but the project has {len(project.frames)} frames; "
              f"frames {project.frames[counts[short]]}..{project.frames[-1]} will be flagged when matched")
+    _frame_rate(project, args.fps)
     if args.side:
         from fluorogui.workflow.knee import KNEE_KEY
 
         project.settings.setdefault(KNEE_KEY, {})["side"] = args.side
     save_project(project, out)
+    from fluorogui.io.motion_files import stored_frame_rate
+
+    fps = stored_frame_rate(project.settings)
     print(f"wrote {out}: {len(project.frames)} frames, {len(project.views)} views, "
-          f"components {', '.join(m.component for m in project.models)}")
+          f"components {', '.join(m.component for m in project.models)}"
+          + (f", {fps:g} frames per second" if fps is not None else
+             ", no frame rate (the images do not say; give --fps N for C3D, .trc and .mot exports)"))
     return 0
+
+
+def _frame_rate(project, fps: float | None) -> None:
+    """Keep ``--fps`` (saying when the images declare another); warn when the views declare
+    different rates (images that declare none are the usual case: the summary line says so)."""
+    from fluorogui.io.importer import declared_frame_rates
+    from fluorogui.io.motion_files import store_frame_rate, stored_frame_rate
+
+    declared = [r for r in declared_frame_rates(project) if r is not None]
+    if fps is not None:
+        other = [f"{where} says {rate:g}" for rate, where in declared if abs(rate - fps) > 1e-6 * fps]
+        if other:
+            warn(f"--fps {fps:g} kept although {'; '.join(other)} frames per second")
+        store_frame_rate(project.settings, fps, "user (--fps)")
+    elif stored_frame_rate(project.settings) is None and declared:
+        rates = ", ".join(f"{where}: {rate:g}" for rate, where in declared)
+        warn(f"the views declare different frame rates ({rates}); no frame rate kept: give --fps N")

@@ -1,8 +1,13 @@
 """The inputs the commands load, one way for all of them: calibrations (with their
 distortion corrections), images of a view, implant meshes, start poses, outline files and
 match settings. Each refuses bad input with one ``InputError`` naming the file or a
-``UsageError`` naming the option."""
+``UsageError`` naming the option; what an input needed repaired or noted is one warning
+line on stderr (``input_warnings_on_stderr``)."""
 from __future__ import annotations
+
+import sys
+import warnings
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -96,17 +101,59 @@ def match_settings(args, method=None, multistart: bool = True):
                          starts=max(1, getattr(args, "starts", 1)) if multistart else 1)
 
 
-def check_start_visible(views, mesh, start, image_paths) -> None:
-    """Refuse a start pose that puts the component (its centroid) outside an image: the
-    outline there cannot be segmented or matched."""
-    from fluorogui.core.projection.pose import transform_points
-    from fluorogui.io.errors import InputError
+#: a start pose is refused when the component would be smaller than this in an image (px)
+MIN_COMPONENT_PX = 4.0
 
-    centre = transform_points(start, mesh.centroid[None, :])
-    for path, view in zip(image_paths, views):
-        depth = float((centre[0] - view.source) @ view.normal)
-        uv = view.project(centre)[0] if depth > 0 else np.array([np.nan, np.nan])
+
+def check_start_visible(views, mesh, start, image_paths, what: str = "--start") -> None:
+    """Refuse a start pose the views cannot see, as a mistake in ``what`` (UsageError, exit 2):
+    the component's centre at or behind a view's X-ray source, so close to it that the
+    component would be over four times the image across, outside an image, or so far away
+    that it would be a speck. The outline there could not be segmented or matched. (Not
+    "beyond the intensifier": a calibration without a pixel pitch, saved as JSON, has only
+    a nominal source-intensifier distance.)"""
+    from fluorogui.core.projection.pose import transform_points
+
+    centre = transform_points(start, mesh.centroid[None, :])[0]
+    for k, (path, view) in enumerate(zip(image_paths, views)):
+        name = f"view {k + 1}"
+        depth = float((centre - view.source) @ view.normal)
+        if depth <= 0:
+            raise UsageError(f"fluorogui: {what}: the pose lies behind the source of {name} "
+                             f"(its centre is {-depth:.4g} mm behind it)")
+        if depth <= mesh.radius:
+            raise UsageError(f"fluorogui: {what}: the pose lies at the source of {name} "
+                             f"(its centre is {depth:.4g} mm in front of it, within the component's size)")
         w, h = view.image_size
-        if not (depth > 0 and 0 <= uv[0] <= w - 1 and 0 <= uv[1] <= h - 1):
-            raise InputError(path, "the start pose puts the component outside this image "
-                                   f"(its centre projects to u={uv[0]:.0f}, v={uv[1]:.0f}; image {w}x{h})")
+        across = 2.0 * mesh.radius * float(np.mean(view.focal_px)) / depth
+        if across > 4.0 * max(w, h):
+            raise UsageError(f"fluorogui: {what}: the pose lies too close to the source of {name} ({depth:.4g} mm "
+                             f"from it): the component would be {across:.0f} px across in a {w}x{h} px image")
+        u, v = view.project(centre[None, :])[0]
+        if not (0 <= u <= w - 1 and 0 <= v <= h - 1):
+            raise UsageError(f"fluorogui: {what}: the pose puts the component outside this image of {name} "
+                             f"({path}: its centre projects to u={u:.0f}, v={v:.0f}; the image is {w}x{h} px)")
+        if across < MIN_COMPONENT_PX:
+            raise UsageError(f"fluorogui: {what}: the pose lies too far from the source of {name} ({depth:.4g} mm "
+                             f"from it): the component would be {across:.2g} px across")
+
+
+@contextmanager
+def input_warnings_on_stderr():
+    """While the block runs, every ``InputWarning`` (an input repaired, or accepted with a
+    note) is one line on stderr, ``fluorogui: warning: <file>: <what>``; other warnings keep
+    going to the log."""
+    from fluorogui.io.errors import InputWarning
+
+    with warnings.catch_warnings():
+        shown = warnings.showwarning
+
+        def show(message, category, filename, lineno, file=None, line=None):
+            if issubclass(category, InputWarning):
+                print(f"fluorogui: warning: {message}", file=sys.stderr, flush=True)
+            else:
+                shown(message, category, filename, lineno, file, line)
+
+        warnings.showwarning = show
+        warnings.simplefilter("always", InputWarning)
+        yield

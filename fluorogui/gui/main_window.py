@@ -15,7 +15,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from PySide6.QtCore import QSettings, Qt, QTimer, Signal
-from PySide6.QtGui import QAction, QKeySequence
+from PySide6.QtGui import QAction, QGuiApplication, QKeySequence
 from PySide6.QtWidgets import (
     QDockWidget,
     QFrame,
@@ -50,6 +50,10 @@ from fluorogui.gui.session_view import COMPONENT_COLOURS, SessionView
 from fluorogui.gui.worker import TaskRunner
 
 AUTOSAVE_MS = 3 * 60 * 1000
+#: the largest first window; a smaller screen (a 1280×720 or 1366×768 laptop) gets all it has
+FIRST_SIZE = (1600, 1000)
+#: room (px) left for the window manager's title bar and borders, which Qt's size excludes
+FRAME_ALLOWANCE = (16, 40)
 NO_SESSION_HINT = ("No session open.\nFile → Open… (Ctrl+O) opens a project,\nFile → New session (Ctrl+N) "
                    "imports images,\nFile → Open the demo session to try it out.")
 
@@ -285,12 +289,34 @@ class MainWindow(QMainWindow):
         state = self.settings.value("window/state")
         if geometry is not None:
             self.restoreGeometry(geometry)
-        else:
-            self.resize(1280, 800)
+        self.fit_to_screen(first=geometry is None)
         if state is not None:
             self.restoreState(state)
         elif self.scene_widget is not None:
             QTimer.singleShot(0, self._share_right_column)
+
+    def fit_to_screen(self, first: bool = False) -> None:
+        """Keep the window on the screen's available area (less the taskbar): on the first
+        start ``FIRST_SIZE`` or as much as the screen has (a 1280×720 or 1366×768 laptop),
+        centred; a geometry saved on a larger monitor is shrunk to fit."""
+        screen = self.screen() or QGuiApplication.primaryScreen()
+        if screen is None:
+            if first:
+                self.resize(*FIRST_SIZE)
+            return
+        area = screen.availableGeometry()
+        most_w, most_h = area.width() - FRAME_ALLOWANCE[0], area.height() - FRAME_ALLOWANCE[1]
+        if first:
+            width, height = min(FIRST_SIZE[0], most_w), min(FIRST_SIZE[1], most_h)
+        else:
+            if self.isMaximized() or self.isFullScreen():
+                return
+            width, height = min(self.width(), most_w), min(self.height(), most_h)
+            if (width, height) == (self.width(), self.height()) and area.contains(self.frameGeometry()):
+                return
+        self.resize(width, height)
+        self.move(area.x() + max(0, (area.width() - width - FRAME_ALLOWANCE[0]) // 2),
+                  area.y() + max(0, (area.height() - height - FRAME_ALLOWANCE[1]) // 2))
 
     def _share_right_column(self) -> None:
         """First start: the 3D scene takes 40 % of the right column, the tabs the rest."""

@@ -16,6 +16,12 @@ Formats, detected by content (never by extension):
 * A DICOM image whose header has the source distances and detector pixel spacing: a
   starting geometry (``fluorogui.io.dicom.dicom_starting_view``), to be refined.
 
+Every view read is checked against what a fluoroscope can plausibly be (``io.plausible``:
+image size, field of view, pixel pitch, source distance, principal point, source position),
+so that an absurd number is refused here, naming the file and its field, and not later as
+a mismatch with an image. Numbers must be plain decimals (``1_000`` is refused). A
+JointTrack header in lower case is read, with an ``InputWarning`` saying so.
+
 Every format is written too (``save_view``), as exactly as it is read. MayaCam 2.0's
 optional ``undistortion`` block (OpenCV's k1 k2 p1 p2 k3 ... with the file's K) is kept in
 ``view.extra["distortion"]`` and applied by ``fluorogui.core.calibration.distortion``.
@@ -35,7 +41,8 @@ from pydantic import ValidationError
 
 from fluorogui.core.projection.geometry import DEFAULT_PITCH_MM, GeometryError, View
 from fluorogui.core.projection.pose import angles_from_matrix
-from fluorogui.io.errors import InputError
+from fluorogui.io import plausible
+from fluorogui.io.errors import InputError, warn_input
 from fluorogui.io.files import atomic_write_text, check_input_file, read_input_bytes
 from fluorogui.io.images import has_dicom_preamble
 from fluorogui.io.schema import CalibrationDocument, DocumentError, describe, parse_json
@@ -46,6 +53,22 @@ JOINTTRACK_DEFAULT_IMAGE_SIZE = (1024, 1024)
 MAYACAM2_SECTIONS = ("image size", "camera matrix", "rotation", "translation")
 _SECTION_TITLE = re.compile(r"^[A-Za-z][A-Za-z _-]*$")
 _NON_FINITE_WORDS = {"nan", "inf", "-inf", "infinity", "-infinity"}
+_PLAIN_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
+# each format's name for the quantities ``plausible.view_problem`` judges
+_MAYACAM2_FIELDS = {plausible.SIZE: "section 'image size'", plausible.FOCAL: "section 'camera matrix' (fx, fy)",
+                    plausible.PITCH: "section 'camera matrix' (fx, fy)",
+                    plausible.DISTANCE: "section 'camera matrix' (fx, fy)",
+                    plausible.PRINCIPAL: "section 'camera matrix' (cx, cy)", plausible.SOURCE: "section 'translation'"}
+_MAYACAM1_FIELDS = {plausible.SIZE: "line 5 (width, height)", plausible.FOCAL: "line 4 (focal length Z)",
+                    plausible.PITCH: "line 4 (focal length Z)", plausible.DISTANCE: "line 4 (focal length Z)",
+                    plausible.PRINCIPAL: "line 4 (u0, v0)", plausible.SOURCE: "line 1 (camera position)"}
+_JOINTTRACK_FIELDS = {plausible.SIZE: "the image size", plausible.FOCAL: "JT_INTCALIB principal distance / pixel pitch",
+                      plausible.PITCH: "JT_INTCALIB pixel pitch", plausible.DISTANCE: "JT_INTCALIB principal distance",
+                      plausible.PRINCIPAL: "JT_INTCALIB principal point offsets", plausible.SOURCE: "JT_INTCALIB"}
+_JSON_FIELDS = {plausible.SIZE: "view.image_size_px", plausible.FOCAL: "view.distance_mm / view.pitch_mm",
+                plausible.PITCH: "view.pitch_mm", plausible.DISTANCE: "view.distance_mm",
+                plausible.PRINCIPAL: "view.principal_point_px", plausible.SOURCE: "view.source_mm"}
+_DICOM_FIELDS = {k: "DICOM header (source distances, pixel spacing)" for k in _JSON_FIELDS}
 
 
 # -- public API ---------------------------------------------------------------------------
@@ -57,21 +80,24 @@ def load_view(path, name: str = "", *, image_size=JOINTTRACK_DEFAULT_IMAGE_SIZE)
     """
     path = check_input_file(path, "calibration file")  # before any open: a FIFO must not block
     if has_dicom_preamble(path):
-        return _dicom_view(path, name)
+        return _plausible(path, _dicom_view(path, name), _DICOM_FIELDS)
     text = _read_text(path)
     lines = [line.strip() for line in text.splitlines() if line.strip()]
     if not lines:
         raise InputError(path, "calibration file is empty")
     try:
         if lines[0].startswith("{"):
-            return _parse_json(path, text, name)
+            return _plausible(path, _parse_json(path, text, name), _JSON_FIELDS)
         name = name or path.stem
         if lines[0].upper() == "JT_INTCALIB":
-            return _parse_jointtrack(path, lines, name, image_size)
+            if lines[0] != "JT_INTCALIB":
+                warn_input(path, f"the header {lines[0][:20]!r} is not in capitals as JointTrack writes it; "
+                                 "read as JT_INTCALIB")
+            return _plausible(path, _parse_jointtrack(path, lines, name, image_size), _JOINTTRACK_FIELDS)
         if lines[0].lower() in MAYACAM2_SECTIONS:
-            return _parse_mayacam2(path, lines, name)
+            return _plausible(path, _parse_mayacam2(path, lines, name), _MAYACAM2_FIELDS)
         if _looks_like_mayacam1(lines):
-            return _parse_mayacam1(path, lines, name)
+            return _plausible(path, _parse_mayacam1(path, lines, name), _MAYACAM1_FIELDS)
     except GeometryError as exc:
         raise InputError(path, f"invalid calibration: {exc}") from None
     raise InputError(
@@ -79,6 +105,17 @@ def load_view(path, name: str = "", *, image_size=JOINTTRACK_DEFAULT_IMAGE_SIZE)
         "unknown calibration format (expected MayaCam 1.0 or 2.0, JointTrack JT_INTCALIB "
         "or a fluorogui calibration JSON)",
     )
+
+
+def _plausible(path: Path, view: View, fields: dict) -> View:
+    """``view`` if a fluoroscope can have it; else InputError naming the file and its field.
+    The view remembers its file (``extra["file"]``) for later messages about it."""
+    problem = plausible.view_problem(view)
+    if problem:
+        kind, sentence = problem
+        raise InputError(path, f"{fields[kind]}: {sentence}")
+    view.extra["file"] = str(path)
+    return view
 
 
 def save_view_json(view: View, path) -> None:
@@ -166,6 +203,7 @@ def check_image_size(view: View, image_shape, path) -> None:
     cal_w, cal_h = view.image_size
     if (width, height) != (cal_w, cal_h):
         label = f" '{view.name}'" if view.name else ""
+        label += f" ({view.extra['file']})" if view.extra.get("file") else ""
         raise InputError(
             path, f"image is {width}x{height} px but the calibration{label} is for {cal_w}x{cal_h} px"
         )
@@ -177,6 +215,9 @@ def load_jointtrack_poses(path) -> np.ndarray:
     lines = [line.strip() for line in _read_text(path).splitlines() if line.strip()]
     if not lines or lines[0].upper() != "JT_EULER_312":
         raise InputError(path, "not a JointTrack pose file (first line must be JT_EULER_312)")
+    if lines[0] != "JT_EULER_312":
+        warn_input(path, f"the header {lines[0][:20]!r} is not in capitals as JointTrack writes it; "
+                         "read as JT_EULER_312")
     rows = []
     for number, line in enumerate(lines[1:], start=2):
         fields = _split_row(line)
@@ -240,10 +281,12 @@ def _is_number(text: str) -> bool:
 def _numbers(path: Path, fields, where: str) -> list[float]:
     values = []
     for field in fields:
+        if field.lower().lstrip("+-") not in ("nan", "inf", "infinity") and not _PLAIN_NUMBER.match(field):
+            raise InputError(path, f"non-numeric value {field[:30]!r} in {where} (a plain decimal number is expected)")
         try:
             value = float(field)
         except ValueError:
-            raise InputError(path, f"non-numeric value {field!r} in {where}") from None
+            raise InputError(path, f"non-numeric value {field[:30]!r} in {where}") from None
         if not math.isfinite(value):
             raise InputError(path, f"NaN or infinite value in {where}")
         values.append(value)
@@ -349,6 +392,9 @@ def _parse_jointtrack(path: Path, lines: list[str], name: str, image_size) -> Vi
     width, height = (int(s) for s in image_size)
     if pitch <= 0 or distance <= 0:
         raise InputError(path, "JT_INTCALIB principal distance and pixel pitch must be positive")
+    if not plausible.PITCH_MM[0] <= pitch <= plausible.PITCH_MM[1]:  # before dividing by it
+        raise InputError(path, f"JT_INTCALIB pixel pitch: pixel pitch {pitch:.4g} mm is not plausible for a "
+                               f"fluoroscope ({plausible.PITCH_MM[0]:g} to {plausible.PITCH_MM[1]:g} mm)")
     view = View(
         source=(0.0, 0.0, 0.0),
         normal=(0.0, 0.0, -1.0),

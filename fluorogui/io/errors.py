@@ -1,5 +1,6 @@
-"""The one error type of the io layer and the words for operating-system errors (the
-opening and writing of files every format shares is in ``fluorogui.io.files``).
+"""The one error type of the io layer, its one warning (an input repaired, or accepted with
+a note) and the words for operating-system errors (the opening and writing of files every
+format shares is in ``fluorogui.io.files``).
 
 ``InputError(path, problem)`` reads as a single line ``"<path>: <problem>"`` so the CLI can
 print it on stderr and the GUI can show it in a dialog as is.
@@ -39,3 +40,24 @@ def describe_os_error(exc: OSError) -> str:
     if exc.errno in _OS_PROBLEMS:
         return _OS_PROBLEMS[exc.errno]
     return exc.strerror or str(exc) or type(exc).__name__
+
+
+class InputWarning(UserWarning):
+    """An input that was read, but not as it stood: repaired, or accepted in a form its
+    format does not quite allow. ``str`` is one line ``"<path>: <what was done>"``; the
+    command line prints it on stderr (``cli.inputs.input_warnings_on_stderr``)."""
+
+    def __init__(self, path, problem: str):
+        self.path = str(path)
+        self.problem = " ".join(str(problem).split())
+        super().__init__(self.path, self.problem)
+
+    def __str__(self) -> str:
+        return f"{self.path}: {self.problem}"
+
+
+def warn_input(path, problem: str) -> None:
+    """Emit an InputWarning about ``path``."""
+    import warnings
+
+    warnings.warn(InputWarning(path, problem), stacklevel=3)

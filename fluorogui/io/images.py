@@ -6,7 +6,7 @@ stacks), PNG, JPEG, BMP, DICOM (single- and multi-frame, compressed transfer syn
 frame of a multi-frame file is named ``FILE@N`` (0-based). Every reader checks the size
 in the header against ``MAX_IMAGE_SIDE_PX`` / ``MAX_IMAGE_PIXELS`` before decoding.
 16-bit images keep their full depth (float32 holds every 16-bit level); the display
-windows them (``fluorogui.gui.image_panel``).
+windows them (``fluorogui.gui.panels.image_panel``).
 
 Integer images are scaled by their type's full range (8-bit / 255, 16-bit / 65535), so a
 sequence keeps one intensity scale from frame to frame. DICOM pixel data get their rescale
@@ -148,7 +148,8 @@ def image_info(path) -> ImageInfo:
     if suffix in CV2_SUFFIXES:
         width, height, bits, _ = _pillow_header(path)
         return ImageInfo(suffix.lstrip(".").upper().replace("JPG", "JPEG"), width, height, 1, bits)
-    raise InputError(path, f"unsupported image type '{suffix or '(none)'}' (use TIFF, PNG, JPEG, BMP, DICOM, AVI or MP4)")
+    raise InputError(path, f"unsupported image type '{suffix or '(none)'}' "
+                           "(use TIFF, PNG, JPEG, BMP, DICOM, AVI or MP4)")
 
 
 def frame_count(path) -> int:

@@ -29,6 +29,11 @@ calibrated view laid out like ``data/single-plane-tka`` (one calibration file, t
 beside it or in one image folder, the meshes beside it or in ``models/``). One view is a
 valid session: out-of-plane translation (along the view's central ray) is then its weak
 direction.
+
+The frame rate (the project's time base, ``fluorogui.io.motion_files``) is read where the
+images declare one: a video's container, a DICOM's FrameTime (ms per frame) or CineRate
+(``source_frame_rate``). ``import_session`` keeps it when every view that declares one
+agrees (``declared_frame_rates`` tells what each view said).
 """
 from __future__ import annotations
 
@@ -47,16 +52,19 @@ from fluorogui.io.calibration import check_image_size, load_view
 from fluorogui.io.errors import InputError, describe_os_error
 from fluorogui.io.files import read_text_file
 from fluorogui.io.images import (
+    DICOM_SUFFIXES,
     IMAGE_SUFFIXES,
     VIDEO_SUFFIXES,
     ImageInfo,
     frame_count,
     frame_reference,
+    has_dicom_preamble,
     image_info,
     read_image,
     split_frame_reference,
 )
 from fluorogui.io.meshes.read import MESH_SUFFIXES, load_mesh
+from fluorogui.io.motion_files import MAX_FPS, store_frame_rate
 
 ImageSource = Union[Path, str, Sequence[Union[Path, str]]]
 
@@ -119,12 +127,56 @@ def import_session(
         check_implant_model(path)
         entries.append(ModelEntry(str(component), path))
 
-    return Project(
+    project = Project(
         views=views,
         sequences=[ImageSequence(p) for p in paths],
         frames=frames,
         models=entries,
     )
+    rates = [r for r in declared_frame_rates(project) if r is not None]
+    if rates and all(abs(fps - rates[0][0]) <= 1e-6 * rates[0][0] for fps, _ in rates):
+        store_frame_rate(project.settings, rates[0][0], rates[0][1])
+    return project
+
+
+def source_frame_rate(path) -> tuple[float, str] | None:
+    """(frames per second, where it was read) that an image file declares, or None: a
+    video's container rate, a DICOM's FrameTime (ms per frame) or else its CineRate.
+    ``path`` may be a frame reference ``FILE@N``; a file that cannot be read declares none."""
+    path, _ = split_frame_reference(path)
+    suffix = path.suffix.lower()
+    try:
+        if suffix in VIDEO_SUFFIXES:
+            from fluorogui.io.video import video_info
+
+            fps = video_info(path).fps
+            return (fps, f"{path.name} (video)") if 0 < fps <= MAX_FPS else None
+        if suffix in DICOM_SUFFIXES or (suffix not in IMAGE_SUFFIXES and has_dicom_preamble(path)):
+            return _dicom_frame_rate(path)
+    except (InputError, OSError):
+        return None
+    return None
+
+
+def _dicom_frame_rate(path: Path) -> tuple[float, str] | None:
+    from fluorogui.io.dicom import read_dicom_header
+
+    dataset = read_dicom_header(path).dataset
+    for keyword, to_fps in (("FrameTime", lambda ms: 1000.0 / ms if ms > 0 else 0.0),
+                            ("CineRate", lambda rate: rate)):
+        try:
+            value = float(getattr(dataset, keyword, None) or 0.0)
+        except (TypeError, ValueError):
+            continue
+        fps = to_fps(value) if np.isfinite(value) else 0.0
+        if 0 < fps <= MAX_FPS:
+            return fps, f"{path.name} (DICOM {keyword})"
+    return None
+
+
+def declared_frame_rates(project: Project) -> list[tuple[float, str] | None]:
+    """Per view, the frame rate its first image declares (``source_frame_rate``) or None."""
+    return [source_frame_rate(s.paths[0]) if s.paths else None for s in project.sequences]
 
 
 def import_folder(folder, allow_unequal: bool = False) -> Project:
@@ -232,7 +284,8 @@ def read_pairs_csv(path, n_views: int = 2) -> tuple[list[int], list[list[Path]]]
     paths: list[list[Path]] = [[] for _ in range(n_views)]
     for n, row in rows:
         if len(row) != 1 + n_views:
-            raise InputError(path, f"line {n} has {len(row)} columns, expected {1 + n_views} (frame, one image per view)")
+            raise InputError(path, f"line {n} has {len(row)} columns, expected {1 + n_views} "
+                                   "(frame, one image per view)")
         try:
             frame = int(row[0])
         except ValueError:
@@ -464,6 +517,7 @@ def _child_folder(children: list[Path], names: Sequence[str]) -> Path | None:
 
 __all__ = [
     "check_implant_model",
+    "declared_frame_rates",
     "detect_biplane_folder",
     "detect_single_plane_folder",
     "extract_video_frames",
@@ -472,4 +526,5 @@ __all__ = [
     "preview_image_source",
     "read_pairs_csv",
     "resolve_image_source",
+    "source_frame_rate",
 ]

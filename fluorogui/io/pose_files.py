@@ -27,12 +27,13 @@ import numpy as np
 from fluorogui.core.projection.geometry import View
 from fluorogui.core.projection.pose import angles_from_matrix, pose_to_matrix
 from fluorogui.io.calibration import jointtrack_matrix
-from fluorogui.io.errors import InputError
+from fluorogui.io.errors import InputError, warn_input
 from fluorogui.io.files import atomic_write_text, read_text_file
 
 POSE_KEYS = ("x", "y", "z", "alpha", "beta", "gamma")
 JTS_TITLE = "JT_EULER_312"
-JTS_HEADER = "          x_tran,          y_tran,          z_tran,                   z_rot,           x_rot,           y_rot"
+JTS_HEADER = ("          x_tran,          y_tran,          z_tran,"
+              "                   z_rot,           x_rot,           y_rot")
 NOT_OPTIMIZED = "NOT_OPTIMIZED"
 MAX_ROWS = 1_000_000
 MAX_POSE_VALUE = 1e7  # mm or degrees: anything larger is not a pose
@@ -156,6 +157,9 @@ def read_jts(path) -> list[np.ndarray | None]:
     content = [(n, line.strip()) for n, line in enumerate(lines, start=1) if line.strip()]
     if not content or content[0][1].upper() != JTS_TITLE:
         raise InputError(path, f"not a JointTrack pose file (the first line must be {JTS_TITLE})")
+    if content[0][1] != JTS_TITLE:
+        warn_input(path, f"the header {content[0][1][:20]!r} is not in capitals as JointTrack writes it; "
+                         f"read as {JTS_TITLE}")
     out = []
     for number, line in content[1:]:
         fields = [f.strip() for f in line.replace("\t", ",").split(",") if f.strip()]
@@ -247,7 +251,8 @@ def read_long_poses(path, components=("femoral", "tibial"), lines: list[str] | N
             raise InputError(path, f"{where}: frame {frame_text[:20]!r} is not a whole number") from None
         component = row["component"].lower()
         if component not in components:
-            raise InputError(path, f"{where}: component {row['component'][:20]!r} is not one of {', '.join(components)}")
+            raise InputError(path, f"{where}: component {row['component'][:20]!r} "
+                                   f"is not one of {', '.join(components)}")
         if (frame, component) in out:
             raise InputError(path, f"{where}: frame {frame} has a second {component} pose")
         pose = np.array([_float(path, row[k], f"{where}, {k}") for k in POSE_KEYS])

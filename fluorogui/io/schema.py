@@ -17,14 +17,17 @@ from __future__ import annotations
 import base64
 import json
 import math
-from typing import Annotated, Any, Literal, Optional
+from typing import Annotated, Any, Literal, NamedTuple, Optional
 
 import numpy as np
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import AfterValidator, BaseModel, BeforeValidator, ConfigDict, Field, ValidationError, model_validator
 
 from fluorogui.core.status import Status
+from fluorogui.io.plausible import rigid_problem
 
 MAX_NESTING = 64  # a project is 6 deep; a file nested deeper is not ours
+MAX_JSON_ITEMS = 10_000_000  # a 100 MB project of small outlines holds some 7 million
+MAX_OBJECT_MEMBERS = 100_000  # fluorogui writes objects of at most a few hundred members
 MAX_INTEGER_DIGITS = 30
 MAX_VIEWS = 16
 MAX_FRAMES = 1_000_000
@@ -38,28 +41,87 @@ class DocumentError(ValueError):
 
 
 # -- reading JSON within limits -----------------------------------------------------------------
+_STRUCTURAL = np.zeros(256, dtype=bool)
+_STRUCTURAL[[44, 91, 93, 123, 125]] = True  # , [ ] { }
+_STEP = np.zeros(256, dtype=np.int8)
+_STEP[[91, 123]], _STEP[[93, 125]] = 1, -1
+_BLOCK = 1 << 22
+
+
+class JsonShape(NamedTuple):
+    depth: int  # the deepest nesting of objects and lists
+    items: int  # objects, lists and the commas between values
+    widest_object: int  # the most members (commas + 1) of one object
+
+
+def json_structure(text: str) -> JsonShape:
+    """The shape of JSON ``text`` (brackets and commas inside strings not counted), found
+    before ``json.loads`` allocates anything: vectorised (numpy over the bracket, comma and
+    quote positions only) and read in blocks of 4 MB: for 100 MB of text, whatever it holds,
+    a few seconds and under 200 MB."""
+    raw = text.encode("utf-8", "surrogatepass")
+    depth = deepest = items = widest = 0
+    inside = False  # within a string at the start of the block
+    backslashes = 0  # the run of backslashes that ended the previous block
+    open_kind = np.zeros(MAX_NESTING + 2, dtype=np.uint8)  # per level: the container open there, its commas
+    open_commas = np.zeros(MAX_NESTING + 2, dtype=np.int64)
+    for start in range(0, len(raw), _BLOCK):
+        data = np.frombuffer(raw, dtype=np.uint8, count=min(_BLOCK, len(raw) - start), offset=start)
+        quotes = np.flatnonzero(data == 34)
+        before = np.where(quotes > 0, data[np.maximum(quotes - 1, 0)], 92 if backslashes else 0)
+        escaped = quotes[before == 92]
+        if escaped.size:  # a quote after an odd run of backslashes is part of the string (rare)
+            keep = np.ones(quotes.size, dtype=bool)
+            for at in escaped:
+                run = 0
+                while at - 1 - run >= 0 and data[at - 1 - run] == 92:
+                    run += 1
+                run += backslashes if run == at else 0
+                keep[np.searchsorted(quotes, at)] = run % 2 == 0
+            quotes = quotes[keep]
+        marks = np.flatnonzero(_STRUCTURAL[data])
+        marks = marks[(np.searchsorted(quotes, marks) + inside) % 2 == 0]  # outside strings
+        if marks.size:
+            kinds = data[marks]
+            steps = _STEP[kinds]
+            items += int(np.count_nonzero(steps >= 0))
+            levels = np.cumsum(steps, dtype=np.int64) + depth
+            deepest, depth = max(deepest, int(levels.max())), int(levels[-1])
+            if deepest > MAX_NESTING:
+                break  # refused for its depth; the levels below would not fit the arrays
+            widest = max(widest, _widest_object(kinds, levels, open_kind, open_commas))
+        inside = (inside + quotes.size) % 2 == 1
+        tail = data[::-1]
+        run = int(np.argmax(tail != 92)) if np.any(tail != 92) else data.size
+        backslashes = run + (backslashes if run == data.size else 0)
+    return JsonShape(deepest, items, widest)
+
+
+def _widest_object(kinds, levels, open_kind, open_commas) -> int:
+    """The most members of an object among the containers seen in this block; ``open_kind``
+    and ``open_commas`` carry the container open at each level from block to block."""
+    commas = np.flatnonzero(kinds == 44)
+    opens = np.flatnonzero((kinds == 91) | (kinds == 123))
+    widest = 0
+    for level in np.unique(np.r_[levels[commas], levels[opens]]):
+        if not 0 <= level < open_kind.size:
+            continue  # unbalanced: refused by the parser
+        at_level = opens[levels[opens] == level]
+        owner = np.searchsorted(at_level, commas[levels[commas] == level]) - 1  # -1: the carried container
+        counts = np.bincount(owner + 1, minlength=at_level.size + 1)
+        counts[0] += open_commas[level]
+        is_object = np.r_[open_kind[level] == 123, kinds[at_level] == 123]
+        if np.any(is_object):
+            widest = max(widest, int(counts[is_object].max()) + 1)
+        if at_level.size:
+            open_kind[level] = kinds[at_level[-1]]
+        open_commas[level] = counts[-1]
+    return widest
+
+
 def nesting_depth(text: str, limit: int = MAX_NESTING) -> int:
-    """The deepest nesting of ``[`` / ``{`` in JSON ``text``, brackets inside strings not
-    counted. Vectorised (numpy over the bracket and quote positions only), so a large
-    project costs a fraction of a second."""
-    data = np.frombuffer(text.encode("utf-8", "surrogatepass"), dtype=np.uint8)
-    quotes = np.flatnonzero(data == 34)
-    escaped = quotes[(quotes > 0) & (data[np.maximum(quotes - 1, 0)] == 92)]
-    if escaped.size:  # a quote after an odd run of backslashes is part of the string (rare)
-        keep = np.ones(quotes.size, dtype=bool)
-        for at in escaped:
-            run = 0
-            while at - 1 - run >= 0 and data[at - 1 - run] == 92:
-                run += 1
-            keep[np.searchsorted(quotes, at)] = run % 2 == 0
-        quotes = quotes[keep]
-    brackets = np.flatnonzero((data == 91) | (data == 123) | (data == 93) | (data == 125))
-    outside = np.searchsorted(quotes, brackets) % 2 == 0  # an even number of quotes before it
-    brackets = brackets[outside]
-    if not brackets.size:
-        return 0
-    steps = np.where((data[brackets] == 91) | (data[brackets] == 123), 1, -1)
-    return int(np.cumsum(steps).max())
+    """The deepest nesting of ``[`` / ``{`` in JSON ``text``, brackets inside strings not counted."""
+    return json_structure(text).depth
 
 
 def _parse_int(text: str) -> int:
@@ -72,14 +134,38 @@ def _parse_constant(text: str):
     raise DocumentError(f"{text} is not a number JSON allows")
 
 
-def parse_json(text: str, limit: int = MAX_NESTING) -> Any:
+def _unique_keys(pairs: list) -> dict:
+    """An object's pairs as a dict; DocumentError when a key is given twice (plain JSON would
+    keep the last one silently, so two values of one field could disagree unseen)."""
+    document = dict(pairs)
+    if len(document) != len(pairs):
+        seen = set()
+        for key, _ in pairs:
+            if key in seen:
+                raise DocumentError(f"the key {key[:40]!r} appears twice in one object")
+            seen.add(key)
+    return document
+
+
+def parse_json(text: str, limit: int = MAX_NESTING, most_items: int = MAX_JSON_ITEMS) -> Any:
     """JSON ``text`` as Python data; DocumentError when it is malformed, nested more than
-    ``limit`` deep, or holds NaN, Infinity or huge integers. A number too large for a float
-    (1e999) reads as inf, which the schema's finite checks refuse where it is."""
-    if nesting_depth(text, limit) > limit:
+    ``limit`` deep, holds more than ``most_items`` objects, lists and values or an object of
+    more than ``MAX_OBJECT_MEMBERS`` (checked before anything is allocated: each value costs
+    some 50-150 bytes in memory), NaN, Infinity, huge integers or a key twice in one object.
+    A number too large for a float (1e999) reads as inf, which the schema's finite checks
+    refuse where it is."""
+    shape = json_structure(text)
+    if shape.depth > limit:
         raise DocumentError(f"nested more than {limit} levels deep")
+    if shape.items > most_items:
+        raise DocumentError(f"holds {shape.items:,} JSON values, more than the {most_items:,} fluorogui reads "
+                            "(some 1.5 GB in memory)")
+    if shape.widest_object > MAX_OBJECT_MEMBERS:
+        raise DocumentError(f"an object has {shape.widest_object:,} members; fluorogui's have at most a few "
+                            f"hundred (at most {MAX_OBJECT_MEMBERS:,} are read)")
     try:
-        return json.loads(text, parse_int=_parse_int, parse_constant=_parse_constant)
+        return json.loads(text, parse_int=_parse_int, parse_constant=_parse_constant,
+                          object_pairs_hook=_unique_keys)
     except DocumentError:
         raise
     except (ValueError, RecursionError):  # JSONDecodeError is a ValueError
@@ -250,7 +336,13 @@ class CalibrationDocument(_Strict):
 
 # -- projects ---------------------------------------------------------------------------------
 class SequenceDocument(_Strict):
+    """One view's image files in frame order. A view may have fewer images than the project
+    has frames (``fluorogui import`` allows a shorter camera, and its frames are flagged when
+    matched); since schema 6 such a sequence says so: ``frames_without_image`` lists the
+    frames past its last image."""
+
     paths: bounded(Text, MAX_FRAMES)
+    frames_without_image: bounded(FrameNumber, MAX_FRAMES) = Field(default_factory=list)
 
 
 class ModelDocument(_Strict):
@@ -295,6 +387,29 @@ class RecordDocument(_Strict):
         return self
 
 
+MAX_FREE_FORM = 100_000  # values in one free-form section (settings, a match's settings); fluorogui writes ~100
+
+
+def _small_free_form(value):
+    """Refuse a free-form section (``settings``, a match's ``settings`` / ``quality``) of more
+    than ``MAX_FREE_FORM`` values before pydantic copies it: fluorogui writes some hundred."""
+    pending, seen = [value], 0
+    while pending:
+        item = pending.pop()
+        if isinstance(item, dict):
+            pending.extend(item.values())
+            seen += len(item)
+        elif isinstance(item, list):
+            pending.extend(item)
+            seen += len(item)
+        if seen > MAX_FREE_FORM:
+            raise ValueError(f"holds more than {MAX_FREE_FORM:,} values; fluorogui writes a few hundred")
+    return value
+
+
+FreeForm = Annotated[dict[str, Any], BeforeValidator(_small_free_form)]
+
+
 class MatchDocument(_Strict):
     objective_mm: NonNegative
     per_view_mean_mm: bounded(NonNegative, MAX_VIEWS)
@@ -302,8 +417,8 @@ class MatchDocument(_Strict):
     seconds: NonNegative
     converged: bool
     method: Text
-    settings: dict[str, Any]
-    quality: dict[str, Any] = Field(default_factory=dict)
+    settings: FreeForm
+    quality: FreeForm = Field(default_factory=dict)
     history: numeric_array((None,), most=10**6, limit=1e300) = Field(default_factory=list)
 
 
@@ -326,6 +441,11 @@ class SettingsDocument(_Strict):
 
 
 class ProjectDocument(_Strict):
+    """A project's top level. ``records`` and ``poses`` are only counted here: each item is
+    checked by ``RecordDocument`` / ``PoseDocument`` and ``item_problem`` as it is turned into
+    the project (``io.project.document``), so that a large project is never held three times
+    over (its JSON, its checked documents and the project) at once."""
+
     format: Literal["fluorogui-project"]
     schema_version: Annotated[int, Field(ge=1)]
     app_version: Text = ""
@@ -333,9 +453,9 @@ class ProjectDocument(_Strict):
     sequences: bounded(SequenceDocument, MAX_VIEWS)
     frames: bounded(FrameNumber, MAX_FRAMES)
     models: bounded(ModelDocument, 64)
-    records: bounded(RecordDocument, 10**7)
-    poses: bounded(PoseDocument, 10**7)
-    settings: dict[str, Any]
+    records: bounded(Any, 10**7)
+    poses: bounded(Any, 10**7)
+    settings: FreeForm
 
     @model_validator(mode="after")
     def _consistent(self):
@@ -344,22 +464,62 @@ class ProjectDocument(_Strict):
         if len(set(self.frames)) != len(self.frames):
             raise ValueError("frames: a frame number is listed twice")
         for k, sequence in enumerate(self.sequences):
-            if len(sequence.paths) > len(self.frames):
-                raise ValueError(f"sequences[{k}] has {len(sequence.paths)} images for {len(self.frames)} frames")
+            problem = _sequence_problem(sequence, self.frames, f"sequences[{k}]")
+            if problem:
+                raise ValueError(problem)
         components = [m.component for m in self.models]
         if len(set(components)) != len(components):
             raise ValueError("models: a component is listed twice")
-        frames = set(self.frames)
-        for kind, items in (("records", self.records), ("poses", self.poses)):
-            for i, item in enumerate(items):
-                if item.frame not in frames:
-                    raise ValueError(f"{kind}[{i}] is for frame {item.frame}, which the project does not have")
-                if item.component not in components:
-                    raise ValueError(f"{kind}[{i}] is for component {item.component!r}, which has no model")
-                if kind == "records" and item.view >= len(self.views):
-                    raise ValueError(f"{kind}[{i}] is for view {item.view} but the project has "
-                                     f"{len(self.views)} views")
+        for i, model in enumerate(self.models):
+            if "\x00" in model.mesh_path:
+                raise ValueError(f"models[{i}].mesh_path holds a NUL character, which no file name can")
+            problem = rigid_problem(model.local_frame)
+            if problem:
+                raise ValueError(f"models[{i}].local_frame is not a rigid transform ({problem})")
+        frames, views, models = len(self.frames), len(self.views), len(self.models)
+        if len(self.records) > frames * views * models:  # before any item is checked or allocated
+            raise ValueError(f"records holds {len(self.records):,} outlines, more than the {frames:,} frames x "
+                             f"{views} views x {models} components can hold")
+        if len(self.poses) > frames * models:
+            raise ValueError(f"poses holds {len(self.poses):,} poses, more than the {frames:,} frames x "
+                             f"{models} components can hold")
         return self
+
+
+def _sequence_problem(sequence: SequenceDocument, frames: list[int], where: str) -> str | None:
+    n, m = len(sequence.paths), len(frames)
+    if n > m:
+        return f"{where} has {n} images for {m} frames"
+    for i, path in enumerate(sequence.paths):
+        if "\x00" in path:
+            return f"{where}.paths[{i}] holds a NUL character, which no file name can"
+    if sequence.frames_without_image != list(frames[n:]):
+        return (f"{where} has {n} image{'s' if n != 1 else ''} for {m} frames, so its 'frames_without_image' must "
+                f"be {_listed(frames[n:])}, not {_listed(sequence.frames_without_image)}")
+    return None
+
+
+def _listed(frames: list[int]) -> str:
+    """A list of frame numbers in a few characters: [], [40], [40, 41], [40 .. 99] (60 frames)."""
+    if len(frames) <= 2:
+        return "[" + ", ".join(map(str, frames)) + "]"
+    return f"[{frames[0]} .. {frames[-1]}] ({len(frames)} frames)"
+
+
+def item_problem(kind: str, index: int, item, frames: set, components: list, views: int) -> str | None:
+    """What a checked record or pose contradicts in its project (a frame, component or view
+    the project lacks; more per-view values than views), or None."""
+    where = f"{kind}[{index}]"
+    if item.frame not in frames:
+        return f"{where} is for frame {item.frame}, which the project does not have"
+    if item.component not in components:
+        return f"{where} is for component {item.component!r}, which has no model"
+    if kind == "records" and item.view >= views:
+        return f"{where} is for view {item.view} but the project has {views} views"
+    if kind == "poses" and item.match is not None and len(item.match.per_view_mean_mm) > views:
+        return (f"{where}.match.per_view_mean_mm has {len(item.match.per_view_mean_mm)} values for the "
+                f"project's {views} view{'s' if views != 1 else ''}")
+    return None
 
 
 def check_settings(settings: dict) -> None:

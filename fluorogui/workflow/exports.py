@@ -1,9 +1,20 @@
 """Results out of a session (poses and kinematics CSV, Autoscoper ``.tra``, JointTrack
-``.jts``, figures) and poses from other tools in; also kinematics of bare pose files.
+``.jts``, figures; for the analysis that continues elsewhere C3D, OpenSim ``.mot`` and
+``.trc``, XMALab rigid-body CSV) and poses from other tools in; also kinematics of bare
+pose files.
 
-Every export names, in its header, the software version, the side, the units and the
-conventions (``fluorogui.core.knee.kinematics.SIGN_CONVENTIONS``). Output paths are checked
-before any work, and every file is written atomically.
+Every export that has a header names in it the software version, the side, the units and
+the conventions (``fluorogui.core.knee.kinematics.SIGN_CONVENTIONS``). Output paths are
+checked before any work, and every file is written atomically.
+
+The motion files rest on a time base: the project's frame rate (``frame_rate``; kept in
+``project.settings["time"]``, see ``fluorogui.io.motion_files``), time = frame ÷ fps. The
+files that need time (C3D, ``.trc``, ``.mot``) refuse, naming the file, when there is none.
+Their markers: per component, the world position (mm) of its anatomical frame's origin and
+of the points ``MARKER_AXIS_MM`` along its x, y and z axes (``<component>_origin``,
+``_x``, ``_y``, ``_z``). A pose goes into them when it is matched or accepted; poses placed
+by hand or flagged for review and not accepted are left out (invalid / NaN) unless
+``include_unreviewed``; failed or missing poses always are.
 """
 from __future__ import annotations
 
@@ -25,6 +36,15 @@ from fluorogui.core.records import PoseRecord
 from fluorogui.core.status import Status
 from fluorogui.io.errors import InputError
 from fluorogui.io.files import check_output_file, check_output_folder
+from fluorogui.io.motion_files import (
+    frame_times,
+    store_frame_rate,
+    stored_frame_rate,
+    write_c3d,
+    write_mot,
+    write_trc,
+    write_xromm_csv,
+)
 from fluorogui.io.pose_files import (
     POSE_KEYS,
     jointtrack_to_world_pose,
@@ -36,6 +56,7 @@ from fluorogui.io.pose_files import (
     write_jts,
     write_tra,
 )
+from fluorogui.workflow.history import Command
 from fluorogui.workflow.knee import KNEE_COMPONENTS, KneeRow, record_sd
 
 POSE_CONVENTION = ("pose x, y, z (mm), alpha, beta, gamma (deg) of the model in the calibration (world) frame: "
@@ -175,6 +196,180 @@ def export_plot(session, path, against: str = "frame", rows: list[KneeRow] | Non
         raise InputError(path, "the figure must be .png, .svg or .pdf")
     save_kinematics_figure(session.knee_rows() if rows is None else rows, path, side=session.side or "right",
                            against=against, title=session.path.stem if session.path else "")
+    return path
+
+
+# -- the time base ------------------------------------------------------------------------------
+def frame_rate(session) -> float | None:
+    """The project's frame rate (frames per second), or None when nobody gave one."""
+    return stored_frame_rate(session.project.settings)
+
+
+def set_frame_rate(session, fps: float | None, source: str = "user") -> None:
+    """Keep the frame rate in the project (an undoable edit; None removes it)."""
+    before = session.project.settings.get("time")
+    probe: dict = {}
+    store_frame_rate(probe, fps, source)  # checks fps before anything changes
+    after = probe.get("time")
+
+    def put(_key, value) -> None:
+        if value is None:
+            session.project.settings.pop("time", None)
+        else:
+            session.project.settings["time"] = dict(value)
+        session._notify("knee", "time")
+
+    session.history.push(Command("Set frame rate" if fps is not None else "Remove frame rate", "time", before,
+                                 after, put))
+
+
+def require_frame_rate(session, path, fps: float | None = None) -> float:
+    """``fps`` (an override for one export) or the project's frame rate; an InputError naming
+    the file that needs it when there is neither."""
+    rate = fps if fps is not None else frame_rate(session)
+    if rate is None:
+        raise InputError(path, "needs a frame rate (time = frame number / fps) and the project has none; "
+                               "give the images' frame rate")
+    return float(rate)
+
+
+# -- motion files: markers, C3D, .trc, .mot, XMALab ----------------------------------------------
+MARKER_AXIS_MM = 10.0
+MARKER_POINTS = ("origin", "x", "y", "z")
+MOT_COLUMNS = ("knee_flexion", "knee_varus", "knee_internal_rotation", "knee_medial_translation",
+               "knee_anterior_translation", "knee_distraction")
+MOT_METRES = (False, False, False, True, True, True)  # .mot holds translations in metres (OpenSim)
+
+
+def in_motion_files(record: PoseRecord | None, include_unreviewed: bool) -> bool:
+    """Whether a pose is valid in the motion files: matched or accepted; also placed or
+    flagged (not accepted) ones when ``include_unreviewed``; never failed or missing ones."""
+    if record is None or record.status == Status.FAILED:
+        return False
+    return record.is_matched or include_unreviewed
+
+
+def left_out_of_motion_files(session) -> list[tuple[int, str, str]]:
+    """(frame, component, why) of the poses that motion files leave out unless
+    ``include_unreviewed``: placed by hand or flagged for review, and not accepted."""
+    out = []
+    for frame in session.frames:
+        for c in KNEE_COMPONENTS:
+            record = session.project.poses.get((frame, c))
+            if record is not None and record.status != Status.FAILED and not record.is_matched:
+                out.append((frame, c, record.reason or str(record.status)))
+    return out
+
+
+def motion_components(session) -> list[str]:
+    return [c for c in KNEE_COMPONENTS if session.project.model(c) is not None]
+
+
+def marker_labels(components) -> list[str]:
+    return [f"{c}_{point}" for c in components for point in MARKER_POINTS]
+
+
+def anatomical_markers(pose, anatomical_frame) -> np.ndarray:
+    """World positions (4 × 3, mm) of the anatomical origin and of the points
+    ``MARKER_AXIS_MM`` along its x, y and z axes, for a model pose and its anatomical frame
+    (anatomical → model)."""
+    placed = pose_to_matrix(pose) @ np.asarray(anatomical_frame, dtype=float)
+    origin = placed[:3, 3]
+    return np.vstack([origin, *(origin + MARKER_AXIS_MM * placed[:3, k] for k in range(3))])
+
+
+def marker_table(session, include_unreviewed: bool = False) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """Labels, points (frames × markers × 3, mm; NaN where left out) and validity
+    (frames × markers) of every frame."""
+    components = motion_components(session)
+    frames_of = {c: session.anatomical_frame(c) for c in components}
+    labels = marker_labels(components)
+    points = np.full((len(session.frames), len(labels), 3), np.nan)
+    for i, frame in enumerate(session.frames):
+        for k, c in enumerate(components):
+            record = session.project.poses.get((frame, c))
+            if in_motion_files(record, include_unreviewed):
+                points[i, 4 * k:4 * k + 4] = anatomical_markers(record.pose, frames_of[c])
+    return labels, points, np.all(np.isfinite(points), axis=2)
+
+
+def _descriptions(labels: list[str]) -> list[str]:
+    words = {"origin": "anatomical origin", "x": f"{MARKER_AXIS_MM:g} mm along the anatomical x axis (right)",
+             "y": f"{MARKER_AXIS_MM:g} mm along the anatomical y axis (anterior)",
+             "z": f"{MARKER_AXIS_MM:g} mm along the anatomical z axis (proximal)"}
+    return [f"{label.split('_')[0]} component: {words[label.split('_', 1)[1]]}, world mm" for label in labels]
+
+
+def consecutive_frames(session) -> bool:
+    """Whether the frame numbers follow one another: a C3D reader times its frames 1/fps
+    apart, which is frame ÷ fps only then (the C3D keeps the true ones in FLUOROGUI:FRAMES)."""
+    frames = session.frames
+    return all(b - a == 1 for a, b in zip(frames, frames[1:]))
+
+
+def export_c3d(session, path, fps: float | None = None, include_unreviewed: bool = False) -> Path:
+    """C3D: the anatomical markers, POINT:RATE the frame rate, one C3D frame per project
+    frame; poses left out (see the module) are invalid markers (residual −1)."""
+    path = check_output_file(path)
+    rate = require_frame_rate(session, path, fps)
+    labels, points, valid = marker_table(session, include_unreviewed)
+    write_c3d(path, labels, points, valid, rate, session.frames, _descriptions(labels))
+    return path
+
+
+def export_trc(session, path, fps: float | None = None, include_unreviewed: bool = False) -> Path:
+    """OpenSim marker file: the C3D's markers, Frame# the project's frame number, Time = frame / fps."""
+    path = check_output_file(path)
+    rate = require_frame_rate(session, path, fps)
+    labels, points, valid = marker_table(session, include_unreviewed)
+    write_trc(path, labels, session.frames, frame_times(session.frames, rate), points, valid, rate)
+    return path
+
+
+def mot_table(rows: list[KneeRow], include_unreviewed: bool = False) -> np.ndarray:
+    """The six Grood–Suntay values per row as ``.mot`` holds them (degrees; translations in
+    metres); NaN where a component is missing, or its pose is left out (see the module)."""
+    table = np.full((len(rows), 6), np.nan)
+    for i, row in enumerate(rows):
+        if row.status == Status.MATCHED or (include_unreviewed and row.status == "needs_review"):
+            table[i] = row.values.values()
+    table[:, 3:] /= 1000.0
+    return table
+
+
+def export_mot(session, path, rows: list[KneeRow] | None = None, fps: float | None = None,
+               include_unreviewed: bool = False) -> Path:
+    """OpenSim Storage: ``time`` and the six knee values named ``MOT_COLUMNS``."""
+    path = check_output_file(path)
+    rate = require_frame_rate(session, path, fps)
+    rows = session.knee_rows() if rows is None else rows
+    side = session.side or "right (assumed)"
+    notes = [f"fluorogui {__version__} knee kinematics of {session.path.name if session.path else 'an unsaved project'}"
+             f", {side} knee",
+             "Units are S.I. units (second, meters): knee_medial_translation, knee_anterior_translation and "
+             "knee_distraction in meters; knee_flexion, knee_varus and knee_internal_rotation in degrees",
+             f"time is frame number / {rate:g} frames per second",
+             f"{SIGN_CONVENTIONS}",
+             "NaN where a component has no pose, or its pose was not matched or accepted"
+             + (" (placed or flagged poses included)" if include_unreviewed else "")]
+    write_mot(path, "knee_kinematics", list(MOT_COLUMNS), frame_times([r.frame for r in rows], rate),
+              mot_table(rows, include_unreviewed), notes)
+    return path
+
+
+def export_xromm(session, path, include_unreviewed: bool = False) -> Path:
+    """XMALab rigid-body transformations: per frame and component the pose's 4×4 (model →
+    world, mm) column by column; NaN where the pose is left out (see the module)."""
+    path = check_output_file(path)
+    components = motion_components(session)
+    matrices = []
+    for frame in session.frames:
+        row = []
+        for c in components:
+            record = session.project.poses.get((frame, c))
+            row.append(pose_to_matrix(record.pose) if in_motion_files(record, include_unreviewed) else None)
+        matrices.append(row)
+    write_xromm_csv(path, components, matrices)
     return path
 
 

@@ -80,12 +80,26 @@ def read_model(path, local_frame: np.ndarray | None = None) -> tuple[np.ndarray,
     return vertices, faces
 
 
+#: a model may have this many edges bordering one triangle (or more than two) before it is
+#: taken for a triangle soup: the matcher takes every such edge as a silhouette candidate
+#: in every view, which made a 400,000-triangle soup need 15 GB
+MAX_OPEN_EDGES = 1000
+MAX_OPEN_EDGE_SHARE = 0.05
+
+
 def prepared_model(path, vertices: np.ndarray, faces: np.ndarray) -> PreparedMesh:
-    """A model read by ``read_model`` prepared for matching; raises InputError naming ``path``."""
+    """A model read by ``read_model`` prepared for matching; raises InputError naming ``path``,
+    also for a model that is not a closed surface (more than ``MAX_OPEN_EDGES`` and
+    ``MAX_OPEN_EDGE_SHARE`` of its edges open: a real implant model has a few dozen)."""
     try:
-        return prepare_mesh(vertices, faces)
+        mesh = prepare_mesh(vertices, faces)
     except MeshError as exc:
         raise InputError(path, str(exc)) from None
+    open_edges, edges = len(mesh.open_edges), len(mesh.open_edges) + len(mesh.edges)
+    if open_edges > MAX_OPEN_EDGES and open_edges > MAX_OPEN_EDGE_SHARE * edges:
+        raise InputError(path, f"mesh is not a closed surface: {open_edges:,} of its {edges:,} edges border one "
+                               "triangle (or more than two); an implant model is closed (is it a triangle soup?)")
+    return mesh
 
 
 def fitted_outline(points: np.ndarray, weights: np.ndarray | None = None) -> OutlineSpline | None:

@@ -50,6 +50,7 @@ def _match(scene, images, start, cameras=(0, 1)):
 STARTS = [np.array([3.0, -2.0, 2.0, 4.0, -3.0, 2.0]), np.array([-6.0, 4.0, -3.0, -8.0, 6.0, 5.0])]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("offset", STARTS)
 def test_component_missing_from_one_xray_view_is_never_converged(scene, capsys, offset):
     code = _match(scene, ["img0.png", "blank1.png"], scene["truth"] + offset)
@@ -61,6 +62,7 @@ def test_component_missing_from_one_xray_view_is_never_converged(scene, capsys, 
     assert "view 2" in out["reason"] or "outline distance" in out["reason"] and "in view 1" in out["reason"]
 
 
+@pytest.mark.slow
 def test_single_view_without_the_component_is_never_converged(scene, capsys):
     code = _match(scene, ["blank0.png"], scene["truth"] + STARTS[0], cameras=(0,))
     out = json.loads(capsys.readouterr().out)
@@ -87,5 +89,5 @@ def test_start_outside_both_fields_of_view_finds_the_component_or_says_not(scene
     result = match(MatchProblem(scene["mesh"], scene["views"], splines), start)
     err = np.abs(pose_error(result.pose, scene["truth"]))
     # right within the X-ray edge bias (the lead's open work; measured here at 512 px:
-    # 0.16 mm / 0.14 deg, the same pose from every start), and converged
+    # 0.153 mm / 0.136 deg, the same pose from every start), and converged
     assert result.converged and err[:3].max() < 0.2 and err[3:].max() < 0.2, (err, result.message)

@@ -33,7 +33,7 @@ def test_calibrate_distortion(tmp_path, capsys):
     out = capsys.readouterr().out
     assert code == 0 and "residual RMS" in out
     rms = float(out.split("residual RMS ")[1].split(" px")[0])
-    assert rms <= 0.1  # measured 0.022
+    assert rms <= 0.044  # measured 0.022
     document = json.loads((tmp_path / "corr.json").read_text())
     assert document["format"] == "fluorogui-distortion" and document["correction"]["model"] == "polynomial"
     assert document["summary"]["rms_px"] == pytest.approx(rms, abs=1e-4)
@@ -64,7 +64,7 @@ def test_calibrate_geometry_two_views(tmp_path, capsys):
     for k, view in enumerate(views):
         fitted = load_view(tmp_path / "out" / f"view{k + 1}_mayacam2.txt")
         probe = np.random.default_rng(2).uniform(-60, 60, (10, 3))
-        assert np.abs(fitted.project(probe) - view.project(probe)).max() < 0.05
+        assert np.abs(fitted.project(probe) - view.project(probe)).max() < 0.0086  # measured 0.0043, 0.0034 px
     flat = tmp_path / "flat.csv"
     flat.write_text("\n".join(f"{b[0]},{b[1]},0" for b in beads) + "\n")
     assert main(["calibrate", "geometry", *images, "--phantom", str(flat), "--out-dir", str(tmp_path / "o2")]) == 2

@@ -1,5 +1,6 @@
 """The command-line contract: match on rendered images, and one-line errors for bad input."""
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -67,7 +68,7 @@ def test_match_json_contract(scene, capsys):
     assert code == 0
     assert set(out) >= {"pose", "objective_mm", "per_view_mean_mm", "calls", "seconds", "converged", "method"}
     err = np.array(out["pose"]) - scene["truth"]
-    assert np.all(np.abs(err[:3]) < 0.1) and np.all(np.abs(err[3:]) < 0.1), err
+    assert np.all(np.abs(err[:3]) < 0.0052) and np.all(np.abs(err[3:]) < 0.0098), err  # measured 0.0026 mm, 0.0049 deg
     assert out["method"] == "fast" and out["converged"]
 
 
@@ -85,7 +86,7 @@ def test_match_with_outline_files(scene, capsys, tmp_path):
         outlines += ["--outline", str(p)]
     assert main(_args(scene, extra=outlines + ["--json"])) == 0
     out = json.loads(capsys.readouterr().out)
-    assert np.allclose(out["pose"], truth, atol=0.01)
+    assert np.allclose(out["pose"], truth, atol=5.2e-4)  # exact outlines: measured 0.00026
 
 
 def _expect_error(args, capsys, *fragments):
@@ -158,12 +159,19 @@ def test_wrong_number_of_cameras_is_one_line(scene, capsys):
     _expect_error(_args(scene) + ["--camera", scene["cams"][0]], capsys, "two --camera")
 
 
-def test_cli_runs_as_a_module_without_qt(scene):
-    code = (
-        "import sys; from fluorogui.cli import main; "
-        f"rc = main({_args(scene, extra=['--json'])!r}); "
-        "assert 'PySide6' not in sys.modules, 'Qt imported'; sys.exit(rc)"
-    )
-    proc = subprocess.run([PY, "-c", code], capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 0, proc.stderr
+@pytest.mark.slow
+def test_cli_runs_as_a_module_without_qt(scene, tmp_path):
+    """The one end-to-end ``python -m fluorogui`` run (the other CLI tests call ``main`` in
+    this process, where pytest-qt has imported Qt already): a match in a fresh interpreter
+    whose every import is listed (``-X importtime``) on stderr or, while the command runs,
+    in the log file that the C libraries' stderr goes to."""
+    env = dict(os.environ, FLUOROGUI_DATA_DIR=str(tmp_path / "data"))
+    proc = subprocess.run([PY, "-X", "importtime", "-m", "fluorogui", *_args(scene, extra=["--json"])],
+                          capture_output=True, text=True, timeout=300, env=env)
+    assert proc.returncode == 0, proc.stderr[-2000:]
     assert json.loads(proc.stdout)["converged"]
+    log = tmp_path / "data" / "logs" / "fluorogui.log"
+    imports = proc.stderr + (log.read_text() if log.exists() else "")
+    assert "fluorogui.core.matching.matcher" in imports  # the listing covers the command's imports
+    for qt in ("PySide6", "pyvistaqt", "fluorogui.gui"):
+        assert qt not in imports, f"{qt} imported by the command line"

@@ -55,8 +55,11 @@ def test_match_reports_sd_status_and_reason(scene, capsys):
     err = np.abs(np.array(out["pose"]) - scene["truth"])
     sd = np.array(out["sd"])
     assert sd.shape == (6,) and np.all(sd > 0)
-    # the reported uncertainty is of the size of the error (here a few thousandths)
-    assert np.all(sd[:3] < 0.05) and np.all(sd[3:] < 0.1) and np.all(err < 10 * sd + 0.01), (err, sd)
+    # the reported uncertainty: measured 0.0014-0.0043 mm, 0.0051-0.019 deg
+    assert np.all(sd[:3] < 0.0086) and np.all(sd[3:] < 0.038), sd
+    # and of the size of the error (measured at most 0.76 SD): a statistical claim, so a
+    # 3-SD bound (with another noise draw the error may well reach 2 SD)
+    assert np.all(err < 3 * sd), (err, sd)
 
 
 @pytest.mark.parametrize("n", ["1", "2", "7"])
@@ -74,6 +77,7 @@ def test_start_outside_the_images_is_refused(scene, capsys):
     assert "img0.png" in err and "outside this image" in err
 
 
+@pytest.mark.slow
 def test_component_missing_from_one_view_is_never_converged(scene, capsys):
     start = scene["truth"] + np.array([1.0, -1.0, 1.0, 1.0, -1.0, 1.0])
     code = main(_run(scene, start, images=[scene["images"][0], scene["blank"]], extra=["--json"]))
@@ -81,6 +85,7 @@ def test_component_missing_from_one_view_is_never_converged(scene, capsys):
     assert code == 3 and not out["converged"] and out["status"] == "needs_review" and "view 2" in out["reason"]
 
 
+@pytest.mark.slow
 def test_rim_refinement_removes_the_edge_bias_of_thinning_metal_by_default(scene, tmp_path, capsys):
     from fluorogui.reference.xray import Body, XrayModel, xray_image
 
@@ -98,9 +103,9 @@ def test_rim_refinement_removes_the_edge_bias_of_thinning_metal_by_default(scene
         payload = json.loads(capsys.readouterr().out)
         errors[name], refined[name] = np.abs(np.array(payload["pose"]) - scene["truth"]), payload["rim_refined"]
     assert refined == {"off": [False, False], "auto": [True, True]}
-    # measured: --no-rim 0.10 mm / 0.21 deg (Canny's edge inside the silhouette); the
-    # default finds both views' edges soft and refines them, as --rim does: 0.004 mm / 0.016 deg
+    # measured: --no-rim 0.101 mm / 0.207 deg (Canny's edge inside the silhouette); the
+    # default finds both views' edges soft and refines them, as --rim does: 0.0027 mm / 0.0109 deg
     assert errors["off"][:3].max() > 0.05 and errors["off"][3:].max() > 0.1
-    assert errors["auto"][:3].max() < 0.02 and errors["auto"][3:].max() < 0.03, errors["auto"]
+    assert errors["auto"][:3].max() < 0.0054 and errors["auto"][3:].max() < 0.022, errors["auto"]
     assert main(_run(scene, start, images, ["--rim"])) == 0  # the text output says so too
     assert "outline moved for the metal's soft rim in views 1 and 2" in capsys.readouterr().out

@@ -50,26 +50,28 @@ def test_small_idealized_case_on_xray_images(tray, tmp_path, capsys):
     mean_deg = max(abs(float(r[f"{d}_mean"])) for r in rows for d in ("dalpha", "dbeta", "dgamma"))
     assert f"/ {mean_deg:.3f} deg (mean over cases" in out
     # the edges of real (blurred, thin-rimmed) metal sit inside its silhouette, which plain
-    # Canny outlines do not model: measured worst 0.17 mm / 0.31 deg at 512 px (see README)
+    # Canny outlines do not model: measured worst 0.181 mm / 0.232 deg at 512 px (see README)
     err = _errors(payload)
-    assert err[:, :3].max() < 0.3 and err[:, 3:].max() < 0.5, err
+    assert err[:, :3].max() < 0.36 and err[:, 3:].max() < 0.46, err
 
 
+@pytest.mark.slow
 def test_small_idealized_case_with_the_rim_refinement(tray, tmp_path, capsys):
     # at 1024 px: plain outlines measured worst 0.039 mm / 0.122 deg, 0 of 3 starts within
-    # 0.05 mm / 0.05 deg; with the rim refinement 0.015 mm / 0.032 deg, 3 of 3
+    # 0.05 mm / 0.05 deg; with the rim refinement 0.0087 mm / 0.0129 deg, 3 of 3
     out, rows, payload = _run(tray, tmp_path, capsys, "--angle", "70", "--tilt", "10", "--image-size", "1024", "--rim")
     assert "rim refinement" in out
     err = _errors(payload)
-    assert err[:, :3].max() < 0.025 and err[:, 3:].max() < 0.05, err
+    assert err[:, :3].max() < 0.017 and err[:, 3:].max() < 0.025, err
     assert rows[0]["right_basin"] == "3" and rows[0]["false_converged"] == "0"
 
 
+@pytest.mark.slow
 def test_small_idealized_case_on_silhouette_images_lands_every_start(tray, tmp_path, capsys):
     out, rows, payload = _run(tray, tmp_path, capsys, "--renderer", "silhouette", "--tilt", "10")
     assert "silhouette images" in out and payload["renderer"] == "silhouette"
     err = _errors(payload)
-    assert err[:, :3].max() < 0.015 and err[:, 3:].max() < 0.05, err  # measured 0.008 mm / 0.034 deg (512 px)
+    assert err[:, :3].max() < 0.012 and err[:, 3:].max() < 0.045, err  # measured 0.0062 mm / 0.0229 deg (512 px)
     assert rows[0]["right_basin"] == "3" and rows[0]["false_converged"] == "0"
 
 
@@ -83,6 +85,7 @@ def femur(tmp_path_factory):
     return str(model)
 
 
+@pytest.mark.slow
 def test_overlapping_femoral_component_hides_part_of_a_symmetric_tray(tray, femur, tmp_path, capsys):
     out, rows, payload = _run(tray, tmp_path, capsys, "--renderer", "silhouette", "--other", femur,
                               "--variant", "symmetric-ap", "--angle", "60", "--tilt", "10")
@@ -91,19 +94,21 @@ def test_overlapping_femoral_component_hides_part_of_a_symmetric_tray(tray, femu
     assert 0.30 < hidden[0] < 0.50 and 0.15 < hidden[1] < 0.35, hidden  # measured 0.40 / 0.25
     assert "(hid 40/25 %)" in rows[0]["case"]
     # with 25-40 % of the outline hidden the rotation about the tray's axis is the least
-    # certain: measured worst 0.034 mm / 0.216 deg over 3 starts (512 px)
+    # certain: measured worst 0.0255 mm / 0.070 deg over 3 starts (512 px)
     err = _errors(payload)
-    assert rows[0]["converged"] == "3" and err[:, :3].max() < 0.05 and err[:, 3:].max() < 0.3, err
+    assert rows[0]["converged"] == "3" and err[:, :3].max() < 0.05 and err[:, 3:].max() < 0.14, err
 
 
+@pytest.mark.slow
 def test_single_view_case_judges_depth_apart(femur, tmp_path, capsys):
     out, rows, payload = _run(femur, tmp_path, capsys, "--renderer", "silhouette", "--single-view",
                               "--variant", "ps-box")
     assert "one view (single-plane)" in out and "(2 mm along the beam)" in out
     err = np.array(payload["cases"][0]["errors"])
-    # measured: 0.08-0.12 mm along the beam (x = -y in view 1), in-plane and rotations
-    # <= 0.05 (z 0.007 mm, rotations 0.047 deg)
-    assert np.abs(err[:, :2]).max() < 0.2 and np.abs(err[:, 2]).max() < 0.02 and np.abs(err[:, 3:]).max() < 0.07, err
+    # measured: up to 0.14 mm along the beam (x = -y in view 1), in-plane and rotations
+    # smaller (z 0.0044 mm, rotations 0.042 deg)
+    assert np.abs(err[:, :2]).max() < 0.2 and np.abs(err[:, 2]).max() < 0.0088, err
+    assert np.abs(err[:, 3:]).max() < 0.07, err
     assert rows[0]["right_basin"] == "3" and rows[0]["false_converged"] == "0"
 
 
@@ -152,6 +157,7 @@ def test_background_none_images_the_component_in_air(tray):
     assert images["knee"][air].min() < 0.9 * images["none"].max()
 
 
+@pytest.mark.slow
 def test_draws_image_a_case_with_fresh_noise_each_a_row_of_its_own(tray, tmp_path, capsys):
     """--draws 2: the case imaged with seeds 0 and 1, each with its own starts and row; the
     second draw is exactly the run with --seed 1 (same image, same starts)."""

@@ -1,42 +1,37 @@
-"""`python -m fluorogui` dispatches: sub-commands go to the CLI without importing Qt."""
+"""The entry point (``fluorogui.__main__.main``) hands sub-commands and options to the
+command line; the console script runs it. The ``python -m fluorogui`` run in a fresh
+interpreter, proving that no Qt is imported, is tests/cli/test_cli.py's
+test_cli_runs_as_a_module_without_qt."""
+import shutil
 import subprocess
 import sys
+from pathlib import Path
+
+import pytest
 
 from fluorogui import __version__
+from fluorogui.__main__ import main
 
 
-def test_version_without_qt():
-    code = ("import sys; from fluorogui.__main__ import main\n"
-            "try:\n    main(['--version'])\nexcept SystemExit as e:\n    pass\n"
-            "assert 'PySide6' not in sys.modules\n")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
-    assert proc.returncode == 0, proc.stderr
-    assert f"fluorogui {__version__}" in proc.stdout
+def test_version(capsys):
+    with pytest.raises(SystemExit) as exit_:  # argparse's version action ends the command
+        main(["--version"])
+    assert exit_.value.code == 0
+    assert capsys.readouterr().out.strip() == f"fluorogui {__version__}"
 
 
-def test_module_entry_reports_bad_usage_in_one_line():
-    proc = subprocess.run([sys.executable, "-m", "fluorogui", "match", "--camera", "x"], capture_output=True,
-                          text=True, timeout=60)
-    assert proc.returncode == 2
-    assert len(proc.stderr.strip().splitlines()) == 1 and "required" in proc.stderr
+def test_entry_reports_bad_usage_in_one_line(capsys):
+    assert main(["match", "--camera", "x"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "required" in err
 
 
-def test_python_dash_m_version():
-    proc = subprocess.run([sys.executable, "-m", "fluorogui", "--version"], capture_output=True, text=True,
-                          timeout=60)
-    assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.strip() == f"fluorogui {__version__}"
-
-
-def test_console_script_matches_python_dash_m():
-    import shutil
-    from pathlib import Path
-
+def test_console_script_runs_the_entry():
+    """The installed ``fluorogui`` script (its own process on purpose: that is what it is)."""
     script = Path(sys.executable).with_name("fluorogui")
     if not script.exists():
         script = shutil.which("fluorogui")
     if script is None:
-        import pytest
         pytest.skip("fluorogui console script is not installed")
     proc = subprocess.run([str(script), "--version"], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stderr

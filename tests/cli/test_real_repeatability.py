@@ -7,6 +7,8 @@ import pytest
 
 from fluorogui.cli import main
 
+pytestmark = pytest.mark.slow  # end to end on the real data
+
 REFERENCE = Path(__file__).resolve().parents[1] / "data" / "biplane_reference_poses.csv"
 
 
@@ -25,6 +27,8 @@ def test_repeatability_of_the_first_reference_frames(shared_data, capsys, compon
         summary = case["summary"]
         assert summary["n_converged"] == summary["n_runs"] == 10
         sd = np.array(summary["sd"])
-        # the paper's in vivo bound for the tibia (Table 4): 0.29 mm, 0.25 deg
-        assert sd[:3].max() < 0.29 and sd[3:].max() < 0.25, (case["label"], sd)
+        # far inside the paper's in vivo bound for the tibia (Table 4: 0.29 mm, 0.25 deg).
+        # Measured: SD up to 0.0022 mm and 0.036 deg (tibial), 0.0009 mm and 0.0027 deg
+        # (femoral); outline distance 0.118-0.145 mm
+        assert sd[:3].max() < 0.0044 and sd[3:].max() < 0.072, (case["label"], sd)
         assert max(case["per_view_mean_mm"]) < 0.25, case["per_view_mean_mm"]

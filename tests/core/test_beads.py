@@ -68,12 +68,12 @@ def test_two_views_recovered_without_noise(scene):
     views, beads = scene
     for view in views:
         result = calibrate_view(render(view, beads), beads, pitch=PITCH)
-        assert result.used == len(beads)
-        assert result.rms_px <= 0.1  # measured 0.007 px
-        assert np.linalg.norm(result.view.source - view.source) < 0.5  # measured 0.14, 0.28 mm
-        assert result.view.distance == pytest.approx(view.distance, abs=0.5)
         probe = np.random.default_rng(1).uniform(-60, 60, (20, 3))
-        assert np.abs(result.view.project(probe) - view.project(probe)).max() < 0.05
+        assert result.used == len(beads)
+        assert result.rms_px <= 0.0135  # measured 0.0068, 0.0065 px
+        assert np.linalg.norm(result.view.source - view.source) < 0.5  # measured 0.14, 0.28 mm
+        assert result.view.distance == pytest.approx(view.distance, abs=0.5)  # measured 0.15, 0.34 mm
+        assert np.abs(result.view.project(probe) - view.project(probe)).max() < 0.01  # measured 0.0051, 0.0044 px
 
 
 def test_two_views_with_noise(scene):
@@ -82,8 +82,9 @@ def test_two_views_with_noise(scene):
     for view in views:
         result = calibrate_view(render(view, beads, 0.02, rng), beads, pitch=PITCH)
         assert result.used == len(beads)
-        assert result.rms_px <= 0.1  # measured ~0.03 px with noise SD 0.02 (bead contrast 0.6)
-        assert np.linalg.norm(result.view.source - view.source) < 3.0  # measured ~1 mm: depth is the weak part
+        # seeded noise: fixed numbers for this seed
+        assert result.rms_px <= 0.07  # measured 0.033, 0.035 px with noise SD 0.02 (bead contrast 0.6)
+        assert np.linalg.norm(result.view.source - view.source) < 2.0  # measured 0.92, 1.02 mm: depth is weak
 
 
 def test_outliers_and_missing_beads(scene):
@@ -95,7 +96,7 @@ def test_outliers_and_missing_beads(scene):
     image[hidden[1] - 6:hidden[1] + 7, hidden[0] - 6:hidden[0] + 7] = 0.85  # ... and one bead missing
     result = calibrate_view(image, beads, pitch=PITCH)
     assert result.used == len(beads) - 1 and 5 not in [i for i, _ in result.pairs]
-    assert result.rms_px < 0.1
+    assert result.rms_px < 0.0135  # measured 0.0067 px: as without the dark squares
 
 
 def test_refusals(scene):
@@ -120,4 +121,4 @@ def test_detect_beads_marker_is_largest(scene):
     centres, areas = detect_beads(render(views[1], beads))
     assert len(centres) == len(beads)
     marker = centres[np.argmax(areas)]
-    assert np.linalg.norm(marker - views[1].project(beads[:1])[0]) < 0.05
+    assert np.linalg.norm(marker - views[1].project(beads[:1])[0]) < 5e-6  # measured 2.5e-6 px

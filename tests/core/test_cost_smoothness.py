@@ -8,6 +8,7 @@ in ``validate idealized --rim``); 1 px apart, the ripple is a fraction of that. 
 outline here is the true silhouette with 0.15 px of noise per point (the test is about
 the cost's shape, not about accuracy)."""
 import numpy as np
+import pytest
 
 from fluorogui.core.matching.fast import _FastEvaluation, _image_samples
 from fluorogui.core.matching.matcher import match
@@ -34,6 +35,7 @@ def _ripple(problem, centre, direction, settings) -> float:
     return float(np.std(np.asarray(cost) - fit) / np.ptp(fit))
 
 
+@pytest.mark.slow
 def test_model_points_1_px_apart_ripple_less_than_2_px_apart():
     v, f = tibial_component_mesh()
     mesh = prepare_mesh(v, f)

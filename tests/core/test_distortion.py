@@ -42,15 +42,15 @@ def test_square_plate_without_noise(square_plate, distortion, model):
     image, centres = square_plate
     fit = fit_plate(image, 2.0, "square", model)
     assert len(fit.holes_px) >= len(centres) - 4 and fit.discarded == 0
-    assert fit.rms_px <= 0.1  # measured 0.022 (global), 0.017 (local)
+    assert fit.rms_px <= {"global": 0.044, "local": 0.034}[model]  # measured 0.022 (global), 0.017 (local)
     assert fit.max_px <= 0.1  # measured 0.057, 0.048
     # against the truth, not only the fitted grid: same scale and orientation at the centre
     assert true_ideal_rms(fit, distortion) <= 0.03  # measured 0.015, 0.018
-    assert fit.mm_per_px == pytest.approx(2.0 / SPACING_PX, rel=2e-3)
+    assert fit.mm_per_px == pytest.approx(2.0 / SPACING_PX, rel=2.2e-4)  # measured 1.1e-4 (both)
     summary = fit.summary()
     assert summary["rms_mm"] == pytest.approx(fit.rms_px * fit.mm_per_px)
     if model == "local":  # predicted without each hole: larger than the fitted residual, still small
-        assert fit.rms_px < summary["left_out_rms_px"] <= 0.1  # measured 0.017 fitted, 0.026 left out
+        assert fit.rms_px < summary["left_out_rms_px"] <= 0.053  # measured 0.017 fitted, 0.027 left out
     else:
         assert "left_out_rms_px" not in summary
 
@@ -58,8 +58,9 @@ def test_square_plate_without_noise(square_plate, distortion, model):
 def test_hex_plate_with_noise(distortion):
     image, _ = plate_image(distortion, SIZE, "hex", SPACING_PX, noise_sd=0.02, rng=np.random.default_rng(5))
     fit = fit_plate(image, 2.0, "hex", "global")
-    assert fit.grid == "hex" and fit.rms_px <= 0.1  # measured 0.034 px with noise SD 0.02 (plate contrast 0.7)
-    assert true_ideal_rms(fit, distortion) <= 0.04  # measured 0.019
+    # seeded noise: fixed numbers for this seed
+    assert fit.grid == "hex" and fit.rms_px <= 0.067  # measured 0.034 px with noise SD 0.02 (plate contrast 0.7)
+    assert true_ideal_rms(fit, distortion) <= 0.032  # measured 0.016
     with pytest.raises(DistortionError, match="square grid"):
         fit_plate(image, 2.0, "square")
 
@@ -69,12 +70,12 @@ def test_points_both_ways_and_images(square_plate, distortion):
     fit = fit_plate(image, 2.0, "square", "global")
     ideal = np.random.default_rng(2).uniform(40, 340, (200, 2))
     distorted = fit.correction.distort_points(ideal)
-    np.testing.assert_allclose(fit.correction.correct_points(distorted), ideal, atol=1e-6)
-    assert np.sqrt(np.mean(np.sum((distorted - distortion.apply(ideal)) ** 2, axis=1))) < 0.03
+    np.testing.assert_allclose(fit.correction.correct_points(distorted), ideal, atol=5e-11)  # measured 2.4e-11 px
+    assert np.sqrt(np.mean(np.sum((distorted - distortion.apply(ideal)) ** 2, axis=1))) < 0.027  # measured 0.0134
     # an image distorted by the fitted model and corrected again comes back (away from the border)
     smooth = np.fromfunction(lambda v, u: 0.5 + 0.4 * np.sin(u / 23.0) * np.cos(v / 31.0), SIZE[::-1])
     back = fit.correction.correct_image(fit.correction.distort_image(smooth.astype(np.float32)))
-    assert np.abs(back - smooth)[30:-30, 30:-30].max() < 2e-3
+    assert np.abs(back - smooth)[30:-30, 30:-30].max() < 5.5e-4  # measured 2.9e-4
 
 
 def test_serialisation_keeps_the_correction(square_plate):
@@ -92,7 +93,7 @@ def test_non_holes_discarded_and_no_grid(square_plate):
     spoiled[5:60, 300:370] = 0.9  # a bright marker ten holes large
     spoiled[200:202, 101:103] = 0.9  # a speck between holes
     fit = fit_plate(spoiled, 2.0, "square")
-    assert fit.rms_px <= 0.1
+    assert fit.rms_px <= 0.058  # measured 0.029
     assert not np.any((fit.holes_px[:, 0] > 300) & (fit.holes_px[:, 1] < 60))
     picture = residual_picture(spoiled, fit)
     assert picture.shape == SIZE[::-1] + (3,) and picture.dtype == np.uint8
@@ -121,6 +122,7 @@ def test_opencv_model_both_ways():
         pytest.approx(distorted[:3])
 
 
+@pytest.mark.slow
 def test_match_after_correction_reaches_undistorted_accuracy(square_plate, distortion):
     from fluorogui.core.matching.loop import segment_and_match
     from fluorogui.core.projection.mesh import prepare_mesh
@@ -145,6 +147,6 @@ def test_match_after_correction_reaches_undistorted_accuracy(square_plate, disto
         result = segment_and_match(images, views, mesh, start)
         assert result.converged
         errors[name] = result.pose - truth
-    assert np.all(np.abs(errors["corrected"][:3] - errors["clean"][:3]) < 0.01)  # measured 0.003 mm
-    assert np.all(np.abs(errors["corrected"][3:] - errors["clean"][3:]) < 0.05)  # measured 0.03 deg
-    assert np.abs(errors["distorted"][3:] - errors["clean"][3:]).max() > 0.1  # uncorrected: 0.23 deg off
+    assert np.all(np.abs(errors["corrected"][:3] - errors["clean"][:3]) < 0.0095)  # measured 0.0048 mm
+    assert np.all(np.abs(errors["corrected"][3:] - errors["clean"][3:]) < 0.05)  # measured 0.045 deg
+    assert np.abs(errors["distorted"][3:] - errors["clean"][3:]).max() > 0.12  # uncorrected: 0.24 deg off

@@ -1,7 +1,6 @@
 """find_components: implants placed with no start (or near a prediction), and an honest
-"not found" when that cannot be done, on rendered images with known poses."""
-import time
-
+"not found" when that cannot be done, on rendered images with known poses. (Its speed and
+how soon it stops when cancelled: benchmarks/bench_budgets.py and bench_find.py.)"""
 import cv2
 import numpy as np
 import pytest
@@ -41,9 +40,8 @@ def scene():
 def found(scene):
     images, views, meshes, _, _ = scene
     calls = []
-    t0 = time.perf_counter()
     out = find_components(images, views, meshes, progress=lambda f, text: calls.append((f, text)))
-    return out, calls, time.perf_counter() - t0
+    return out, calls
 
 
 def _errors(pose, truth):
@@ -51,30 +49,33 @@ def _errors(pose, truth):
     return e[:3].max(), e[3:].max()
 
 
+@pytest.mark.slow
 def test_finds_both_components_from_nothing(scene, found):
     _, views, meshes, truth, _ = scene
-    out, _, seconds = found
+    out, _ = found
     assert set(out) == {"femoral", "tibial"}
     for name, p in out.items():
         assert isinstance(p, Placement) and p.component == name
         assert p.found and p.reason == "", p.reason
         mm, deg = _errors(p.pose, truth[name])
-        assert mm < 0.1 and deg < 0.15, (name, mm, deg)  # measured: <= 0.01 mm, 0.04 deg
-        assert len(p.iou) == 2 and min(p.iou) > 0.98  # measured ~0.99
-        assert len(p.per_view_mean_mm) == 2 and max(p.per_view_mean_mm) < 0.06  # measured ~0.03 mm
+        # measured: femoral 0.0034 mm / 0.0078 deg, tibial 0.0016 mm / 0.040 deg
+        assert mm < 0.0065 and deg < 0.08, (name, mm, deg)
+        assert len(p.iou) == 2 and min(p.iou) > 0.982, p.iou  # measured 0.9956 / 0.9956, 0.9910 / 0.9910
+        assert len(p.per_view_mean_mm) == 2 and max(p.per_view_mean_mm) < 0.056  # measured 0.022-0.028 mm
         assert p.objective_mm == pytest.approx(sum(p.per_view_mean_mm))
-        assert min(p.edge_score) > 0.8 and p.seconds > 0
-    assert seconds < 30.0  # includes building both shape libraries; ~3-5 s on 2 shared cores
+        assert min(p.edge_score) > 0.988 and p.seconds > 0  # measured 0.994 at least
 
 
+@pytest.mark.slow
 def test_progress_runs_to_one(found):
-    _, calls, _ = found
+    _, calls = found
     fractions = [f for f, _ in calls]
     assert len(calls) > 10 and fractions[0] == 0.0 and fractions[-1] == 1.0
     assert all(b >= a for a, b in zip(fractions, fractions[1:]))
     assert all(isinstance(text, str) and text for _, text in calls)
 
 
+@pytest.mark.slow
 def test_near_a_prediction(scene, found):
     images, views, meshes, truth, _ = scene
     rng = np.random.default_rng(7)
@@ -83,16 +84,14 @@ def test_near_a_prediction(scene, found):
         R = rotvec_matrix(np.radians(15.0) * _unit(rng.normal(size=3))) @ rotation_matrix(*pose[3:])
         c = rotation_matrix(*pose[3:]) @ meshes[name].centroid + pose[:3] + 5.0 * _unit(rng.normal(size=3))
         near[name] = np.r_[c - R @ meshes[name].centroid, angles_from_matrix(R)]
-    t0 = time.perf_counter()
     out = find_components(images, views, meshes, near=near)
-    seconds = time.perf_counter() - t0
     for name, p in out.items():
         assert p.found, p.reason
         mm, deg = _errors(p.pose, truth[name])
-        assert mm < 0.1 and deg < 0.15, (name, mm, deg)
-    assert seconds < 10.0  # measured ~1-1.5 s for both
+        assert mm < 0.0075 and deg < 0.08, (name, mm, deg)  # measured 0.0037 / 0.0016 mm, 0.0092 / 0.040 deg
 
 
+@pytest.mark.slow
 def test_says_so_when_nothing_is_there(scene, found):
     _, views, meshes, _, empty = scene
     out = find_components(empty, views, meshes)
@@ -101,22 +100,22 @@ def test_says_so_when_nothing_is_there(scene, found):
         assert p.pose is None or max(p.per_view_mean_mm, default=np.inf) > 0.3
 
 
-def test_can_be_cancelled(scene, found):
+def test_can_be_cancelled(scene):
     images, views, meshes, _, _ = scene
     with pytest.raises(Cancelled):
         find_components(images, views, meshes, cancel=lambda: True)
     polls = []
 
     def cancel_later():  # cancel on the fifth poll, in the middle of the search
-        polls.append(time.perf_counter())
+        polls.append(len(polls))
         return len(polls) >= 5
 
     with pytest.raises(Cancelled):
         find_components(images, views, meshes, cancel=cancel_later)
-    assert len(polls) == 5 and time.perf_counter() - polls[-1] < 0.2  # stops at once
-    assert np.diff(polls).max() < 1.0  # polled often
+    assert len(polls) == 5  # stops at the poll that said so, asking no more
 
 
+@pytest.mark.slow
 def test_a_symmetric_part_is_ambiguous():
     """A plain box looks the same turned by 180 degrees: never a confident placement."""
     box = _box(40.0, 20.0, 10.0)
@@ -146,7 +145,7 @@ def test_decimated_mesh_keeps_the_silhouette(scene):
             canvas = np.zeros((1024, 1024), np.uint8)
             cv2.fillPoly(canvas, [np.round(pts).astype(np.int32)], 1)
             masks.append(canvas > 0)
-        assert (masks[0] & masks[1]).sum() / (masks[0] | masks[1]).sum() > 0.97  # measured 0.98
+        assert (masks[0] & masks[1]).sum() / (masks[0] | masks[1]).sum() > 0.97  # measured 0.9796, 0.9820
 
 
 def test_templates_match_exact_outlines(scene):
@@ -162,7 +161,8 @@ def test_templates_match_exact_outlines(scene):
         for R, p in zip(rotations, pts):
             exact = ss.outline(mesh, R, c, view, spacing_px=1.0)[0]
             d = np.min(np.linalg.norm(p[:, None, :] - exact[None], axis=2), axis=1)
-            assert np.median(d) < 4.0  # px: templates are ~4 degrees apart; a 70 mm part is ~230 px
+            # px: templates are ~4 degrees apart; a 70 mm part is ~230 px. Measured 0.50-2.19 px
+            assert np.median(d) < 4.0
 
 
 def test_edge_refinement_pulls_a_rough_pose_in(scene):
@@ -175,12 +175,13 @@ def test_edge_refinement_pulls_a_rough_pose_in(scene):
     right = np.mean(ss.pose_edge_score(lib.coarse, R0, c0, views, maps))
     R = rotvec_matrix(np.radians([6.0, -5.0, 4.0])) @ R0
     c = c0 + np.array([3.0, -2.0, 2.0])
-    assert np.mean(ss.pose_edge_score(lib.coarse, R, c, views, maps)) < right - 0.3
+    assert np.mean(ss.pose_edge_score(lib.coarse, R, c, views, maps)) < right - 0.32  # measured 0.358 vs 0.995
     R, c = ss.refine_on_edges(lib.coarse, views, maps, R, c)
     R, c = ss.refine_on_edges(lib.fine, views, maps, R, c, (4, 3, 3))
     angle = np.degrees(np.arccos(np.clip((np.trace(R.T @ R0) - 1) / 2, -1, 1)))
-    assert angle < 0.5 and np.linalg.norm(c - c0) < 0.3, (angle, np.linalg.norm(c - c0))
-    assert right > 0.9
+    # measured 0.093 deg, 0.0096 mm
+    assert angle < 0.185 and np.linalg.norm(c - c0) < 0.019, (angle, np.linalg.norm(c - c0))
+    assert right > 0.99  # measured 0.995
 
 
 def _unit(v):

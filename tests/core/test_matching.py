@@ -31,24 +31,39 @@ def test_fast_recovers_the_pose_from_perturbed_starts(mesh_fn):
         res = match(problem, start, MatchSettings(method="fast"))
         err = pose_difference(res.pose, TRUTH)
         assert res.converged, res.message
-        assert np.all(np.abs(err[:3]) < 0.01) and np.all(np.abs(err[3:]) < 0.01), err
-        assert res.objective_mm < 0.01 and len(res.per_view_mean_mm) == 2
+        # exact outlines: measured at most 0.00067 mm, 0.0020 deg, objective 0.0015 mm (one start of
+        # the femur's four; the rest within 0.0001 mm, 0.0005 deg)
+        assert np.all(np.abs(err[:3]) < 0.0014) and np.all(np.abs(err[3:]) < 0.004), err
+        assert res.objective_mm < 0.003 and len(res.per_view_mean_mm) == 2
         assert res.method == "fast" and res.calls > 1 and res.seconds > 0
 
 
+@pytest.mark.slow
 def test_paper_method_improves_on_the_start_and_reports_its_record():
+    """The paper's method (BFGS with finite differences on the mean distance of the point
+    cloud's grid outline) on exact outlines from a start 3 / 2 / 2 mm and degrees off.
+    Measured: it never meets its own stopping rule here. In 300 calls it ends at the call
+    limit; given 800 it stops after 712 ("precision loss": the grid outline's distance is not
+    smooth at the 0.1 mm / deg difference step) at the same best pose; with the default 15000
+    points, or from 1 mm / 1 deg off, it stops the same way."""
     problem = _problem()
     start = TRUTH + np.array([3.0, -2.0, 2.0, 3.0, -2.0, 2.0])
     calls = []
     res = match(problem, start, MatchSettings(method="paper", model_points=3500, outline_points=50, max_calls=300),
                 progress=lambda n, value, pose: calls.append((n, value)))
     start_error = np.abs(pose_difference(start, TRUTH))
+    error = np.abs(pose_difference(res.pose, TRUTH))
     assert np.all(np.abs(pose_difference(res.pose, TRUTH))[:3] < start_error[:3])
     assert res.calls <= 300 and res.method == "paper"
     assert calls[0][0] == 1 and calls[-1][0] == res.calls
     assert res.objective_mm < calls[0][1]
-    if not res.converged:
-        assert res.message
+    # not converged, and it says why
+    assert not res.converged and res.message == "call limit reached" and res.calls == 300
+    # what it achieves: the objective 5.30 -> 1.03 mm (0.55 / 0.48 per view); translation
+    # 0.23 / 0.34 / 0.33 mm; angles 2.51 / 0.53 / 0.87 deg (from 3 / 2 / 2)
+    assert calls[0][1] > 5.0 and res.objective_mm < 2.06, (calls[0][1], res.objective_mm)
+    assert np.all(error[:3] < 0.68), error
+    assert np.all(error[3:] < np.minimum(start_error[3:], [5.0, 1.07, 1.74])), error
 
 
 @pytest.mark.parametrize("method", ["fast", "paper"])

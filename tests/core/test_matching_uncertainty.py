@@ -11,6 +11,7 @@ with 40 the single view's beta came out 0.672, at the 1/1.5 bound): measured 1.0
 in biplane, 0.74-1.13 in a single view.
 """
 import numpy as np
+import pytest
 
 from fluorogui.core.matching.matcher import match
 from fluorogui.core.matching.problem import MatchProblem, MatchSettings
@@ -47,12 +48,14 @@ def _spread(views, start_sd: float, n: int = 80, seed: int = 1):
     return np.std(errors, axis=0, ddof=1), np.median(sds, axis=0)
 
 
+@pytest.mark.slow
 def test_biplane_sd_matches_the_spread_over_noise_realisations():
     observed, reported = _spread(dual_orthogonal_views(), start_sd=0.5)
     ratio = reported / observed
     assert np.all(ratio > 1 / 1.5) and np.all(ratio < 1.5), (ratio, observed, reported)
 
 
+@pytest.mark.slow
 def test_single_view_out_of_plane_translation_is_least_certain():
     # looking along world x: x is the out-of-plane translation
     view = View.looking_at([-1000.0, 0, 0], [0, 0, 0], [0, 0, 1], 1200.0, (1024, 1024), 315 / 1024, name="single")

@@ -71,7 +71,7 @@ def test_precision_weights_are_the_inverse_variance_of_the_fits_about_each_point
     w = precision_weights(found)
     assert w.mean() == pytest.approx(1.0)
     quiet, loud = np.median(w[n // 2 + 40:n - 40]), np.median(w[40:n // 2 - 40])
-    assert quiet / loud == pytest.approx((0.18 / 0.06) ** 2, rel=0.25)
+    assert quiet / loud == pytest.approx((0.18 / 0.06) ** 2, rel=0.22)  # measured 8.0 (-11 %), seeded
     # an outline whose fits agree to the floor: no stretch takes over
     flat = precision_weights(np.r_[np.zeros(400), 0.001 * rng.normal(size=400)])
     assert np.allclose(flat, 1.0)
@@ -90,6 +90,7 @@ def _outline(view, world, sd_px, rng):
     return exact + (sd * e / e.std())[:, None] * normal, sd
 
 
+@pytest.mark.slow
 def test_weighting_by_precision_shrinks_the_spread_and_the_sd_still_matches_it():
     """Half of each outline 8x noisier than the other: least squares weighted by the
     inverse variance is the best linear estimate (Gauss-Markov): for independent noise
@@ -115,4 +116,6 @@ def test_weighting_by_precision_shrinks_the_spread_and_the_sd_still_matches_it()
     even, weighted = (np.sqrt(np.mean(np.square(errors[k]), axis=0)) for k in ("even", "weighted"))
     assert np.all(weighted < 0.45 * even), weighted / even
     ratio = np.median(sds, axis=0) / np.std(errors["weighted"], axis=0, ddof=1)
+    # a statistical claim, kept as one: the SD should equal the spread, and the spread of 40
+    # realisations is itself uncertain by ~11 % (measured 1.12-1.37 with this seed)
     assert np.all(ratio > 1 / 1.5) and np.all(ratio < 1.5), ratio

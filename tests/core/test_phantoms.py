@@ -32,7 +32,7 @@ def test_sphere_is_closed_with_analytic_volume():
     assert_closed_and_consistent(vertices, faces)
     np.testing.assert_allclose(np.linalg.norm(vertices, axis=1), 12.70 / 2)
     analytic = 4.0 / 3.0 * np.pi * (12.70 / 2) ** 3
-    assert signed_volume(vertices, faces) == pytest.approx(analytic, rel=0.01)
+    assert signed_volume(vertices, faces) == pytest.approx(analytic, rel=0.0043)  # measured -0.22 % (facets)
 
 
 @pytest.mark.parametrize("subdivisions", [0, 2, 3])

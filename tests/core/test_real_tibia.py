@@ -9,6 +9,8 @@ import pytest
 
 from fluorogui.core.matching.loop import match_images
 
+pytestmark = pytest.mark.slow  # end to end on the real data
+
 
 @pytest.fixture(scope="module")
 def real(biplane):
@@ -19,9 +21,11 @@ def real(biplane):
 def check(result, views, expected):
     assert result.converged
     px = [m / v.mm_per_px() for m, v in zip(result.per_view_mean_mm, views)]
+    # against the reference poses (tests/data). Measured: frame 0 0.43 px, 0.016 mm, 0.046 deg;
+    # frame 53 0.42 px, 0.0027 mm, 0.026 deg
     assert max(px) < 0.7, px
-    assert np.abs(result.pose[:3] - expected[:3]).max() < 0.15, result.pose - expected
-    assert np.abs(result.pose[3:] - expected[3:]).max() < 0.3, result.pose - expected
+    assert np.abs(result.pose[:3] - expected[:3]).max() < 0.032, result.pose - expected
+    assert np.abs(result.pose[3:] - expected[3:]).max() < 0.092, result.pose - expected
 
 
 def test_tibia_frame_0_from_an_offset_start(real):

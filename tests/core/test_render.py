@@ -1,6 +1,5 @@
-"""Silhouette coverage and pseudo-fluoroscopic images (fluorogui.simulation.render)."""
-import time
-
+"""Silhouette coverage and pseudo-fluoroscopic images (fluorogui.simulation.render). The
+large mesh's render time: benchmarks/bench_budgets.py."""
 import numpy as np
 from scipy.spatial import ConvexHull
 
@@ -56,7 +55,7 @@ def test_cube_coverage_equals_projected_area():
     world = transform_points([1.3, -2.2, 40.0, 25.0, 37.0, -12.0], vertices)
     cov = render_silhouette(view, world, faces, supersample=8)
     area = ConvexHull(view.project(world)).volume  # a convex body projects to its vertices' hull
-    assert abs(cov.sum() - area) / area < 1e-3
+    assert abs(cov.sum() - area) / area < 1.3e-5  # measured 6.4e-6
 
 
 def test_overlapping_triangles_are_a_union_not_xor():
@@ -74,7 +73,8 @@ def uv_sphere(radius, n_lat, n_lon):
     lat = np.linspace(0, np.pi, n_lat + 1)[1:-1]
     lon = np.linspace(0, 2 * np.pi, n_lon, endpoint=False)
     ring = np.stack(np.meshgrid(lat, lon, indexing="ij"), -1).reshape(-1, 2)
-    pts = np.column_stack([np.sin(ring[:, 0]) * np.cos(ring[:, 1]), np.sin(ring[:, 0]) * np.sin(ring[:, 1]), np.cos(ring[:, 0])])
+    pts = np.column_stack([np.sin(ring[:, 0]) * np.cos(ring[:, 1]), np.sin(ring[:, 0]) * np.sin(ring[:, 1]),
+                           np.cos(ring[:, 0])])
     vertices = np.vstack([pts, [[0, 0, 1], [0, 0, -1]]]) * radius
     top, bottom = len(pts), len(pts) + 1
     faces = []
@@ -87,22 +87,15 @@ def uv_sphere(radius, n_lat, n_lon):
     return vertices, np.vstack(faces)
 
 
-def test_large_mesh_renders_fast_and_matches_disc_area():
+def test_large_mesh_matches_disc_area():
     view = overhead_view(size=1024, pitch=0.25)
     vertices, faces = uv_sphere(30.0, 121, 304)  # ~73k triangles
     assert len(faces) > 70000
-    render_silhouette(view, vertices[:10], faces[:0])  # warm-up of numpy paths
-    start = time.perf_counter()
     cov = render_silhouette(view, vertices + [0, 0, 50.0], faces)
-    elapsed = time.perf_counter() - start
-    # a guard against losing the vectorised path, not a speed measurement: 0.38-0.70 s
-    # with two validation runs on the 2 cores, 1.13 s with the test suite beside them too
-    # (a 1 s bound failed there)
-    assert elapsed < 3.0
     # the sphere's silhouette from a point source is a circle of radius d r / sqrt(D^2 - r^2)
     D = 1050.0
     radius_px = 1000.0 * 30.0 / np.sqrt(D**2 - 30.0**2) / 0.25
-    assert abs(cov.sum() - np.pi * radius_px**2) / (np.pi * radius_px**2) < 2e-3  # polygonal sphere
+    assert abs(cov.sum() - np.pi * radius_px**2) / (np.pi * radius_px**2) < 3.3e-4  # polygonal sphere: 1.6e-4
 
 
 def test_render_fluoro_dark_component_on_bright_background():

@@ -47,12 +47,14 @@ def test_path_lengths_agree_with_the_independent_ray_caster(tray):
     uu, vv = np.meshgrid(np.arange(box[0], box[2]), np.arange(box[1], box[3]))
     ours = path_lengths(mesh, pose, view, np.column_stack([uu.ravel(), vv.ravel()])).reshape(reference.shape)
     assert (reference > 0).sum() > 5000
-    # rays exactly through an edge two triangles share are counted twice or not at all
-    # (the reference inpaints those from its neighbours): nearly every ray agrees exactly
+    # rays exactly through an edge two triangles share would be counted twice or not at all
+    # (the reference inpaints those from its neighbours); on this pose none does: measured,
+    # every ray agrees
     agree = np.abs(ours - reference) < 1e-6
-    assert agree.mean() > 0.999, agree.mean()
+    assert agree.all(), agree.mean()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mu", [1.0, 0.5])
 def test_refined_outline_sits_on_the_true_silhouette(tray, mu):
     mesh, pose, world = tray
@@ -64,15 +66,17 @@ def test_refined_outline_sits_on_the_true_silhouette(tray, mu):
         before.append(signed_distance_to_truth(view, world, mesh.faces, canny).mean())
         after.append(signed_distance_to_truth(view, world, mesh.faces, refined).mean())
         print(f"mu {mu} {view.name}: canny {before[-1]:+.3f} refined {after[-1]:+.3f} model {model}")
-        assert model.mu == pytest.approx(mu, rel=0.3)
-        assert model.sigma == pytest.approx(0.77, abs=0.08)  # detector and focal spot, and the pixel
-    # Canny's edge lies inside the silhouette: measured -0.17 / -0.05 px (mu 1), -0.37 / -0.22 (mu 0.5)
+        assert model.mu == pytest.approx(mu, rel=0.16)  # measured 1.081 / 1.021 (mu 1), 0.500 / 0.481 (mu 0.5)
+        # detector and focal spot, and the pixel: measured 0.783 / 0.760, 0.743 / 0.749
+        assert model.sigma == pytest.approx(0.77, abs=0.055)
+    # Canny's edge lies inside the silhouette: measured -0.172 / -0.049 px (mu 1), -0.372 / -0.222 (mu 0.5)
     assert np.mean(before) < -0.1
-    # refined: -0.026 / -0.011 px (mu 1), +0.009 / +0.030 (mu 0.5); before the background's
+    # refined: -0.026 / -0.010 px (mu 1), +0.010 / +0.031 (mu 0.5); before the background's
     # slope and the outline's bend were in the profile: -0.02 / +0.06 and -0.01 / +0.075
     assert max(abs(a) for a in after) < 0.045 and abs(np.mean(after)) < 0.03, after
 
 
+@pytest.mark.slow
 def test_a_sharp_edge_keeps_its_place(tray):
     mesh, pose, world = tray
     view = VIEWS[0]
@@ -83,7 +87,7 @@ def test_a_sharp_edge_keeps_its_place(tray):
     after = signed_distance_to_truth(view, world, mesh.faces, refined)
     print(f"step: canny {before.mean():+.3f} refined {after.mean():+.3f} model {model}")
     assert model.mu == 50.0
-    assert abs(after.mean()) < 0.015 and abs(before.mean()) < 0.06  # measured +0.002 and +0.042 px
+    assert abs(after.mean()) < 0.0035 and abs(before.mean()) < 0.06  # measured +0.0017 and +0.042 px
 
 
 @pytest.mark.parametrize("step_cost, expected_mu", [(1.003, 50.0), (1.5, 1.0)])
@@ -100,7 +104,8 @@ def test_only_a_sharp_profile_wins_on_a_near_tie(monkeypatch, step_cost, expecte
     monkeypatch.setattr(rim, "_candidates", lambda pts, search: None)
     monkeypatch.setattr(rim, "_fit_residuals", lambda pts, candidates, mu, sigma: (mu, sigma))
     monkeypatch.setattr(rim, "_best_positions", lambda mu, sigma: (None, np.full(10, cost(mu, sigma) / 10)))
-    points = rim._Points(*(np.zeros((10, 3)),) * 4, np.zeros(10), np.zeros((10, 3)), np.zeros(10), np.zeros(10), np.zeros(10))
+    points = rim._Points(*(np.zeros((10, 3)),) * 4, np.zeros(10), np.zeros((10, 3)), np.zeros(10), np.zeros(10),
+                         np.zeros(10))
     model = rim.fit_rim_model(points)
     assert model.mu == pytest.approx(expected_mu, rel=1e-6)
     assert model.sigma == pytest.approx(0.8, abs=0.01)
@@ -117,7 +122,8 @@ def test_the_views_of_a_component_share_one_attenuation(monkeypatch):
     monkeypatch.setattr(rim, "_candidates", lambda pts, search: None)
     monkeypatch.setattr(rim, "_fit_residuals", lambda pts, candidates, mu, sigma: (pts.at[0], mu, sigma))
     monkeypatch.setattr(rim, "_best_positions", lambda view, mu, sigma: (None, np.full(10, cost(view, mu, sigma) / 10)))
-    views = [rim._Points(*(np.zeros((10, 3)),) * 4, np.full(10, v), np.zeros((10, 3)), np.zeros(10), np.zeros(10), np.zeros(10))
+    views = [rim._Points(*(np.zeros((10, 3)),) * 4, np.full(10, v), np.zeros((10, 3)), np.zeros(10), np.zeros(10),
+                         np.zeros(10))
              for v in (0.0, 1.0)]
     alone = [rim.fit_rim_model(v) for v in views]
     together = rim.fit_rim_models(views)
@@ -152,6 +158,7 @@ def test_a_refined_outline_that_crosses_itself_is_untangled_or_given_up():
     assert np.array_equal(simple_or_plain(eight, plain), plain)
 
 
+@pytest.mark.slow
 def test_the_loop_fits_rim_models_once_and_reuses_them(tray):
     mesh, pose, world = tray
     images = [xray_image(v, [Body(world, mesh.faces, 1.0)], XrayModel(), np.random.default_rng(5)) for v in VIEWS]
@@ -184,10 +191,12 @@ def _darken_outside(image, outline, stretch, reach_px=4.0):
     return (image.astype(float) * factor.reshape(h, w)).astype(image.dtype)
 
 
+@pytest.mark.slow
 def test_a_stretch_pulled_by_another_edge_is_left_out(tray, monkeypatch):
     # the stray rule on its own: the bone model (core.second_edge, tested apart) would take
     # this ramp for a bone's edge and keep up to 13 of its points, 0.3-0.66 px inside
-    monkeypatch.setattr("fluorogui.core.outlines.rim.second_edges", lambda image, points, *a: (np.full(len(points), np.nan),) * 2)
+    monkeypatch.setattr("fluorogui.core.outlines.rim.second_edges",
+                        lambda image, points, *a: (np.full(len(points), np.nan),) * 2)
     mesh, pose, world = tray
     view = VIEWS[0]
     image = xray_image(view, [Body(world, mesh.faces, 1.0)], XrayModel(), np.random.default_rng(6))
@@ -205,8 +214,8 @@ def test_a_stretch_pulled_by_another_edge_is_left_out(tray, monkeypatch):
     print(f"stretch of {len(stretch)}: {near_stretch(kept).sum()} kept near it of {len(kept)} "
           f"({len(canny)} in); without leaving out, it lies {pulled.mean():+.2f} px from the truth; "
           f"the rest {signed_distance_to_truth(view, world, mesh.faces, kept).mean():+.3f}")
-    assert abs(pulled.mean()) > 0.5  # the ramp pulls the fit (measured -0.95 px on average)
-    assert near_stretch(kept).sum() <= 0.2 * len(stretch)  # the stretch is left out
-    assert len(kept) >= 0.97 * (len(canny) - len(stretch))  # and little else
+    assert abs(pulled.mean()) > 0.5  # the ramp pulls the fit (measured -0.90 px on average)
+    assert near_stretch(kept).sum() <= 0.2 * len(stretch)  # the stretch is left out: measured 4 of 30 kept
+    assert len(kept) >= 0.97 * (len(canny) - len(stretch))  # and little else: measured 301 of 308
     rest = signed_distance_to_truth(view, world, mesh.faces, kept)
-    assert abs(rest.mean()) < 0.03  # measured -0.007 px (-0.046 before the slope and bend terms)
+    assert abs(rest.mean()) < 0.014  # measured -0.0072 px (-0.046 before the slope and bend terms)

@@ -24,6 +24,7 @@ def _error(result, truth):
     return float(np.abs(d[:3]).max()), float(np.abs(d[3:]).max())
 
 
+@pytest.mark.slow
 def test_auto_refines_a_soft_rim_and_leaves_a_step_edge_alone(tray, monkeypatch):
     mesh, truth, _ = tray
     start = truth + OFFSET
@@ -33,11 +34,13 @@ def test_auto_refines_a_soft_rim_and_leaves_a_step_edge_alone(tray, monkeypatch)
     off = segment_and_match(soft, VIEWS, mesh, start, loop=LoopSettings(rim="off"))
     assert auto.settings["rim_refined"] == [True, True]
     assert off.settings["rim_refined"] == [False, False]
-    assert all(m is not None and is_soft(m) and 0.7 < m.mu < 1.5 for m in models)  # measured 1.09, 1.40
+    # the views share one attenuation: measured 1.063/mm for both (the truth is 1.0)
+    assert all(m is not None and is_soft(m) and m.mu == pytest.approx(1.0, rel=0.13) for m in models)
     print("soft: auto", _error(auto, truth), "off", _error(off, truth))
-    # the refinement removes most of Canny's inward bias (measured 0.035 mm / 0.063 deg
-    # against 0.116 mm / 0.151 deg)
-    assert _error(auto, truth)[1] < 0.5 * _error(off, truth)[1]
+    # the refinement removes most of Canny's inward bias: measured 0.0096 mm / 0.0122 deg
+    # against 0.116 mm / 0.151 deg
+    assert _error(auto, truth)[1] < 0.16 * _error(off, truth)[1]
+    assert _error(auto, truth)[0] < 0.019 and _error(auto, truth)[1] < 0.024, _error(auto, truth)
 
     step = _images(tray, 50.0)  # a step edge, as real images fit
     models = [None, None]

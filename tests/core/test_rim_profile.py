@@ -26,7 +26,7 @@ def test_a_sloped_background_does_not_move_the_edge(slope):
     pts = rim._Points(s, np.interp(s, fine, image), np.ones_like(s), np.tile(c * np.sqrt(rim._L_OFFSETS), (n, 1)),
                       at, np.zeros_like(s), np.full(n, np.nan), np.zeros(n), np.zeros(n))
     boundary, _ = rim._best_positions(*rim._residuals(pts, mu, sigma))
-    assert np.abs(boundary).max() < 0.003  # measured 0.0009 px at most
+    assert np.abs(boundary).max() < 0.0018  # measured 0.00064 / 0.00076 / 0.00089 px
 
 
 @pytest.mark.parametrize("clockwise", [False, True])
@@ -36,7 +36,7 @@ def test_the_curvature_of_a_circle_is_one_over_its_radius(clockwise):
     circle = radius * np.column_stack([np.cos(angle), np.sin(angle)]) + [100.0, 80.0]
     circle = circle[::-1] if clockwise else circle
     bend = outline_curvature(circle, outward_normals(circle))
-    assert bend == pytest.approx(np.full(len(circle), 1.0 / radius), rel=0.01)
+    assert bend == pytest.approx(np.full(len(circle), 1.0 / radius), rel=0.0027)  # measured 0.0014
     # a dent bends the other way
     dented = circle.copy()
     dented[:, 0] = np.where(dented[:, 0] > 100 + 0.8 * radius, 2 * (100 + 0.8 * radius) - dented[:, 0], dented[:, 0])

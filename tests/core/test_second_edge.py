@@ -57,6 +57,7 @@ def _bone_band(image, outline, stretch, edge_px=4.0, k=0.35, reach_px=14.0):
     return (np.random.default_rng(6).poisson(blurred * 3000.0) / 3000.0).astype(np.float32)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("where", [0.0, 2 / 3])
 def test_a_bone_edge_beside_a_stretch_no_longer_pulls_it(tray, monkeypatch, where):
     mesh, pose, world = tray
@@ -75,7 +76,8 @@ def test_a_bone_edge_beside_a_stretch_no_longer_pulls_it(tray, monkeypatch, wher
     monkeypatch.setattr(rim, "second_edges", lambda image, points, *a: (np.full(len(points), np.nan),) * 2)
     monkeypatch.setattr(rim, "_GATHERED", [])  # gathered again, without the second edges
     ignored, _ = rim.refine_outline(spoiled, view, mesh, pose, canny)
-    print(f"stretch at {where:.2f}: modelled {stretch_error(modelled):+.3f} px, ignored {stretch_error(ignored):+.3f} px")
+    print(f"stretch at {where:.2f}: modelled {stretch_error(modelled):+.3f} px, "
+          f"ignored {stretch_error(ignored):+.3f} px")
     # measured: modelled -0.008 / -0.016 px, ignored -0.191 / -0.262 px; without the blur's
     # cross term of the bone and the shadow (sigma^2 [(B + G s) bone]' dt/dx) modelled
     # -0.048 / -0.056. (Until the bone was blurred here together with the metal, as a

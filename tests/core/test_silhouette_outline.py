@@ -25,10 +25,10 @@ def test_sphere_silhouette_is_the_exact_circle():
     radii = np.linalg.norm(sil.points_px - centre, axis=1)
     # the polyhedral sphere is inscribed: within the facet sagitta of the true circle
     assert radii.max() <= expected + 1e-6
-    assert expected - radii.mean() < 0.03 * expected
+    assert expected - radii.mean() < 0.00036 * expected  # measured 0.00018
     # the outline is ordered: consecutive points are close
     gaps = np.linalg.norm(np.diff(sil.points_px, axis=0), axis=1)
-    assert gaps.max() < 2.0
+    assert gaps.max() < 1.43  # measured 0.71 px
 
 
 def test_silhouette_points_carry_their_model_points():
@@ -48,20 +48,20 @@ def test_grid_outline_of_a_disc_lies_just_inside_it():
     pts = np.column_stack([r * np.cos(th), r * np.sin(th)]) + 300
     outline = grid_outline(pts, 3.0)
     radii = np.linalg.norm(outline - 300, axis=1)
-    assert radii.max() <= 100.0 and radii.mean() > 98.0
+    assert radii.max() <= 100.0 and radii.mean() > 99.0  # measured 99.998, 99.51
     # ordered around the disc: angles change monotonically (one way) apart from the wrap
     ang = np.unwrap(np.arctan2(outline[:, 1] - 300, outline[:, 0] - 300))
     assert abs(ang[-1] - ang[0]) > 1.9 * np.pi
     spaced = resample_closed_polyline(outline, n=60)
     steps = np.linalg.norm(np.diff(spaced, axis=0), axis=1)
-    assert len(spaced) == 60 and steps.std() < 0.05 * steps.mean()
+    assert len(spaced) == 60 and steps.std() < 0.044 * steps.mean()  # measured 0.022
 
 
 def test_surface_sampling_is_even_and_exact_in_count():
     v, f = sphere_mesh(50.0, subdivisions=4)
     pts = sample_surface(v, f, 3500)
     assert pts.shape == (3500, 3)
-    assert np.allclose(np.linalg.norm(pts, axis=1), 25.0, atol=0.2)
+    assert np.allclose(np.linalg.norm(pts, axis=1), 25.0, atol=0.057)  # on the facets: measured 0.028 mm inside
     from scipy.spatial import cKDTree
 
     d, _ = cKDTree(pts).query(pts, k=2)

@@ -1,6 +1,6 @@
-"""Periodic outline splines and the point-to-spline distance of Eq. (4)."""
+"""Periodic outline splines and the point-to-spline distance of Eq. (4). Their speed
+(closest points, self-intersection): benchmarks/bench_budgets.py."""
 import json
-import time
 
 import numpy as np
 import pytest
@@ -55,19 +55,6 @@ def test_closest_is_exact_on_a_wavy_outline():
     offset = rng.uniform(-3, 3, 3000)  # small enough that foot is the nearest point
     d, _, _, _ = spline.closest(foot + offset[:, None] * normal)
     np.testing.assert_allclose(d, np.abs(offset), atol=1e-4)
-
-
-def test_closest_is_fast(circle_spline):
-    q, _ = random_queries(4000, np.random.default_rng(2), spread=10.0)
-    circle_spline.closest(q)
-    best = min(_timed(lambda: circle_spline.closest(q)) for _ in range(5))
-    assert best < 0.02  # ~2-3 ms on a 2-core machine; generous for loaded CI
-
-
-def _timed(fn):
-    start = time.perf_counter()
-    fn()
-    return time.perf_counter() - start
 
 
 def test_spline_interpolates_and_keeps_length(circle_spline):
@@ -127,9 +114,7 @@ def test_validate_outline_errors():
 def test_self_intersection_found_in_long_outlines():
     th = np.linspace(0, 2 * np.pi, 2000, endpoint=False)
     figure_eight = np.column_stack([200 * np.sin(th), 100 * np.sin(2 * th)])
-    start = time.perf_counter()
     where = first_self_intersection(figure_eight)
-    assert time.perf_counter() - start < 0.2
     assert where is not None and abs(figure_eight[where, 0]) < 1.0  # crossing at the origin
     assert first_self_intersection(circle(2000)) is None
     spike = circle(20)

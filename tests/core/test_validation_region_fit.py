@@ -3,6 +3,7 @@ convention and rasteriser against hand computations and the X-ray model's indepe
 ray casting, its accuracy on an X-ray model image pair with a known pose, and one real
 frame (skips without ../shared/data)."""
 import csv
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,6 +22,7 @@ from fluorogui.reference.region_fit import (
 )
 from fluorogui.reference.xray import Body, XrayModel, path_length, xray_image
 
+REFERENCE_POSES = Path(__file__).resolve().parents[1] / "data" / "biplane_reference_poses.csv"
 VIEW = View.looking_at([-1000.0, 0, 0], [0, 0, 0], [0, 0, 1], 1200.0, (128, 128), 0.5)
 
 
@@ -58,9 +60,10 @@ def test_coverage_is_the_x_ray_models_shadow_of_a_closed_mesh():
         # independent: ray casting of the X-ray model, 4 x 4 rays per pixel
         shadow = (path_length(VIEW, Body(v, f), 4, (0, 0, 128, 128)) > 1e-9).reshape(128, 4, 128, 4).mean((1, 3))
         assert cover.max() == pytest.approx(1.0) and cover.min() == 0.0
-        # measured: total area within 0.3 px2, no pixel off by more than one edge sample row
-        assert abs(cover.sum() - shadow.sum()) < 0.5, (cover.sum(), shadow.sum())
-        assert np.abs(cover - shadow).max() < 0.3
+        # measured: total area within 0.021 / 0.035 px2 (torus / sphere), no pixel off by more
+        # than one edge sample row (0.110 / 0.094)
+        assert abs(cover.sum() - shadow.sum()) < 0.07, (cover.sum(), shadow.sum())
+        assert np.abs(cover - shadow).max() < 0.22
 
 
 def test_field_of_view_is_the_lit_disc_with_its_dark_metal():
@@ -88,6 +91,7 @@ def tray_scene():
     return views, images, EdgeMesh.from_arrays(v, f), truth
 
 
+@pytest.mark.slow
 def test_fit_on_x_ray_model_images_recovers_the_pose(tray_scene):
     views, images, mesh, truth = tray_scene
     start = truth + np.array([1.5, -1.5, 1.0, -1.5, 1.5, 1.0])
@@ -104,6 +108,7 @@ def test_fit_on_x_ray_model_images_recovers_the_pose(tray_scene):
     assert all(a < b - 0.03 for a, b in zip(fit.iou_at(mesh, start), fit.iou))
 
 
+@pytest.mark.slow
 def test_one_real_frame_from_a_moved_start(shared_data):
     from fluorogui.io.calibration import load_view
     from fluorogui.io.images import read_image
@@ -113,7 +118,7 @@ def test_one_real_frame_from_a_moved_start(shared_data):
     views = [load_view(d / "calibration" / f"cam{k}_mayacam2.txt") for k in (1, 2)]
     images = [read_image(d / "cam1/000000.tif"), read_image(d / "cam2/000522.tif")]
     mesh = EdgeMesh.from_arrays(*load_mesh(d / "models/femoral_component.stl"))
-    with open("tests/data/biplane_reference_poses.csv", newline="") as fh:
+    with open(REFERENCE_POSES, newline="") as fh:  # not relative to the working directory
         row = next(r for r in csv.DictReader(fh) if r["frame"] == "0" and r["component"] == "femoral")
     matcher = np.array([float(row[k]) for k in ("x", "y", "z", "alpha", "beta", "gamma")])
     fields = [field_of_view(im) for im in images]
@@ -121,8 +126,8 @@ def test_one_real_frame_from_a_moved_start(shared_data):
     diff = pose_difference(matcher, fit.pose)
     # measured: 0.044 mm and a 0.074 deg turn from the matcher's pose (the fit from the
     # matcher's pose itself: 0.013 mm, 0.03 deg), IoU 0.986 / 0.988
-    assert np.abs(diff[:3]).max() < 0.1, diff
-    assert rotation_angle(matcher, fit.pose) < 0.2, diff
+    assert np.abs(diff[:3]).max() < 0.087, diff
+    assert rotation_angle(matcher, fit.pose) < 0.147, diff
     assert min(fit.iou) > 0.98
 
 

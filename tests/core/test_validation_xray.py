@@ -104,7 +104,9 @@ def test_quantum_noise_has_poisson_spread():
     model = XrayModel(supersample=1, detector_blur_px=0, focal_spot_mm=0, photons=2000.0, background=[])
     image = xray_image(VIEW, [], model, np.random.default_rng(0))  # air only
     relative = image.std() / image.mean()
-    assert relative == pytest.approx(1 / np.sqrt(2000.0), rel=0.05)
+    # statistical: the SD of 16384 pixels is itself uncertain by 1 / sqrt(2 n) = 0.55 %, so
+    # a 3-SD bound (measured 0.33 % off with this seed)
+    assert relative == pytest.approx(1 / np.sqrt(2000.0), rel=0.017)
 
 
 def test_open_mesh_holes_are_filled_from_neighbours():
@@ -118,7 +120,7 @@ def test_open_mesh_holes_are_filled_from_neighbours():
     assert 0 < hole.sum() < 1000 and np.all(normals[hole] @ [1, 0, 0] != 0)
     L = path_length(VIEW, Body(v, f[~hole]), 1, FULL)
     whole = path_length(VIEW, Body(v, f), 1, FULL)
-    assert np.all(np.isfinite(L)) and np.abs(L - whole).max() < 0.5  # near 20 mm through the middle
+    assert np.all(np.isfinite(L)) and np.abs(L - whole).max() < 0.5  # near 20 mm through the middle; measured 0.25
 
 
 def test_distortion_moves_points_as_the_model_says_and_back():

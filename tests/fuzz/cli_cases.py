@@ -2,7 +2,13 @@
 
 Each case is ``(argv, expect, names)``: ``expect`` "bad" means the run must be refused (exit
 2) with one line containing one of ``names`` (the option or the file); "any" (a mutated file
-that may still be valid) means any clean outcome (exit 0, 2 or 3, one line on refusal)."""
+that may still be valid) means any clean outcome (exit 0, 2 or 3, one line on refusal);
+"warned" means a clean run (exit 0) whose stderr warns, naming the file.
+
+``regression_cases`` are the issue "messages that name the wrong input": calibrations with
+absurd values (refused when read, naming the calibration file, not as a mismatch with the
+image), start poses at, behind or far from a source (refused as ``--start``), a lower-case
+JointTrack header (read, with a warning)."""
 from __future__ import annotations
 
 import os
@@ -41,6 +47,8 @@ def make_scene(folder: Path) -> dict:
     pv.Sphere(radius=20.0, theta_resolution=12, phi_resolution=12).save(folder / "ball.stl")
     scene["mesh"] = folder / "ball.stl"
     write_image(folder / "small.png", np.zeros((32, 32)), bits=8)
+    (folder / "jt").mkdir(exist_ok=True)
+    write_image(folder / "jt" / "square.png", np.zeros((1024, 1024)), bits=8)  # JointTrack's assumed size
     (folder / "pairs.csv").write_text("frame,cam1,cam2\n0,img0.png,img1.png\n")
     (folder / "ref.csv").write_text("frame,component,x,y,z,alpha,beta,gamma\n0,femoral,0,0,0,0,0,0\n")
     scene["pairs"], scene["reference"] = folder / "pairs.csv", folder / "ref.csv"
@@ -66,7 +74,8 @@ OPTION_CASES = [  # (argv builder, option, kind)
     (match_argv, "--starts", "1-1000"), (match_argv, "--outline-points", "from-1"), (match_argv, "--points", "from-10"),
     (repeat_argv, "--starts", "1-1000"), (repeat_argv, "--seed", "from-0"), (repeat_argv, "--frames", "from-0"),
     (lambda s: ["track", "x.fluoro"], "--workers", "1-256"), (lambda s: ["batch", "x.fluoro"], "--workers", "from-1"),
-    (lambda s: ["bench"], "--starts", "1-1000"), (lambda s: ["demo", str(s["folder"] / "d.fluoro")], "--frames", "1-1000"),
+    (lambda s: ["bench"], "--starts", "1-1000"),
+    (lambda s: ["demo", str(s["folder"] / "d.fluoro")], "--frames", "1-1000"),
 ]
 SLOTS = [("cam0", match_argv), ("img1", match_argv), ("mesh", match_argv), ("outline0", match_argv),
          ("pairs", repeat_argv), ("reference", repeat_argv), ("cam1", repeat_argv)]
@@ -128,6 +137,43 @@ def generate(scene: dict, folder: Path, count: int, seed: int = 0) -> list[tuple
     return cases
 
 
+def regression_cases(scene: dict, folder: Path) -> list[tuple[str, list[str], str, list[str]]]:
+    """(name, argv, expect, names) of every case of the issue, built on ``scene``."""
+    from fluorogui.io.calibration import load_view, save_view_mayacam2
+
+    folder.mkdir(parents=True, exist_ok=True)
+    save_view_mayacam2(load_view(scene["cam0"]), folder / "good_mayacam2.txt")
+    good = (folder / "good_mayacam2.txt").read_text()
+    lines = good.splitlines()
+    focal, translation = lines[4].split(",")[0], lines[-1]
+
+    def mayacam(name: str, text: str) -> Path:
+        (folder / name).write_text(text)
+        return folder / name
+
+    calibrations = {
+        "width_1e12": mayacam("width.txt", good.replace("64,48", "1000000000000,48", 1)),
+        "focal_1e-12": mayacam("focal.txt", good.replace(focal + ",", "1e-12,", 1)),
+        "translation_1e300": mayacam("translation.txt", good.replace("\n" + translation, "\n1e300", 1)),
+        "underscore_number": mayacam("underscore.txt", good.replace("64,48", "1_000,48", 1)),
+        "huge_integer": mayacam("huge.txt", good.replace("64,48", "99999999999999999999999,48", 1)),
+        "jointtrack_pitch_1e-300": mayacam("jt_pitch.txt", "JT_INTCALIB\n1200\n0\n0\n1e-300\n"),
+        "jointtrack_offset_1e300": mayacam("jt_offset.txt", "JT_INTCALIB\n1200\n1e300\n0\n0.4\n"),
+    }
+    cases = [(name, match_argv(scene, cam0=path), "bad", [str(path)]) for name, path in calibrations.items()]
+    for name, start in (("start_behind_source", ["0", "-1100", "0"]), ("start_at_source", ["0", "-995", "0"]),
+                        ("start_half_way_to_source", ["0", "-500", "0"]), ("start_1e5_mm_away", ["0", "100000", "0"])):
+        argv = match_argv(scene)
+        at = argv.index("--start") + 1
+        argv[at:at + 3] = start
+        cases.append((name, argv, "bad", ["--start"]))
+    lower = mayacam("lower_jt.txt", "jt_intcalib\n1200\n0\n0\n0.4\n")
+    argv = ["import", "--camera", str(lower), "--images1", str(scene["folder"] / "jt"), "--model",
+            f"femoral={scene['mesh']}", "--out", str(folder / "lower.fluoro"), "--force"]
+    cases.append(("jointtrack_lower_case_header", argv, "warned", [str(lower)]))
+    return cases
+
+
 def judge(case: tuple[list[str], str, list[str]], result: dict) -> str:
     """One of: ok, crash, hang, internal_error, escaped, bad_accepted, unnamed, many_lines."""
     argv, expect, names = case
@@ -139,6 +185,10 @@ def judge(case: tuple[list[str], str, list[str]], result: dict) -> str:
     if code == 1:
         return "internal_error"
     lines = stderr.strip().splitlines()
+    if expect == "warned":
+        warned = any(line.startswith("fluorogui: warning: ") and any(n in line for n in names) for line in lines)
+        return "ok" if code == 0 and warned else "unwarned" if code == 0 else "internal_error" if code == 1 else \
+            "bad_refused"
     if code == 2:
         if len(lines) != 1:
             return "many_lines"

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import collections
 
+import pytest
 from cli_cases import generate, judge, make_scene
 from cli_worker import run_cli_cases
 
 
+@pytest.mark.slow
 def test_command_line_fuzz(tmp_path):
     scene = make_scene(tmp_path / "scene")
     cases = generate(scene, tmp_path / "cases", 40, seed=3)

@@ -92,7 +92,8 @@ def test_unwritable_out_is_found_before_the_work(files, capsys, tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("")
     line = one_line(capsys, repeat_args(files, "--out", str(blocker / "results")))
-    assert line == f"fluorogui: error: {blocker / 'results'}: cannot write results here: a part of the path is not a folder"
+    assert line == (f"fluorogui: error: {blocker / 'results'}: cannot write results here: "
+                    "a part of the path is not a folder")
 
 
 def test_ragged_and_binary_pairs(files, capsys, tmp_path):
@@ -165,3 +166,55 @@ def test_an_os_error_on_a_named_path_is_a_refusal_naming_it(files, capsys, tmp_p
     blocker.write_text("")
     line = one_line(capsys, ["demo", str(blocker / "sub" / "d.fluoro")])
     assert line == f"fluorogui: error: {blocker / 'sub'}: a part of the path is not a folder"
+
+
+# -- the regression cases: each message names the input at fault ------------------------
+EXPECTED = {  # case -> the one line on stderr, after "fluorogui: error: <calibration file>: " for files
+    "width_1e12": "section 'image size': image size 1000000000000x48 px is not plausible for a fluoroscope "
+                  "(8 to 32,768 px a side)",
+    "focal_1e-12": "section 'camera matrix' (fx, fy): focal length fx = 1e-12 px gives a 180° field of view across "
+                   "64 px; a fluoroscope's is 0.1° to 120°",
+    "translation_1e300": "section 'translation': the X-ray source lies 1e+300 mm from the origin; a fluoroscope's "
+                         "calibration puts it within 10 m",
+    "underscore_number": "non-numeric value '1_000' in section 'image size' (a plain decimal number is expected)",
+    "huge_integer": "section 'image size': image size 99999999999999991611392x48 px is not plausible for a "
+                    "fluoroscope (8 to 32,768 px a side)",
+    "jointtrack_pitch_1e-300": "JT_INTCALIB pixel pitch: pixel pitch 1e-300 mm is not plausible for a fluoroscope "
+                               "(0.001 to 10 mm)",
+    "jointtrack_offset_1e300": "JT_INTCALIB principal point offsets: principal point (2.5e+300, 512) px lies more "
+                               "than an image size outside the 1024x1024 px image",
+    "start_behind_source": "fluorogui: --start: the pose lies behind the source of view 1 (its centre is 100 mm "
+                           "behind it)",
+    "start_at_source": "fluorogui: --start: the pose lies at the source of view 1 (its centre is 5 mm in front of "
+                       "it, within the component's size)",
+    "start_half_way_to_source": "fluorogui: --start: the pose puts the component outside this image of view 2 (",
+    "start_1e5_mm_away": "fluorogui: --start: the pose lies too far from the source of view 1 (1.01e+05 mm from it): "
+                         "the component would be 1.2 px across",
+    "jointtrack_lower_case_header": "the header 'jt_intcalib' is not in capitals as JointTrack writes it; read as "
+                                    "JT_INTCALIB",
+}
+
+
+@pytest.fixture(scope="module")
+def regressions(tmp_path_factory):
+    from cli_cases import make_scene, regression_cases
+
+    folder = tmp_path_factory.mktemp("regressions")
+    return {name: (argv, expect, names) for name, argv, expect, names in
+            regression_cases(make_scene(folder / "scene"), folder / "cases")}
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_messages_name_the_input_at_fault(regressions, capsys, name):
+    from cli_cases import judge
+
+    argv, expect, names = regressions[name]
+    code = cli.main(argv)
+    err = capsys.readouterr().err.strip()
+    assert judge((argv, expect, names), {"code": code, "stderr": err}) == "ok", err
+    if expect == "warned":
+        assert err == f"fluorogui: warning: {names[0]}: {EXPECTED[name]}"
+    elif names == ["--start"]:
+        assert err.startswith(EXPECTED[name]), err
+    else:
+        assert err == f"fluorogui: error: {names[0]}: {EXPECTED[name]}"

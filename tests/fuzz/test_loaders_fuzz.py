@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from loader_worker import fuzz_loaders
@@ -16,6 +17,7 @@ from fluorogui.io.outlines import read_outline_csv
 from fluorogui.io.pose_files import read_reference_poses
 
 
+@pytest.mark.slow
 def test_mutated_files_of_every_loader(tmp_path):
     seeds = make_seeds(tmp_path / "seeds")
     (tmp_path / "cases").mkdir()
@@ -42,7 +44,7 @@ def test_reference_tables(tmp_path_factory, rows, header):
     except InputError as exc:
         assert str(exc).startswith(f"{path}: ") and "\n" not in str(exc)
         return
-    for frame, component, pose in poses:
+    for _frame, _component, pose in poses:
         assert pose.shape == (6,) and all(abs(v) <= 1e7 for v in pose)
 
 

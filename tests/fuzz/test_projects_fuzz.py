@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from nasty_projects import FIXTURE, nasty_projects
+from nasty_projects import FIXTURE, nasty_projects, regressions
 
 from fluorogui.io.errors import InputError
 from fluorogui.io.project.document import load_project, save_project
@@ -40,6 +40,17 @@ def test_nasty_projects_are_refused(tmp_path, name, text):
     path = tmp_path / f"{name}.fluoro"
     path.write_text(text, encoding="utf-8")
     assert outcome(path) == "refused"
+
+
+@pytest.mark.parametrize("name, text, words", regressions(), ids=[n for n, _, _ in regressions()])
+def test_projects_contradicting_themselves_are_refused_naming_the_field(tmp_path, name, text, words):
+    """The issue's regression cases: each loaded before, the contradiction kept."""
+    path = tmp_path / "p.fluoro"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(InputError) as info:
+        load_project(path)
+    assert str(info.value).startswith(f"{path}: {words}"), str(info.value)
+    assert "\n" not in str(info.value)
 
 
 def _paths(value, prefix=()):

@@ -96,7 +96,8 @@ def test_mayacam2_real_files_load():
 
 
 def test_mayacam2_crlf_and_single_row_translation(tmp_path):
-    text = MAYACAM2.replace("36.2384826278\n-134.635431317\n1345.59296415", "36.2384826278,-134.635431317,1345.59296415")
+    text = MAYACAM2.replace("36.2384826278\n-134.635431317\n1345.59296415",
+                            "36.2384826278,-134.635431317,1345.59296415")
     a = load_view(write(tmp_path, MAYACAM2.replace("\n", "\r\n"), "a.txt"))
     b = load_view(write(tmp_path, text, "b.txt"))
     np.testing.assert_allclose(a.source, b.source)
@@ -112,7 +113,8 @@ def test_mayacam2_non_numeric(tmp_path):
 
 
 def test_mayacam2_nan(tmp_path):
-    assert_error(write(tmp_path, MAYACAM2.replace("-134.635431317", "nan")), "NaN or infinite value in section 'translation'")
+    assert_error(write(tmp_path, MAYACAM2.replace("-134.635431317", "nan")),
+                 "NaN or infinite value in section 'translation'")
 
 
 def test_mayacam2_wrong_row_count(tmp_path):
@@ -176,7 +178,8 @@ def test_mayacam1_zero_size_means_1024(tmp_path):
 
 
 def test_mayacam1_non_numeric(tmp_path):
-    assert_error(write(tmp_path, "0,0,1000\n0,0,0\n0,0,-100\n512,abc,-5000\n0,0,0\n"), "non-numeric value 'abc' in line 4")
+    assert_error(write(tmp_path, "0,0,1000\n0,0,0\n0,0,-100\n512,abc,-5000\n0,0,0\n"),
+                 "non-numeric value 'abc' in line 4")
     assert_error(write(tmp_path, "0,0,1000\n0,0,0\n0,0,-100\n512,512,inf\n0,0,0\n"), "NaN or infinite value in line 4")
     assert_error(write(tmp_path, "0,0,1000\n0,0,0\n0,0,-100\n512,512,0\n0,0,0\n"), "camera matrix is singular")
 
@@ -268,7 +271,8 @@ def test_check_image_size(tmp_path):
     check_image_size(view, (1024, 1024), "img.tif")
     with pytest.raises(InputError) as info:
         check_image_size(view, (512, 640), "img.tif")
-    assert str(info.value) == "img.tif: image is 640x512 px but the calibration 'cam1' is for 1024x1024 px"
+    assert str(info.value) == \
+        f"img.tif: image is 640x512 px but the calibration 'cam1' ({tmp_path / 'cam.txt'}) is for 1024x1024 px"
 
 
 # -- writing: round trips -------------------------------------------------------------------------
@@ -356,3 +360,56 @@ def test_mayacam2_undistortion_block_read_written_and_kept_in_json(tmp_path):
     save_view_json(view, tmp_path / "v.json")
     assert load_view(tmp_path / "v.json").extra["distortion"] == view.extra["distortion"]
     assert_error(write(tmp_path, MAYACAM2 + "\nundistortion\n0.1,0.2,0.3\n", "bad.txt"), "section 'undistortion' has 3")
+
+
+# -- what a fluoroscope can plausibly be: refused when read, naming the file and the field ------
+@pytest.mark.parametrize("old, new, words", [
+    ("4576.77643523,0,395", "1e-12,0,395", "section 'camera matrix' (fx, fy): focal length fx = 1e-12 px gives a "
+                                           "180° field of view across 1024 px; a fluoroscope's is 0.1° to 120°"),
+    ("4576.77643523,0,395", "1e9,0,395", "section 'camera matrix' (fx, fy): focal length fx = 1e+09 px gives a "
+                                         "5.87e-05° field of view"),
+    ("0,4601.74685987,588.40125626", "0,4601.74685987,1e6", "section 'camera matrix' (cx, cy): principal point"),
+    ("1024,1024", "1024,4", "section 'image size': image size 1024x4 px is not plausible"),
+    ("1345.59296415", "1.5e4", "section 'translation': the X-ray source lies 1.5e+04 mm from the origin"),
+    ("1345.59296415", "1_345.5", "non-numeric value '1_345.5' in section 'translation' (a plain decimal number"),
+    ("1345.59296415", "0x10", "non-numeric value '0x10' in section 'translation'"),
+])
+def test_implausible_mayacam2_is_refused_naming_the_field(tmp_path, old, new, words):
+    assert MAYACAM2.count(old) == 1
+    assert_error(write(tmp_path, MAYACAM2.replace(old, new)), words)
+
+
+@pytest.mark.parametrize("text, words", [
+    ("JT_INTCALIB\n1e-300\n0\n0\n0.3\n", "JT_INTCALIB principal distance: source-intensifier distance 1e-300 mm"),
+    ("JT_INTCALIB\n1000\n0\n0\n50\n", "JT_INTCALIB pixel pitch: pixel pitch 50 mm is not plausible"),
+    ("0,0,1e300\n0,0,0\n0,0,0\n33,25,-1200\n1,64,48\n", "line 1 (camera position): the X-ray source lies 1e+300 mm"),
+    ("0,0,1000\n0,0,0\n0,0,0\n33,25,-0.01\n1,64,48\n", "line 4 (focal length Z): focal length fx = 0.01 px"),
+    ("0,0,1000\n0,0,0\n0,0,0\n33,25,-1200\n1,1e12,48\n", "line 5 (width, height): image size 1000000000000x48 px"),
+])
+def test_implausible_jointtrack_and_mayacam1_are_refused_naming_the_field(tmp_path, text, words):
+    assert_error(write(tmp_path, text), words)
+
+
+def test_implausible_json_calibration_and_keys_twice(tmp_path):
+    view = load_view(write(tmp_path, MAYACAM2))
+    path = tmp_path / "cal.json"
+    save_view_json(view, path)
+    text = path.read_text()
+    write(tmp_path, text.replace('"distance_mm": ', '"distance_mm": 1e-300, "x": ', 1), "far.json")
+    assert_error(tmp_path / "far.json", "view.distance_mm: source-intensifier distance 1e-300 mm is not plausible")
+    write(tmp_path, text.replace('"version": 1', '"version": 1, "version": 1'), "twice.json")
+    assert_error(tmp_path / "twice.json", "calibration file: the key 'version' appears twice in one object")
+
+
+def test_lower_case_jointtrack_headers_are_read_with_a_warning(tmp_path):
+    from fluorogui.io.errors import InputWarning
+
+    path = write(tmp_path, "Jt_IntCalib\n1200\n0\n0\n0.4\n")
+    with pytest.warns(InputWarning) as caught:
+        view = load_view(path)
+    assert view.distance == 1200.0
+    assert [str(w.message) for w in caught] == [
+        f"{path}: the header 'Jt_IntCalib' is not in capitals as JointTrack writes it; read as JT_INTCALIB"]
+    poses = write(tmp_path, "jt_euler_312\nx,y,z,a,b,c\n1,2,3,4,5,6\n", "poses.jts")
+    with pytest.warns(InputWarning, match="the header 'jt_euler_312' is not in capitals"):
+        assert load_jointtrack_poses(poses).shape == (1, 6)

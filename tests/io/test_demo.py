@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import os
-import time
 
 import cv2
 import numpy as np
@@ -24,15 +23,11 @@ FRAMES = 4
 @pytest.fixture(scope="module")
 def built(tmp_path_factory):
     folder = tmp_path_factory.mktemp("demo")
-    start = time.perf_counter()
-    path = build_demo_project(folder, frames=FRAMES)
-    seconds = time.perf_counter() - start
-    return path, seconds
+    return build_demo_project(folder, frames=FRAMES)  # its build time: benchmarks/bench_budgets.py
 
 
 def test_demo_is_a_complete_project(built):
-    path, seconds = built
-    assert seconds < 15.0, f"demo build took {seconds:.1f} s"  # ~1.5 s measured; guards against slow recipes
+    path = built
     project = load_project(path)
     assert len(project.views) == 2
     assert project.frames == list(range(FRAMES))
@@ -52,7 +47,7 @@ def test_demo_is_a_complete_project(built):
 
 
 def test_models_are_the_phantoms_in_mm(built):
-    project = load_project(built[0])
+    project = load_project(built)
     vertices, faces = load_mesh(project.model("femoral").mesh_path)
     expected, _ = femoral_component_mesh()
     np.testing.assert_allclose(vertices.min(0), expected.min(0), atol=1e-4)
@@ -63,7 +58,7 @@ def test_models_are_the_phantoms_in_mm(built):
 
 
 def test_truth_and_rough_start_are_stored(built):
-    project = load_project(built[0])
+    project = load_project(built)
     truth = project.settings["demo_truth"]
     assert sorted(truth, key=int) == [str(f) for f in project.frames]
     flexion = []
@@ -80,7 +75,7 @@ def test_truth_and_rough_start_are_stored(built):
 
 
 def test_images_show_both_components_where_the_truth_projects(built):
-    project = load_project(built[0])
+    project = load_project(built)
     meshes = {m.component: load_mesh(m.mesh_path) for m in project.models}
     for i, frame in enumerate(project.frames):
         truth = project.settings["demo_truth"][str(frame)]

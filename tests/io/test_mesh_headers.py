@@ -97,5 +97,6 @@ def test_legacy_vtk_42_is_read_and_its_indices_checked(tmp_path):
 def test_ply_with_a_face_beyond_its_vertices(tmp_path):
     path = tmp_path / "bad.ply"
     path.write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                    "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n30 0 0\n0 30 0\n3 0 1 9\n")
+                    "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                    "0 0 0\n30 0 0\n0 30 0\n3 0 1 9\n")
     assert refusal(path) == "unreadable PLY file: a face refers to a vertex beyond the 3 it has"

@@ -93,3 +93,37 @@ def test_nan_coordinates(tmp_path):
 def test_implausible_size(tmp_path, radius):
     pv.Sphere(radius=radius).save(tmp_path / "ball.stl")
     assert "is the mesh in mm?" in error_of(tmp_path / "ball.stl")
+
+
+@pytest.mark.parametrize("suffix, binary", [(".stl", True), (".stl", False), (".ply", True), (".obj", None),
+                                            (".vtk", False), (".vtp", None)])
+def test_models_of_more_faces_than_the_matcher_takes_are_refused_before_reading(tmp_path, monkeypatch, suffix,
+                                                                                 binary):
+    """The count comes from the header (or a count in the file), before VTK allocates."""
+    sphere = pv.Sphere(radius=20.0, theta_resolution=12, phi_resolution=12)  # 240 triangles
+    path = tmp_path / f"ball{suffix}"
+    sphere.save(path, **({} if binary is None else {"binary": binary}))
+    monkeypatch.setattr("fluorogui.io.meshes.headers.MAX_MODEL_FACES", 239)
+    read = []
+    monkeypatch.setattr("fluorogui.io.meshes.read._read_surface", lambda p: read.append(p))
+    assert error_of(path) == (f"{path}: mesh too large: the model has 240 faces, more than the 239 fluorogui "
+                              "matches (an implant needs some 10^4 to 10^5, and each costs memory): decimate it first")
+    assert read == []
+
+
+def test_a_triangle_soup_is_refused_and_a_real_model_is_not(tmp_path):
+    from fluorogui.workflow.session import MAX_OPEN_EDGES, prepared_model, read_model
+
+    rng = np.random.default_rng(0)
+    triangles = rng.uniform(-30, 30, (MAX_OPEN_EDGES, 3, 3))  # no two share an edge: 3,000 open edges
+    soup = pv.PolyData(triangles.reshape(-1, 3), np.c_[np.full(len(triangles), 3),
+                                                       np.arange(3 * len(triangles)).reshape(-1, 3)].ravel())
+    soup.save(tmp_path / "soup.stl")
+    with pytest.raises(InputError) as info:
+        prepared_model(tmp_path / "soup.stl", *read_model(tmp_path / "soup.stl"))
+    assert str(info.value) == (f"{tmp_path / 'soup.stl'}: mesh is not a closed surface: 3,000 of its 3,000 edges "
+                               "border one triangle (or more than two); an implant model is closed (is it a triangle "
+                               "soup?)")
+    femur = DATA / "biplane-tka" / "models" / "femoral_component.stl"
+    if femur.exists():  # 15 open edges of 109,686
+        assert len(prepared_model(femur, *read_model(femur)).open_edges) == 15

@@ -94,8 +94,8 @@ def test_long_and_wide_pose_csvs(tmp_path):
     poses = read_pose_csv(tmp_path / "long.csv")
     assert poses[(0, "femoral")] == pytest.approx([1, 2, 3, 4, 5, 6])
     assert np.isnan(poses[(0, "tibial")][5])
-    write_csv(tmp_path / "wide.csv", ["a comment"], ["frame", *(f"femoral_{k}" for k in "x y z alpha beta gamma".split())],
-              [[3, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0]])
+    header = ["frame", *(f"femoral_{k}" for k in "x y z alpha beta gamma".split())]
+    write_csv(tmp_path / "wide.csv", ["a comment"], header, [[3, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0]])
     assert (tmp_path / "wide.csv").read_text().startswith("# a comment\nframe,femoral_x")
     assert read_pose_csv(tmp_path / "wide.csv")[(3, "femoral")] == pytest.approx([1, 2, 3, 4, 5, 6])
 

@@ -213,7 +213,8 @@ def test_missing_and_malformed_fields(tmp_path):
     assert "records[1] is for view 5 but the project has 2 views" in load_error(
         edited(tmp_path, lambda d: d["records"][1].update(view=5))
     )
-    assert "field 'settings' must be an object, not a list of 0" in load_error(edited(tmp_path, lambda d: d.update(settings=[])))
+    error = load_error(edited(tmp_path, lambda d: d.update(settings=[])))
+    assert "field 'settings' must be an object, not a list of 0" in error
     points = len(json.loads((FIXTURES / "project_v2.fluoro").read_text())["records"][0]["points"])
     assert f"3 weights for {points} points" in load_error(
         edited(tmp_path, lambda d: d["records"][0].update(weights=[1.0, 2.0, 3.0])))

@@ -64,8 +64,10 @@ def test_hostile_json(tmp_path):
     (lambda d: d["models"][0].update(point_density=-5), "field 'models[0].point_density' must be >= 10, not -5"),
     (lambda d: d["models"][0].update(point_density=10**12),
      "field 'models[0].point_density' must be <= 10000000, not 1000000000000"),
-    (lambda d: d["poses"][0].update(pose=["1.5", -2, 3, 10, -20, 5]), "field 'poses[0].pose[0]' must be a number, not '1.5'"),
-    (lambda d: d["models"][0].update(point_density="15000"), "field 'models[0].point_density' must be a whole number, not '15000'"),
+    (lambda d: d["poses"][0].update(pose=["1.5", -2, 3, 10, -20, 5]),
+     "field 'poses[0].pose[0]' must be a number, not '1.5'"),
+    (lambda d: d["models"][0].update(point_density="15000"),
+     "field 'models[0].point_density' must be a whole number, not '15000'"),
     (lambda d: d["views"][0].update(principal_point_px=[1, 2, 3]),
      "field 'views[0].principal_point_px' has 3 values, more than the 2 allowed"),
     (lambda d: d["views"][0].update(image_size_px=[0, 48]), "field 'views[0].image_size_px[0]' must be >= 1, not 0"),
@@ -74,7 +76,8 @@ def test_hostile_json(tmp_path):
     (lambda d: d["records"][0].update(reviewed=1), "field 'records[0].reviewed' must be true or false, not 1"),
     (lambda d: d.update(settings={"gui": []}), "field 'settings.gui' must be an object, not a list of 0"),
     (lambda d: d.update(settings={"gui": True}), "field 'settings.gui' must be an object, not True"),
-    (lambda d: d.update(settings={"workflow": {"match": 3}}), "field 'settings.workflow.match' must be an object, not 3"),
+    (lambda d: d.update(settings={"workflow": {"match": 3}}),
+     "field 'settings.workflow.match' must be an object, not 3"),
     (lambda d: d["models"][0].update(component=""), "field 'models[0].component' must not be empty"),
     (lambda d: d["poses"][0]["match"].update(calls=-1), "field 'poses[0].match.calls' must be >= 0, not -1"),
     (lambda d: d.update(views="many"), "field 'views' must be a list, not 'many'"),
@@ -114,7 +117,8 @@ def _message(path) -> str:
 
 
 def test_folder_and_huge_file(tmp_path, monkeypatch):
-    assert str(pytest.raises(InputError, load_project, tmp_path).value) == f"{tmp_path}: is a folder, not a project file"
+    refused = str(pytest.raises(InputError, load_project, tmp_path).value)
+    assert refused == f"{tmp_path}: is a folder, not a project file"
     monkeypatch.setattr("fluorogui.io.project.document.MAX_PROJECT_BYTES", 100)
     path = tmp_path / "big.fluoro"
     path.write_text(" " * 2_000_000)
@@ -158,7 +162,8 @@ def test_list_arrays_of_older_files_are_checked_with_numpy(tmp_path):
 
     assert refusal(tmp_path, points([["1", "2"]])) == \
         "field 'records[0].points': must be a Nx2 array of numbers (not text, true/false or null)"
-    assert refusal(tmp_path, points([[1, 2], [3]])) == "field 'records[0].points': must be a regular Nx2 array of numbers"
+    assert refusal(tmp_path, points([[1, 2], [3]])) == \
+        "field 'records[0].points': must be a regular Nx2 array of numbers"
     assert refusal(tmp_path, points([[1, 2, 3]])) == "field 'records[0].points': must be a Nx2 array, got shape 1x3"
     assert refusal(tmp_path, points([[True, False]])) == \
         "field 'records[0].points': must be a Nx2 array of numbers (not text, true/false or null)"

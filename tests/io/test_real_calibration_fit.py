@@ -3,12 +3,15 @@ import csv
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from fluorogui.core.matching.loop import match_images
 from fluorogui.core.projection.mesh import prepare_mesh
 from fluorogui.io.calibration import load_view
 from fluorogui.io.images import read_image
 from fluorogui.io.meshes.read import load_mesh
+
+pytestmark = pytest.mark.slow  # end to end on the real data
 
 REFERENCE = Path(__file__).resolve().parents[1] / "data" / "biplane_reference_poses.csv"
 
@@ -27,5 +30,6 @@ def test_one_pose_fits_both_views_of_the_real_data(shared_data):
     result, _ = match_images(images, views, mesh, pose + np.array([3.0, -2.0, 2.0, 3.0, -2.0, 2.0]))
     assert result.converged
     px_mm = [v.mm_per_px() for v in views]
+    # measured 0.42 / 0.47 px and 0.0008 mm from the reference pose
     assert all(m / p < 0.6 for m, p in zip(result.per_view_mean_mm, px_mm)), result.per_view_mean_mm
-    assert np.abs(result.pose[:3] - pose[:3]).max() < 0.1
+    assert np.abs(result.pose[:3] - pose[:3]).max() < 0.0016

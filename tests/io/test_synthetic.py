@@ -204,12 +204,12 @@ def test_left_knee_mirrors_the_motion_and_the_views(phantom_files):
     right = knee_bend_truth(meshes["femoral"][0], meshes["tibial"][0], flexion, "right")
     left = knee_bend_truth(meshes["femoral"][0], meshes["tibial"][0], flexion, "left")
     mirror = np.diag([-1.0, 1.0, 1.0])
-    for r, l in zip(right, left):
-        R, L = pose_to_matrix(r["tibial"]), pose_to_matrix(l["tibial"])
+    for r, lt in zip(right, left):
+        R, L = pose_to_matrix(r["tibial"]), pose_to_matrix(lt["tibial"])
         np.testing.assert_allclose(L[:3, :3], mirror @ R[:3, :3] @ mirror, atol=1e-12)
         np.testing.assert_allclose(L[:3, 3], mirror @ R[:3, 3], atol=1e-12)
         rel_r = np.linalg.inv(R) @ pose_to_matrix(r["femoral"])
-        rel_l = np.linalg.inv(L) @ pose_to_matrix(l["femoral"])
+        rel_l = np.linalg.inv(L) @ pose_to_matrix(lt["femoral"])
         np.testing.assert_allclose(rel_l[:3, :3], mirror @ rel_r[:3, :3] @ mirror, atol=1e-12)
     for a, b in zip(synthetic.sequence_views(SIZE, "right"), synthetic.sequence_views(SIZE, "left")):
         np.testing.assert_allclose(b.source, mirror @ a.source, atol=1e-9)
@@ -237,11 +237,11 @@ def test_femur_rests_on_the_insert_gap_and_flexes_about_the_mediolateral_axis(ph
         in_tibia = meshes["femoral"][0] @ relative[:3, :3].T + relative[:3, 3]
         assert in_tibia[:, 2].min() - tray_top == pytest.approx(synthetic.GAP_MM, abs=1e-9)
         # the femoral mediolateral axis stays within a few degrees of the tibial one
-        assert np.degrees(np.arccos(relative[0, 0])) < 12.0
+        assert np.degrees(np.arccos(relative[0, 0])) < 12.0  # measured 1.6 (extended) to 10.0 (100 deg)
         # flexion: the femoral long axis turned backwards by about the flexion angle
         long_axis = relative[:3, 2]
         turned = np.degrees(np.arctan2(-long_axis[1], long_axis[2]))
-        assert turned == pytest.approx(angle, abs=3.0)
+        assert turned == pytest.approx(angle, abs=0.39)  # measured within 0.196 deg
         assert relative[1, 3] <= 1.0 + 1e-9  # no forward slide; rollback increases with flexion
 
 
@@ -273,6 +273,7 @@ def test_fast_coverage_equals_the_plain_rasteriser_on_closed_open_and_inverted_m
     _check_same_as_plain_rasteriser((vertices, mixed), poses[:1], views)
 
 
+@pytest.mark.slow
 def test_worker_processes_write_the_same_sequence(phantom_files, tmp_path):
     one = build_knee_sequence(tmp_path / "one", phantom_files["femoral"], phantom_files["tibial"], frames=3,
                               image_size=96, seed=2)
@@ -294,6 +295,7 @@ def test_sixteen_bit_images(phantom_files, tmp_path):
 
 
 # -- the real implant meshes ------------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.skipif(not REAL_MODELS.is_dir(), reason="../shared/data is not available")
 def test_real_meshes_bend_overlapping_in_the_lateral_view(tmp_path):
     femoral, tibial = REAL_MODELS / "femoral_component.stl", REAL_MODELS / "tibial_component.stl"
@@ -309,7 +311,7 @@ def test_real_meshes_bend_overlapping_in_the_lateral_view(tmp_path):
         relative = np.linalg.inv(pose_to_matrix(truth["tibial"])) @ pose_to_matrix(truth["femoral"])
         long_axis = relative[:3, 2]  # the femoral long axis, turned backwards by the flexion
         turned = np.degrees(np.arctan2(-long_axis[1], long_axis[2]))
-        assert turned == pytest.approx(recipe["flexion_deg"][i], abs=3.0)
+        assert turned == pytest.approx(recipe["flexion_deg"][i], abs=0.3)  # measured -0.013, +0.148 deg
         for view, sequence in zip(project.views, project.sequences):
             image = read_image(sequence.paths[i])
             assert edge_contrast(image, view, truth, meshes) > 0.2

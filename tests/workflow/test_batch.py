@@ -5,11 +5,14 @@ from __future__ import annotations
 import os
 import shutil
 
+import pytest
+
 from fluorogui.cli import main
 from fluorogui.io.project.document import load_project
 from fluorogui.workflow.batch import run_batch, summary_table
 
 
+@pytest.mark.slow
 def test_batch_tracks_projects_and_survives_a_dying_worker(demo, tmp_path, capsys):
     second = tmp_path / "second"
     shutil.copytree(demo.parent, second)
@@ -41,6 +44,7 @@ def test_batch_tracks_projects_and_survives_a_dying_worker(demo, tmp_path, capsy
     assert "broken.fluoro" in table and "not valid JSON" in table
 
 
+@pytest.mark.slow
 def test_batch_command_prints_a_summary_and_exit_status(demo, capsys):
     assert main(["batch", str(demo), "--workers", "1", "--frames", "1:1", "--component", "tibial"]) == 0
     out = capsys.readouterr().out
@@ -48,6 +52,7 @@ def test_batch_command_prints_a_summary_and_exit_status(demo, capsys):
     assert main(["batch", str(demo), "--workers", "0"]) == 2
 
 
+@pytest.mark.slow
 def test_batch_skips_a_project_open_elsewhere_and_says_who_holds_it(demo):
     from fluorogui.io.project.lock import ProjectLock
 

@@ -20,10 +20,12 @@ JSON_FIELDS = {"frame", "component", "pose", "objective_mm", "per_view_mean_mm",
                "seconds", "sd"}
 
 
-def _cli(*args, cwd=None):
-    """Run the installed command in a fresh process (its own pid, a real stdout)."""
-    return subprocess.run([sys.executable, "-m", "fluorogui", *map(str, args)], capture_output=True, text=True,
-                          cwd=cwd, timeout=600)
+def _cli(capsys, *args):
+    """Run one command line in this process: (exit status, stdout, stderr)."""
+    capsys.readouterr()
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
 
 
 def test_public_api_imports_as_documented():
@@ -36,12 +38,13 @@ def test_public_api_imports_as_documented():
         fluorogui.NoSuchThing  # noqa: B018
 
 
-def test_track_json_contract_resume_and_same_pose_as_the_api(demo, tmp_path):
+@pytest.mark.slow
+def test_track_json_contract_resume_and_same_pose_as_the_api(demo, tmp_path, capsys):
     copy = tmp_path / "api"
     shutil.copytree(demo.parent, copy)
-    run = _cli("track", demo, "--frames", "1:1", "--json")
-    assert run.returncode == 0, run.stderr
-    lines = [json.loads(line) for line in run.stdout.splitlines()]
+    code, out, err = _cli(capsys, "track", demo, "--frames", "1:1", "--json")
+    assert code == 0, err
+    lines = [json.loads(line) for line in out.splitlines()]
     assert [(d["frame"], d["component"]) for d in lines] == [(1, "femoral"), (1, "tibial")]
     for d in lines:
         assert set(d) == JSON_FIELDS and d["status"] == "matched" and d["converged"] is True
@@ -55,24 +58,26 @@ def test_track_json_contract_resume_and_same_pose_as_the_api(demo, tmp_path):
     for component in ("femoral", "tibial"):
         np.testing.assert_array_equal(api[component], stored.poses[(1, component)].pose)
     # running again resumes: frame 1 is kept, nothing is printed for work not done
-    again = _cli("track", demo, "--frames", "0:1", "--json")
-    assert again.returncode == 0 and again.stdout.count('"status": "matched"') == 4
+    code, out, _ = _cli(capsys, "track", demo, "--frames", "0:1", "--json")
+    assert code == 0 and out.count('"status": "matched"') == 4
 
 
-def test_track_reports_flagged_frames_on_stderr_and_exits_3(demo):
+def test_track_reports_flagged_frames_on_stderr_and_exits_3(demo, capsys):
     session = Session.open(demo)
     session.project.sequences[1].paths[2].unlink()
-    run = _cli("track", demo, "--frames", "2:2", "--component", "tibial")
-    assert run.returncode == 3
-    assert run.stderr.strip().splitlines() == [
+    code, out, err = _cli(capsys, "track", demo, "--frames", "2:2", "--component", "tibial")
+    assert code == 3
+    assert err.strip().splitlines() == [
         f"fluorogui: frame 2, tibial: failed: {session.project.sequences[1].paths[2]}: file not found"]
-    assert "1 failed" in run.stdout
+    assert "1 failed" in out
     assert load_project(demo).poses[(2, "tibial")].reason.endswith("file not found")
 
 
 def test_a_project_open_elsewhere_is_refused_by_name(demo):
+    # a process of its own on purpose: the lock is re-entrant within one process
     with ProjectLock(demo, "fluorogui (desktop)"):
-        run = _cli("track", demo, "--frames", "1")
+        run = subprocess.run([sys.executable, "-m", "fluorogui", "track", str(demo), "--frames", "1"],
+                             capture_output=True, text=True, timeout=600)
     assert run.returncode == 2
     assert run.stderr.count("\n") == 1
     assert str(demo) in run.stderr and "in use by fluorogui (desktop)" in run.stderr and str(os.getpid()) in run.stderr
@@ -133,7 +138,8 @@ def test_find_places_both_components_and_reports_json(demo, capsys):
     for d in lines:
         assert set(d) == {"frame", "component", "found", "pose", "iou", "reason", "seconds"}
         e = pose_error(d["pose"], truth[d["component"]])
-        assert np.abs(e[:3]).max() < 0.02 and np.abs(e[3:]).max() < 0.05, e  # measured 0.003 mm, 0.016 deg
+        # measured 0.0027 / 0.0026 mm, 0.0081 / 0.0189 deg (femoral / tibial)
+        assert np.abs(e[:3]).max() < 0.0053 and np.abs(e[3:]).max() < 0.0378, e
         assert project.poses[(2, d["component"])].status == "placed"
 
 

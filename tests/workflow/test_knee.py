@@ -3,12 +3,11 @@ status and reasons, exports that round-trip through imports, and the command lin
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
+from fluorogui.cli import main
 from fluorogui.core.knee.kinematics import knee_kinematics, relative_pose_from_kinematics
 from fluorogui.core.projection.pose import matrix_to_pose, pose_to_matrix
 from fluorogui.core.records import PoseRecord
@@ -39,9 +38,9 @@ def test_matched_frame_kinematics_agree_with_the_truth(demo, truth):
                                session.anatomical_frame("femoral"), session.anatomical_frame("tibial"))
     row = session.knee_at(0)
     assert row.status == "matched", row.reason
-    # measured on the demo's four tracked frames: up to 0.022 deg and 0.013 mm off
+    # measured on frame 0: 0.0186 / 0.0022 / 0.0148 deg and 0.0109 / 0.0066 / 0.0028 mm off
     assert np.abs(row.values.values() - expected.values())[:3].max() < 0.03
-    assert np.abs(row.values.values() - expected.values())[3:].max() < 0.03
+    assert np.abs(row.values.values() - expected.values())[3:].max() < 0.022
 
 
 def test_missing_and_flagged_frames(demo):
@@ -120,7 +119,7 @@ def test_exports_round_trip_through_imports(demo, truth, tmp_path):
         assert not fresh.project.poses
 
 
-def test_kinematics_cli_contract(tmp_path):
+def test_kinematics_cli_contract(tmp_path, capsys):
     femur = np.eye(4)
     relative = relative_pose_from_kinematics([45.0, 2.0, -3.0, 1.0, 2.0, 5.0], "left")
     rows = ["frame,component,x,y,z,alpha,beta,gamma",
@@ -130,11 +129,11 @@ def test_kinematics_cli_contract(tmp_path):
     (tmp_path / "poses.csv").write_text("\n".join(rows) + "\n")
     identity = tmp_path / "eye.json"
     identity.write_text(json.dumps({"matrix": np.eye(4).tolist()}))
-    run = subprocess.run([sys.executable, "-m", "fluorogui", "kinematics", "--poses", str(tmp_path / "poses.csv"),
-                          "--side", "left", "--femoral-frame", str(identity), "--tibial-frame", str(identity),
-                          "--out", str(tmp_path / "out.csv")], capture_output=True, text=True)
-    assert run.returncode == 0, run.stderr
-    assert "1 frame written as NaN (tibial pose missing)" in run.stderr
+    code = main(["kinematics", "--poses", str(tmp_path / "poses.csv"), "--side", "left", "--femoral-frame",
+                 str(identity), "--tibial-frame", str(identity), "--out", str(tmp_path / "out.csv")])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "1 frame written as NaN (tibial pose missing)" in err
     lines = [line for line in (tmp_path / "out.csv").read_text().splitlines() if not line.startswith("#")]
     assert lines[0] == "frame,flexion_deg,varus_deg,internal_deg,medial_mm,anterior_mm,distraction_mm"
     assert [float(v) for v in lines[1].split(",")] == pytest.approx([0, 45, 2, -3, 1, 2, 5], abs=1e-8)
@@ -146,26 +145,27 @@ def test_kinematics_cli_contract(tmp_path):
     (np.diag([1.0, 1.0, 1.0 + 1e-3, 1.0]).tolist(), "not orthonormal"),
     (np.diag([1.0, -1.0, 1.0, 1.0]).tolist(), "determinant"),
 ])
-def test_kinematics_cli_refuses_frames_that_are_not_rotations(tmp_path, matrix, words):
+def test_kinematics_cli_refuses_frames_that_are_not_rotations(tmp_path, capsys, matrix, words):
     (tmp_path / "poses.csv").write_text("frame,component,x,y,z,alpha,beta,gamma\n0,femoral,0,0,0,0,0,0\n")
     bad = tmp_path / "bad.json"
     bad.write_text(json.dumps({"matrix": matrix}))
-    run = subprocess.run([sys.executable, "-m", "fluorogui", "kinematics", "--poses", str(tmp_path / "poses.csv"),
-                          "--side", "right", "--femoral-frame", str(bad), "--tibial-frame", str(bad),
-                          "--out", str(tmp_path / "out.csv")], capture_output=True, text=True)
-    assert run.returncode == 2
-    assert run.stderr.count("\n") == 1 and "bad.json" in run.stderr and words in run.stderr
+    code = main(["kinematics", "--poses", str(tmp_path / "poses.csv"), "--side", "right", "--femoral-frame",
+                 str(bad), "--tibial-frame", str(bad), "--out", str(tmp_path / "out.csv")])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1 and "bad.json" in err and words in err
     assert not (tmp_path / "out.csv").exists()
 
 
-def test_tra_and_jts_leave_out_poses_flagged_for_review_unless_asked(demo, truth, tmp_path):
+def test_tra_and_jts_leave_out_poses_flagged_for_review_unless_asked(demo, truth, tmp_path, capsys):
     # .tra and .jts carry no status: a pose the matcher flagged must not pass as matched there
     from fluorogui.workflow.exports import unreviewed_matches
 
     session = Session.open(demo)
     put_truth(session, truth, frames=[0, 1, 2])
     flagged_pose = np.asarray(truth(session)[1]["femoral"], dtype=float) + [2.0, 0, 0, 0, 0, 0]
-    session.project.poses[(1, "femoral")] = PoseRecord(flagged_pose, status=Status.NEEDS_REVIEW, reason="residual too high")
+    session.project.poses[(1, "femoral")] = PoseRecord(flagged_pose, status=Status.NEEDS_REVIEW,
+                                                       reason="residual too high")
     assert unreviewed_matches(session) == [(1, "femoral", "residual too high")]
 
     def tra_rows(**kwargs):
@@ -186,21 +186,22 @@ def test_tra_and_jts_leave_out_poses_flagged_for_review_unless_asked(demo, truth
     session.set_reviewed("femoral", 1, False)
     session.save()
     out = tmp_path / "cli.tra"
-    run = subprocess.run([sys.executable, "-m", "fluorogui", "export", str(demo), "--tra", str(out)],
-                         capture_output=True, text=True)
-    assert run.returncode == 0, run.stderr
-    assert "1 pose flagged for review and left out" in run.stderr and "frame 1" in run.stderr
+    capsys.readouterr()
+    code = main(["export", str(demo), "--tra", str(out)])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "1 pose flagged for review and left out" in err and "frame 1" in err
     assert out.read_text().splitlines()[1].split(",")[0] == "NaN"
 
 
-def test_export_refuses_an_unwritable_path_before_work(demo, tmp_path):
-    run = subprocess.run([sys.executable, "-m", "fluorogui", "export", str(demo), "--poses", str(tmp_path / "p.csv"),
-                          "--kinematics", str(tmp_path / "missing" / "k.csv")], capture_output=True, text=True)
-    assert run.returncode == 2 and "missing/k.csv" in run.stderr and "folder does not exist" in run.stderr
+def test_export_refuses_an_unwritable_path_before_work(demo, tmp_path, capsys):
+    code = main(["export", str(demo), "--poses", str(tmp_path / "p.csv"), "--kinematics",
+                 str(tmp_path / "missing" / "k.csv")])
+    err = capsys.readouterr().err
+    assert code == 2 and "missing/k.csv" in err and "folder does not exist" in err
     assert not (tmp_path / "p.csv").exists()
-    run = subprocess.run([sys.executable, "-m", "fluorogui", "export", str(demo), "--jts", str(tmp_path / "j")],
-                         capture_output=True, text=True)
-    assert run.returncode == 2 and "--jts and --view go together" in run.stderr
+    code = main(["export", str(demo), "--jts", str(tmp_path / "j")])
+    assert code == 2 and "--jts and --view go together" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("suffix, magic", [(".png", b"\x89PNG"), (".svg", b"<?xml"), (".pdf", b"%PDF")])
@@ -223,7 +224,8 @@ def test_match_sds_become_kinematics_sds_and_export_columns(demo, truth, tmp_pat
 
     session = Session.open(demo)
     for c, pose in truth(session)[1].items():
-        match = MatchRecord(0.05, [0.05, 0.05], 10, 0.1, True, "fast", quality={"sd": [0.01, 0.02, 0.01, 0.03, 0.02, 0.01]})
+        match = MatchRecord(0.05, [0.05, 0.05], 10, 0.1, True, "fast",
+                            quality={"sd": [0.01, 0.02, 0.01, 0.03, 0.02, 0.01]})
         session.project.poses[(1, c)] = PoseRecord(pose, match)
     row = session.knee_at(1)
     assert row.status == "matched" and np.all(np.isfinite(row.sd)) and np.all(row.sd > 0)

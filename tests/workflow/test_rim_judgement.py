@@ -43,7 +43,8 @@ def test_frame_matcher_reuses_the_models_only_after_three_matched_frames(monkeyp
     fit, the second matches soft, the next two match with steps; from the fifth on the
     loop is handed the settled (step) model and fits nothing. View 2 is a clear step
     from the first matched frame on, and is not judged again."""
-    script = {1: (SOFT, Status.NEEDS_REVIEW), 2: (SOFT, Status.MATCHED), 3: (STEP, Status.MATCHED), 4: (STEP, Status.MATCHED),
+    script = {1: (SOFT, Status.NEEDS_REVIEW), 2: (SOFT, Status.MATCHED), 3: (STEP, Status.MATCHED),
+              4: (STEP, Status.MATCHED),
               5: (SOFT, Status.MATCHED), 6: (SOFT, Status.MATCHED)}
     handed: dict[int, list] = {}
     state = {"frame": 0}
@@ -79,7 +80,7 @@ def test_the_attempts_of_a_frame_after_a_matched_one_start_from_its_models(monke
     than judging the same images again; an attempt that fails its checks hands nothing on,
     and the next frame judges afresh (its models are not settled yet)."""
     handed: list[list] = []
-    statuses = iter([Status.NEEDS_REVIEW, Status.MATCHED, Status.MATCHED, Status.MATCHED, Status.MATCHED, Status.MATCHED, Status.MATCHED])
+    statuses = iter([Status.NEEDS_REVIEW] + [Status.MATCHED] * 6)
 
     def fake_loop(images, views, mesh, start, settings, loop, given, occluded, step, cancel, rims):
         handed.append(list(rims))

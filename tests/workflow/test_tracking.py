@@ -16,9 +16,10 @@ def _error(result, truth):
     return np.abs(e[:3]).max(), np.abs(e[3:]).max()
 
 
+@pytest.mark.slow
 def test_demo_frames_1_to_3_track_onto_the_truth(demo, truth):
     """The issue's demo case: from a matched frame 0, frames 1-3 were converged 6-21 degrees
-    off and shown as matched. Now they must land within 0.05 mm / 0.05 deg."""
+    off and shown as matched. Now they land within 0.006 mm / 0.022 deg (measured)."""
     session = Session.open(demo)
     known = truth(session)
     results = list(session.track(first=1, components="both"))
@@ -26,8 +27,9 @@ def test_demo_frames_1_to_3_track_onto_the_truth(demo, truth):
     for r in results:
         mm, deg = _error(r, known)
         assert r.status == "matched", (r.frame, r.component, r.reason)
-        assert mm < 0.05 and deg < 0.05, (r.frame, r.component, mm, deg)  # measured <= 0.007 mm, 0.016 deg
-        assert r.quality is not None and min(r.quality.edge_support) > 0.95
+        # measured: at most 0.0055 mm (tibial, frame 1) and 0.021 deg (tibial, frame 2)
+        assert mm < 0.011 and deg < 0.042, (r.frame, r.component, mm, deg)
+        assert r.quality is not None and min(r.quality.edge_support) == 1.0, r.quality  # measured: every point
     assert session.frame_states() == [FrameState.MATCHED] * 4
     # stored: status, reason, quality and automatic (unreviewed) outlines
     record = session.pose_record("femoral", 2)
@@ -35,12 +37,14 @@ def test_demo_frames_1_to_3_track_onto_the_truth(demo, truth):
     assert not session.outline_record((2, 0, "femoral")).reviewed
 
 
+@pytest.mark.slow
 def test_converged_wrong_pose_is_flagged_never_matched(demo, truth):
     """A start 15 deg off converges in a false minimum. Without recovery and the probe it
     must come back as needs_review with a reason; with them (the defaults) a wrong start
-    never ends as a wrong pose shown as matched - including the tibial tray turned 25 deg
-    about its stem, a false minimum that passes every absolute check (measured 22.5 deg
-    off with 0.11 / 0.07 mm residuals, edge support 0.95)."""
+    never ends as a wrong pose shown as matched: both starts here are recovered and matched
+    at the truth - including the tibial tray turned 25 deg about its stem, a false minimum
+    that passes every absolute check (measured 22.5 deg off with 0.11 / 0.07 mm residuals,
+    edge support 0.95)."""
     session = Session.open(demo)
     known = truth(session)
     settings = session.settings
@@ -61,14 +65,19 @@ def test_converged_wrong_pose_is_flagged_never_matched(demo, truth):
     assert session.pose_record("femoral", 1).needs_review
     assert session.frame_state(1) == FrameState.NEEDS_REVIEW
 
-    session.set_settings(type(settings)())  # the defaults: recovery and the probe
+    # the defaults: recovery and the probe. Each wrong start must end matched at the truth
+    # (measured: femoral 0.0041 mm / 0.0053 deg, tibial 0.0056 mm / 0.0118 deg); a flag
+    # instead would be honest but is not what happens, so it fails here too
+    session.set_settings(type(settings)())
     for component, axis, degrees in (("femoral", 0, 15.0), ("tibial", 2, -25.0)):
         session.set_pose(component, 1, wrong_start(component, axis, degrees))
         result = session.match(1, component)[0]
         mm, deg = _error(result, known)
-        assert result.status != "matched" or (mm < 0.05 and deg < 0.05), (component, result.status, mm, deg)
+        assert result.status == "matched", (component, result.status, result.reason, mm, deg)
+        assert mm < 0.011 and deg < 0.024, (component, mm, deg)
 
 
+@pytest.mark.slow
 def test_missing_image_is_flagged_and_tracking_goes_on(demo):
     session = Session.open(demo)
     session.project.sequences[1].paths[2].unlink()  # view 2 of frame 2
@@ -87,6 +96,7 @@ def test_unequal_camera_sequences_flag_the_frames_one_view_lacks(demo):
     assert results[0].status == "failed" and "view 1" in results[0].reason and "has 3 images" in results[0].reason
 
 
+@pytest.mark.slow
 def test_accepted_start_frame_stays_accepted_and_resume_keeps_matched_frames(demo):
     session = Session.open(demo)
     session.set_reviewed("femoral", 0, True)
@@ -103,6 +113,7 @@ def test_accepted_start_frame_stays_accepted_and_resume_keeps_matched_frames(dem
     assert [(r.frame, r.kept) for r in redone] == [(0, True), (1, False), (2, False), (3, False)]
 
 
+@pytest.mark.slow
 def test_store_never_overwrites_accepted_poses_or_reviewed_outlines(demo):
     session = Session.open(demo)
     points = session.outline_points((0, 0, "tibial"))
@@ -158,12 +169,14 @@ def test_pose_records_of_unknown_status_are_refused():
         PoseRecord(np.zeros(6), None, status="great")
 
 
+@pytest.mark.slow
 def test_matched_pose_keeps_its_sd_in_the_project(demo):
     session = Session.open(demo)
     result = session.match(1, "femoral")[0]
     assert result.status == "matched" and len(result.to_json()["sd"]) == 6
     sd = np.array(result.sd)
-    assert np.all(sd > 0) and np.all(sd[:3] < 0.05) and np.all(sd[3:] < 0.1), sd  # the demo matches to ~0.01
+    # measured 0.0020-0.0044 mm, 0.0047-0.0056 deg (the error: 0.0041 mm, 0.0053 deg)
+    assert np.all(sd > 0) and np.all(sd[:3] < 0.009) and np.all(sd[3:] < 0.0113), sd
     session.save()
     stored = Session.open(demo).pose_record("femoral", 1).match.quality["sd"]
     np.testing.assert_allclose(stored, sd)

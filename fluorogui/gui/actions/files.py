@@ -22,17 +22,16 @@ from PySide6.QtWidgets import QApplication, QFileDialog, QMenu, QMessageBox
 from fluorogui.io.errors import InputError
 from fluorogui.io.meshes.read import MESH_SUFFIXES
 from fluorogui.io.project.lock import ProjectLocked
-from fluorogui.logs import log_exception
+from fluorogui.logs import data_dir, log_exception
 
 PROJECT_FILTER = "fluorogui projects (*.fluoro);;All files (*)"
 MAX_RECENT = 8
 
 
 def app_data_dir() -> Path:
-    """Where recovery files and the generated demo live (FLUOROGUI_DATA_DIR overrides)."""
-    override = os.environ.get("FLUOROGUI_DATA_DIR")
-    base = Path(override) if override else Path(QStandardPaths.writableLocation(
-        QStandardPaths.StandardLocation.AppDataLocation) or Path.home() / ".fluorogui")
+    """Where recovery files and the generated demo live: the operating system's place for
+    the app's data (``fluorogui.logs.data_dir``; FLUOROGUI_DATA_DIR overrides)."""
+    base = data_dir()
     base.mkdir(parents=True, exist_ok=True)
     return base
 

@@ -4,14 +4,16 @@ Everything computed or written comes from ``fluorogui.workflow`` (``knee``, ``ex
 this only asks the user and shows the result."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
-from PySide6.QtCore import QObject, QTimer
+from PySide6.QtCore import QObject, QStandardPaths, QTimer
 from PySide6.QtWidgets import QDialog, QFileDialog, QInputDialog
 
 from fluorogui.core.knee.kinematics import KinematicsError
+from fluorogui.gui.actions.files import app_data_dir
 from fluorogui.gui.dialogs.anatomical_frame import AnatomicalFrameDialog
-from fluorogui.gui.dialogs.export_dialog import ExportDialog
+from fluorogui.gui.dialogs.export_dialog import TIMED_KINDS, ExportDialog
 from fluorogui.io.errors import InputError
 from fluorogui.workflow import exports
 
@@ -68,8 +70,26 @@ class KneeActions(QObject):
         self.panel.set_rows(rows, self.controller.frame)
 
     def _export_folder(self) -> Path:
-        """Beside the session file or its images, never in the app's data folder (the demo)."""
-        return self.window.files.default_save_dir()
+        """Where exports go by default: the project's folder; for an unsaved project (or one
+        in a folder we cannot write, or the demo in the app's data folder) the last folder
+        exported to, else Documents. Never the images' folder: that is often read-only on a
+        lab server."""
+        data = app_data_dir().resolve()
+
+        def writable(folder) -> bool:
+            if not folder:
+                return False
+            folder = Path(folder).resolve()
+            return (folder.is_dir() and os.access(folder, os.W_OK | os.X_OK) and folder != data
+                    and data not in folder.parents)
+
+        path = self.session.path
+        last = self.window.settings.value("export_dir", "")
+        documents = QStandardPaths.writableLocation(QStandardPaths.StandardLocation.DocumentsLocation)
+        for folder in (path.parent if path is not None else None, last, documents, Path.home()):
+            if writable(folder):
+                return Path(folder)
+        return Path.home()
 
     def export_results(self) -> None:
         session = self.session
@@ -77,10 +97,19 @@ class KneeActions(QObject):
             self.window.warn("Export", "Open or import a session first.")
             return
         stem = session.path.stem if session.path else "fluorogui"
-        dialog = ExportDialog(self._export_folder(), stem, session.n_views, self.window)
+        dialog = ExportDialog(self._export_folder(), stem, session.n_views, self.window,
+                              fps=exports.frame_rate(session))
         if dialog.exec() != QDialog.DialogCode.Accepted:
             return
         targets = dialog.targets()
+        fps, unreviewed = dialog.fps(), dialog.include_unreviewed.isChecked()
+        timed = [k for k in TIMED_KINDS if k in targets]
+        if timed and fps is None:
+            self.window.warn("Export", f"{', '.join(targets[k].name for k in timed)}: the frame rate is needed "
+                                       "(time = frame number / frame rate); give the images' frame rate.")
+            return
+        if fps is not None and fps != exports.frame_rate(session):
+            exports.set_frame_rate(session, fps)  # the dialog's frame rate is the project's (undoable)
         try:
             rows = session.knee_rows()  # once, for every file written
         except (InputError, KinematicsError, KeyError) as exc:
@@ -89,9 +118,13 @@ class KneeActions(QObject):
         writers = {
             "poses": lambda p: [exports.export_poses_csv(session, p, rows)],
             "kinematics": lambda p: [exports.export_kinematics_csv(session, p, rows)],
-            "tra": lambda p: [exports.export_tra(session, p)],
-            "jts": lambda p: exports.export_jts(session, p, dialog.view.currentData()),
+            "tra": lambda p: [exports.export_tra(session, p, unreviewed)],
+            "jts": lambda p: exports.export_jts(session, p, dialog.view.currentData(), unreviewed),
             "plot": lambda p: [exports.export_plot(session, p, rows=rows)],
+            "c3d": lambda p: [exports.export_c3d(session, p, include_unreviewed=unreviewed)],
+            "trc": lambda p: [exports.export_trc(session, p, include_unreviewed=unreviewed)],
+            "mot": lambda p: [exports.export_mot(session, p, rows, include_unreviewed=unreviewed)],
+            "xromm": lambda p: [exports.export_xromm(session, p, unreviewed)],
         }
         written = []
         try:
@@ -100,11 +133,20 @@ class KneeActions(QObject):
         except (InputError, KinematicsError, ValueError) as exc:
             self.window.warn("Export failed", str(exc))
             return
-        flagged = exports.unreviewed_matches(session) if {"tra", "jts"} & set(targets) else []
+        flagged = exports.unreviewed_matches(session) if {"tra", "jts"} & set(targets) and not unreviewed else []
         left_out = (f"; {len(flagged)} pose{'s' if len(flagged) != 1 else ''} flagged for review left out of "
                     ".tra/.jts (accept a pose, Ctrl+Return, to include it)") if flagged else ""
+        motion = {"c3d", "trc", "mot", "xromm"} & set(targets)
+        unmatched = exports.left_out_of_motion_files(session) if motion and not unreviewed else []
+        if unmatched:
+            left_out += (f"; {len(unmatched)} pose{'s' if len(unmatched) != 1 else ''} not matched or accepted left "
+                         "out of the C3D/OpenSim/XMALab files")
+        if "c3d" in targets and not exports.consecutive_frames(session):
+            left_out += ("; the frame numbers are not consecutive, so a C3D reader's times are not frame / fps "
+                         "(the C3D keeps the true ones in FLUOROGUI:FRAMES and :TIMES)")
         self.window.statusBar().showMessage(f"Exported {len(written)} file{'s' if len(written) != 1 else ''} "
                                             f"to {Path(dialog.folder.text())}{left_out}", 8000)
+        self.window.settings.setValue("export_dir", dialog.folder.text())
         self.last_export = written
 
     def export_figure(self) -> None:

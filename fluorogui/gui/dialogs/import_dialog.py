@@ -9,6 +9,8 @@ folder laid out like ``data/biplane-tka`` (or, with view 2 left empty, a single-
 frame count, and the format and bit depth of the images (``preview_image_source``).
 ``fill(**paths)`` sets fields from code (tests,
 drag and drop); paths can also be dropped on a field, or a whole folder on the dialog.
+The frame rate (the project's time base) is what the user gives, else what a video or
+DICOM declares (shown in its preview; ``source_frame_rate``).
 """
 from __future__ import annotations
 
@@ -21,13 +23,16 @@ from PySide6.QtWidgets import (
     QComboBox,
     QDialog,
     QDialogButtonBox,
+    QDoubleSpinBox,
     QFileDialog,
     QFormLayout,
+    QFrame,
     QHBoxLayout,
     QLabel,
     QLineEdit,
     QMenu,
     QPushButton,
+    QScrollArea,
     QToolButton,
     QVBoxLayout,
     QWidget,
@@ -42,8 +47,11 @@ from fluorogui.io.importer import (
     detect_single_plane_folder,
     import_session,
     preview_image_source,
+    resolve_image_source,
+    source_frame_rate,
 )
 from fluorogui.io.meshes.read import MESH_SUFFIXES
+from fluorogui.io.motion_files import MAX_FPS, store_frame_rate
 
 #: Separator of several image files in one field.
 FILE_SEPARATOR = "; "
@@ -151,6 +159,15 @@ class ImportDialog(QDialog):
             form.addRow("", self._preview_row(k))
         form.addRow(self._heading("Frames"))
         self._add_field(form, *_OTHER_FIELDS[0])
+        self.frame_rate = QDoubleSpinBox()
+        self.frame_rate.setObjectName("import_fps")
+        self.frame_rate.setRange(0.0, MAX_FPS)
+        self.frame_rate.setDecimals(3)
+        self.frame_rate.setSuffix(" frames/s")
+        self.frame_rate.setSpecialValueText("from the images, if they say")
+        self.frame_rate.setToolTip("The images' frame rate: time = frame number / frame rate (C3D, OpenSim .trc and "
+                                   ".mot exports need it). Videos and DICOM runs usually say it themselves.")
+        form.addRow("Frame rate:", self.frame_rate)
         form.addRow(self._heading("Implant models"))
         for spec in _OTHER_FIELDS[1:]:
             self._add_field(form, *spec)
@@ -175,13 +192,25 @@ class ImportDialog(QDialog):
         self.buttons.accepted.connect(self.accept)
         self.buttons.rejected.connect(self.reject)
 
+        fields = QWidget()
+        column = QVBoxLayout(fields)
+        column.setContentsMargins(0, 0, 0, 0)
+        column.addLayout(form)
+        column.addWidget(self.error_label)
+        column.addStretch(1)
+        self.form_area = QScrollArea()  # a short screen scrolls the fields, the buttons stay in sight
+        self.form_area.setObjectName("import_fields")
+        self.form_area.setWidgetResizable(True)
+        self.form_area.setFrameShape(QFrame.Shape.NoFrame)
+        self.form_area.setWidget(fields)
         layout = QVBoxLayout(self)
         layout.addLayout(top)
-        layout.addLayout(form)
-        layout.addWidget(self.error_label)
-        layout.addStretch(1)
+        layout.addWidget(self.form_area, 1)
         layout.addWidget(self.buttons)
-        self.resize(720, self.sizeHint().height())
+        wanted = top.sizeHint().height() + fields.sizeHint().height() + self.buttons.sizeHint().height() + 48
+        screen = self.screen() or QGuiApplication.primaryScreen()
+        room = screen.availableGeometry().height() - 60 if screen is not None else wanted  # less a title bar
+        self.resize(720, max(320, min(wanted, room)))
 
     # -- building --------------------------------------------------------------------------
     @staticmethod
@@ -266,7 +295,8 @@ class ImportDialog(QDialog):
                 text.setText(f"<span style='{ERROR_STYLE}'>{exc}</span>")
                 continue
             picture.setPixmap(_thumbnail(preview.first))
-            text.setText(preview.describe())
+            rate = _declared_rate(source)
+            text.setText(preview.describe() + (f", {rate[0]:g} frames/s" if rate else ""))
 
     @staticmethod
     def _image_source(field_text: str):
@@ -344,6 +374,8 @@ class ImportDialog(QDialog):
             return
         finally:
             QGuiApplication.restoreOverrideCursor()
+        if self.frame_rate.value() > 0:
+            store_frame_rate(project.settings, self.frame_rate.value(), "user")
         if self.side.currentData():
             from fluorogui.workflow.knee import KNEE_KEY
 
@@ -419,6 +451,15 @@ def _thumbnail(image: np.ndarray) -> QPixmap:
     qimage = QImage(gray.data, gray.shape[1], gray.shape[0], gray.strides[0], QImage.Format.Format_Grayscale8)
     return QPixmap.fromImage(qimage.copy()).scaled(PREVIEW_PX, PREVIEW_PX, Qt.AspectRatioMode.KeepAspectRatio,
                                                     Qt.TransformationMode.SmoothTransformation)
+
+
+def _declared_rate(source) -> tuple[float, str] | None:
+    """The frame rate the first image of a source declares (a video's, a DICOM's), or None."""
+    try:
+        frames = resolve_image_source(source)
+    except (InputError, ValueError):
+        return None
+    return source_frame_rate(frames[0]) if frames else None
 
 
 def _mentions(field_text: str, path: str) -> bool:

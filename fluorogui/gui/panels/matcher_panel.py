@@ -3,7 +3,9 @@ implants, Cancel, a live objective plot, the pose status of the frame on screen,
 and the summary of the last task.
 
 The panel only collects settings and shows what it is told; the main window runs the
-work. ``describe_pose`` puts a pose record's status and reason in plain words.
+work. ``describe_pose`` puts a pose record's status and reason in plain words; a long
+reason is shown as one line per component (its first problem and how many more, cut to
+the panel's width: ``one_line``), with the whole text on demand (*Details*).
 """
 from __future__ import annotations
 
@@ -13,7 +15,7 @@ import math
 
 import numpy as np
 from PySide6.QtCore import QPointF, QRectF, Qt, Signal
-from PySide6.QtGui import QColor, QPainter, QPainterPath, QPen
+from PySide6.QtGui import QColor, QFont, QFontMetrics, QPainter, QPainterPath, QPen
 from PySide6.QtWidgets import (
     QComboBox,
     QFormLayout,
@@ -26,6 +28,7 @@ from PySide6.QtWidgets import (
     QScrollArea,
     QSizePolicy,
     QSpinBox,
+    QToolButton,
     QVBoxLayout,
     QWidget,
 )
@@ -59,6 +62,16 @@ def describe_pose(component: str, record: PoseRecord | None) -> tuple[str, str]:
         why = record.reason or "no pose could be found"
         return f"{component}: failed — {why}", "bad"
     return f"{component}: placed, not matched yet (F5 matches it)", ""
+
+
+def one_line(text: str, metrics: QFontMetrics, width: int) -> str:
+    """``text`` in one line of ``width`` px: its first problem (a reason's problems are
+    joined by "; ", ``core.matching.quality.judge``), cut with "…" where it is too long,
+    and how many more problems there are."""
+    parts = text.split("; ")
+    more = f" (+{len(parts) - 1} more)" if len(parts) > 1 else ""
+    room = max(20, width - metrics.horizontalAdvance(more))
+    return metrics.elidedText(parts[0], Qt.TextElideMode.ElideRight, room) + more
 
 
 class ObjectivePlot(QWidget):
@@ -207,6 +220,17 @@ class MatcherPanel(QWidget):
         self.status.setWordWrap(True)
         self.status.setTextFormat(Qt.TextFormat.RichText)
         self.status.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.pose_lines: list = []  # (text, level, active) of the frame on screen
+        self.pose_summary = QLabel("")  # one line per component when a reason is long
+        self.pose_summary.setObjectName("poseSummary")
+        self.pose_summary.setTextFormat(Qt.TextFormat.RichText)
+        self.pose_summary.setVisible(False)
+        self.details_button = QToolButton()
+        self.details_button.setObjectName("poseDetails")
+        self.details_button.setCheckable(True)
+        self.details_button.setAutoRaise(True)
+        self.details_button.setVisible(False)
+        self.details_button.toggled.connect(lambda _on: self._show_details())
         self.summary = QLabel("")
         self.summary.setObjectName("taskSummary")
         self.summary.setWordWrap(True)
@@ -215,7 +239,9 @@ class MatcherPanel(QWidget):
         texts = QWidget()
         column = QVBoxLayout(texts)
         column.setContentsMargins(0, 0, 4, 0)
+        column.addWidget(self.pose_summary)
         column.addWidget(self.status)
+        column.addWidget(self.details_button, 0, Qt.AlignmentFlag.AlignLeft)
         column.addWidget(self.summary)
         column.addStretch(1)
         self.texts = QScrollArea()  # long reasons scroll instead of growing the window
@@ -223,7 +249,7 @@ class MatcherPanel(QWidget):
         self.texts.setWidgetResizable(True)
         self.texts.setFrameShape(QFrame.Shape.NoFrame)
         self.texts.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
-        self.texts.setMinimumHeight(48)
+        self.texts.setMinimumHeight(64)  # two summary lines and Details…, on a laptop too
         self.progress = QProgressBar()
         self.progress.setVisible(False)
         self.progress.setTextVisible(True)
@@ -235,8 +261,8 @@ class MatcherPanel(QWidget):
         layout.addLayout(form)
         layout.addLayout(buttons)
         layout.addLayout(running)
-        layout.addWidget(self.plot, 3)
-        layout.addWidget(self.texts, 2)
+        layout.addWidget(self.plot, 2)
+        layout.addWidget(self.texts, 3)
 
     # -- settings ------------------------------------------------------------------------------
     def settings(self, base: MatchSettings | None = None) -> MatchSettings:
@@ -296,21 +322,49 @@ class MatcherPanel(QWidget):
 
     def show_live(self, calls: int, objective_mm: float, history) -> None:
         self.plot.set_values(history)
-        self.status.setText(html.escape(f"Matching… call {calls}, objective {objective_mm:.4f} mm"))
+        self.show_message(f"Matching… call {calls}, objective {objective_mm:.4f} mm")
 
     def show_message(self, text: str) -> None:
+        self.pose_lines = []
         self.status.setText(html.escape(text))
+        self._show_details()
 
     def show_poses(self, lines) -> None:
-        """The pose status of the frame on screen: (text, level, active) per component."""
-        rows = []
-        for text, level, active in lines:
-            row = html.escape(text)
-            colour = LEVEL_COLOURS.get(level)
-            if colour:
-                row = f'<span style="color:{colour}">&#9679;</span> ' + row
-            rows.append(f"<b>{row}</b>" if active else row)
-        self.status.setText("<br>".join(rows) or "No components")
+        """The pose status of the frame on screen: (text, level, active) per component; a
+        long one in one line, the whole on demand."""
+        self.pose_lines = list(lines)
+        self.status.setText("<br>".join(_pose_row(text, level, active) for text, level, active in self.pose_lines)
+                            or "No components")
+        self._show_details()
+
+    def _summary_rows(self) -> tuple[list[str], bool]:
+        """Each pose line cut to one line of the panel's width; whether any was cut."""
+        width = max(80, self.texts.viewport().width() - 28)  # less the bullet and margins
+        rows, cut = [], False
+        for text, level, active in self.pose_lines:
+            font = QFont(self.pose_summary.font())
+            font.setBold(active)
+            short = one_line(text, QFontMetrics(font), width)
+            cut = cut or short != text
+            rows.append(_pose_row(short, level, active))
+        return rows, cut
+
+    def _show_details(self) -> None:
+        """The whole pose text, or one line per component with *Details* when it is long."""
+        rows, cut = self._summary_rows() if self.pose_lines else ([], False)
+        details = self.details_button.isChecked()
+        self.details_button.setVisible(cut)
+        self.details_button.setText("Hide details" if details else "Details…")
+        self.details_button.setToolTip("" if details else "Show every check that failed, in full")
+        self.pose_summary.setText("<br>".join(rows))
+        self.pose_summary.setToolTip("\n".join(text for text, _, _ in self.pose_lines) if cut else "")
+        self.pose_summary.setVisible(cut and not details)
+        self.status.setVisible(not cut or details)
+
+    def resizeEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        super().resizeEvent(event)
+        if self.pose_lines:
+            self._show_details()  # cut the lines to the new width
 
     def show_result(self, record, history=None, label: str = "") -> None:
         """Summarise a MatchRecord (or say there is none)."""
@@ -348,3 +402,12 @@ class MatcherPanel(QWidget):
             self.progress.setFormat(f"%v / %m frames, {left}")
         else:
             self.progress.setFormat("%v / %m frames")
+
+
+def _pose_row(text: str, level: str, active: bool) -> str:
+    """One component's line as rich text: a coloured bullet for its level, bold when active."""
+    row = html.escape(text)
+    colour = LEVEL_COLOURS.get(level)
+    if colour:
+        row = f'<span style="color:{colour}">&#9679;</span> ' + row
+    return f"<b>{row}</b>" if active else row

@@ -1,10 +1,11 @@
 """Load implant surface models (STL, PLY, OBJ, VTK, VTP) as triangle arrays in millimetres.
 
-The header is checked first (``mesh_headers``: counts the file cannot hold are refused
-before VTK allocates for them). PLY (plyfile) and legacy VTK (``vtk_legacy``) are parsed
-with numpy and their face indices checked, since VTK's readers crash on corrupt ones; the
-others are read through pyvista. The mesh is then reduced to its surface, triangulated and cleaned of
-duplicate points. The local coordinate system is the file's own.
+The header is checked first (``headers``: counts the file cannot hold, and models of more
+faces than the matcher takes within 1.5 GB, are refused before VTK allocates for them). PLY
+(plyfile) and legacy VTK (``vtk_legacy``) are parsed with numpy and their face indices
+checked, since VTK's readers crash on corrupt ones; the others are read through pyvista.
+The mesh is then reduced to its surface, triangulated and cleaned of duplicate points. The
+local coordinate system is the file's own.
 """
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ import numpy as np
 
 from fluorogui.io.errors import InputError, describe_os_error
 from fluorogui.io.files import check_input_file
-from fluorogui.io.meshes.headers import HeaderError, check_mesh_header
+from fluorogui.io.meshes.headers import HeaderError, check_mesh_header, check_model_faces
 from fluorogui.io.meshes.vtk_legacy import LegacyVtkError, read_legacy_polydata
 
 MESH_SUFFIXES = (".stl", ".ply", ".obj", ".vtk", ".vtp")
@@ -35,13 +36,14 @@ def load_mesh(path) -> tuple[np.ndarray, np.ndarray]:
         if size == 0:
             raise InputError(path, "file is empty")
         if size > MAX_MESH_BYTES:
-            raise InputError(path, f"mesh file is too large ({size / 1e6:.0f} MB; at most {MAX_MESH_BYTES / 1e6:.0f} MB)")
-        check_mesh_header(path)  # before VTK allocates what the header claims
+            raise InputError(path, f"mesh file is too large ({size / 1e6:.0f} MB; "
+                                   f"at most {MAX_MESH_BYTES / 1e6:.0f} MB)")
+        faces = check_mesh_header(path)  # before VTK allocates what the header claims
     except HeaderError as exc:
         raise InputError(path, f"unreadable mesh file: {exc}") from None
     except OSError as exc:
         raise InputError(path, f"cannot read the file: {describe_os_error(exc)}") from None
-
+    _check_size(path, faces)
     surface = _read_surface(path)
     if surface.n_cells == 0 or surface.n_points == 0:
         raise InputError(path, "mesh has no faces")
@@ -51,6 +53,7 @@ def load_mesh(path) -> tuple[np.ndarray, np.ndarray]:
     faces = _triangles(surface)
     if faces.shape[0] == 0:
         raise InputError(path, "mesh has no faces")
+    _check_size(path, len(faces))  # polygons and strips become more triangles than the header said
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise InputError(path, f"a face refers to a vertex beyond the {len(vertices)} the mesh has")
     used = np.unique(faces)
@@ -65,6 +68,13 @@ def load_mesh(path) -> tuple[np.ndarray, np.ndarray]:
     return vertices, faces
 
 
+def _check_size(path: Path, faces: int) -> None:
+    try:
+        check_model_faces(faces)
+    except HeaderError as exc:
+        raise InputError(path, f"mesh too large: {exc}") from None
+
+
 def _read_ply(path: Path):
     """A PLY file through plyfile (numpy): VTK's PLY reader crashes on face indices out of
     range, so they are checked here before VTK sees the mesh."""
@@ -76,7 +86,8 @@ def _read_ply(path: Path):
         vertex = ply["vertex"].data
         vertices = np.column_stack([np.asarray(vertex[k], dtype=np.float64) for k in ("x", "y", "z")])
     except (KeyError, ValueError) as exc:
-        raise InputError(path, f"unreadable PLY file: {' '.join(str(exc).split())[:120] or 'no x, y, z vertices'}") from None
+        reason = " ".join(str(exc).split())[:120] or "no x, y, z vertices"
+        raise InputError(path, f"unreadable PLY file: {reason}") from None
     except OSError as exc:
         raise InputError(path, f"cannot read the file: {describe_os_error(exc)}") from None
     except Exception as exc:  # noqa: BLE001 - plyfile raises several types on corrupt files

@@ -1,10 +1,11 @@
 """Project files (``.fluoro``): one JSON document holding a ``fluorogui.core.records.Project``.
 
-Layout (schema 5, the current one)::
+Layout (schema 6, the current one)::
 
-    {"format": "fluorogui-project", "schema_version": 5, "app_version": "...",
+    {"format": "fluorogui-project", "schema_version": 6, "app_version": "...",
      "views": [View.to_dict(), ...],
      "sequences": [{"paths": ["cam1/0001.tif", ...]}, ...],      # one per view
+                  # a view with fewer images than frames adds "frames_without_image": [40, ...]
      "frames": [0, 20, ...],
      "models": [{"component": "femur", "mesh_path": "...", "point_density": 15000,
                  "local_frame": 4x4}],
@@ -21,11 +22,16 @@ Layout (schema 5, the current one)::
 ``<...>`` arrays are written packed (``{"dtype": "<f8", "shape": [...], "base64": ...}``,
 exact float64) and read packed or as nested lists (schemas 1-3); small arrays are lists.
 A file is checked once against ``schema.ProjectDocument`` (types, ranges, counts, the
-frames / views / components referred to); any problem is one InputError naming the file
-and the field. File paths are stored relative to the project file's folder (with "/"
-separators) and made absolute on load; the files they name need not exist. Older schemas
-are upgraded step by step through ``MIGRATIONS``; newer ones are refused. Saving is atomic
-(``files.atomic_write_text``) and keeps the previous file as ``<name>.fluoro.bak``.
+frames / views / components referred to, rigid local frames, no NUL in a path, no key twice
+in an object) and ``io.plausible`` (views a fluoroscope can have); any problem is one
+InputError naming the file and the field. Records and poses are counted against what the
+frames can hold before any of them is checked, then checked one by one as they are
+converted, each raw item dropped once converted (the JSON, its checked form and the
+project are never all held at once). File paths are stored relative to the project file's
+folder (with "/" separators) and made absolute on load; the files they name need not
+exist. Older schemas are upgraded step by step through ``MIGRATIONS``; newer ones are
+refused. Saving is atomic (``files.atomic_write_text``) and keeps the previous file as
+``<name>.fluoro.bak``.
 """
 from __future__ import annotations
 
@@ -33,6 +39,7 @@ import json
 import math
 import os
 from pathlib import Path, PurePosixPath
+from typing import Any
 
 import numpy as np
 from pydantic import ValidationError
@@ -48,14 +55,18 @@ from fluorogui.core.records import (
     Project,
     SplineRecord,
 )
-from fluorogui.io.errors import InputError
+from fluorogui.io.errors import InputError, warn_input
 from fluorogui.io.files import atomic_write_text, clean_stale_temps, read_input_bytes
+from fluorogui.io.plausible import view_problem
 from fluorogui.io.schema import (
     DocumentError,
+    PoseDocument,
     ProjectDocument,
+    RecordDocument,
     check_settings,
     check_typed_settings,
     describe,
+    item_problem,
     pack_array,
     parse_json,
 )
@@ -63,7 +74,7 @@ from fluorogui.logs import log_exception
 
 PROJECT_FORMAT = "fluorogui-project"
 PROJECT_SUFFIX = ".fluoro"
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 MAX_PROJECT_BYTES = 1 << 30  # 1 GiB
 
 
@@ -130,7 +141,25 @@ def migrate_4_to_5(document: dict) -> dict:
     return upgraded
 
 
-MIGRATIONS = {1: migrate_1_to_2, 2: migrate_2_to_3, 3: migrate_3_to_4, 4: migrate_4_to_5}
+def migrate_5_to_6(document: dict) -> dict:
+    """Schema 6 makes a view with fewer images than the project has frames say so
+    (``frames_without_image``: the frames past its last image); schema 5 allowed such a
+    sequence silently (``fluorogui import`` writes one for a shorter camera). The loader
+    warns about the frames this states."""
+    upgraded = dict(document)
+    frames, sequences = document.get("frames"), document.get("sequences")
+    if isinstance(frames, list) and isinstance(sequences, list):
+        stated = []
+        for sequence in sequences:
+            paths = sequence.get("paths") if isinstance(sequence, dict) else None
+            if isinstance(paths, list) and len(paths) < len(frames) and "frames_without_image" not in sequence:
+                sequence = dict(sequence, frames_without_image=frames[len(paths):])
+            stated.append(sequence)
+        upgraded["sequences"] = stated
+    return upgraded
+
+
+MIGRATIONS = {1: migrate_1_to_2, 2: migrate_2_to_3, 3: migrate_3_to_4, 4: migrate_4_to_5, 5: migrate_5_to_6}
 
 
 def upgrade(document: dict) -> dict:
@@ -154,7 +183,9 @@ def upgrade(document: dict) -> dict:
 def load_project(path) -> Project:
     """Read a ``.fluoro`` project file; paths in it are resolved against its folder.
 
-    Every problem, whatever the file holds, is one InputError naming the file and the field."""
+    Every problem, whatever the file holds, is one InputError naming the file and the field;
+    what was repaired (an older schema's view with fewer images than frames) is an
+    InputWarning."""
     path = Path(path)
     raw = read_input_bytes(path, "project file", MAX_PROJECT_BYTES)
     clean_stale_temps(path)
@@ -162,8 +193,14 @@ def load_project(path) -> Project:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
         raise InputError(path, "not a fluorogui project (not a text file)") from None
+    del raw  # the text, then the parsed document, then the project: never all three at once
     try:
-        return _project_from_text(text, path)
+        try:
+            document = parse_json(text)
+        except DocumentError as exc:
+            raise InputError(path, str(exc)) from None
+        del text
+        return _project_from_parsed(document, path)
     except InputError:
         raise
     except (RecursionError, ValueError, OverflowError, TypeError, KeyError, IndexError, AttributeError,
@@ -172,11 +209,7 @@ def load_project(path) -> Project:
         raise InputError(path, f"malformed project file ({type(exc).__name__})") from None
 
 
-def _project_from_text(text: str, path: Path) -> Project:
-    try:
-        document = parse_json(text)
-    except DocumentError as exc:
-        raise InputError(path, str(exc)) from None
+def _project_from_parsed(document: Any, path: Path) -> Project:
     if not isinstance(document, dict) or document.get("format") != PROJECT_FORMAT:
         raise InputError(path, "not a fluorogui project")
     version = document.get("schema_version")
@@ -188,9 +221,18 @@ def _project_from_text(text: str, path: Path) -> Project:
             f"written by a newer fluorogui (schema {version} > {SCHEMA_VERSION}); update fluorogui to open it",
         )
     try:
-        return project_from_document(upgrade(document), path.parent.absolute())
+        project = project_from_document(upgrade(document), path.parent.absolute(), consume=True)
     except _Malformed as exc:
         raise InputError(path, str(exc)) from None
+    if version < 6:
+        for k, sequence in enumerate(project.sequences):
+            short = project.frames[len(sequence.paths):]
+            if short:
+                frames = f"frame {short[0]}" if len(short) == 1 else f"frames {short[0]} to {short[-1]}"
+                warn_input(path, f"view {k + 1} has {len(sequence.paths)} of the {len(project.frames)} frames' images "
+                                 f"(schema {version} allowed it silently): {frames} will be flagged when matched; "
+                                 f"saving states this in the file (sequences[{k}].frames_without_image)")
+    return project
 
 
 def save_project(project: Project, path) -> None:
@@ -231,7 +273,10 @@ def project_to_document(project: Project, base: Path) -> dict:
         "schema_version": SCHEMA_VERSION,
         "app_version": __version__,
         "views": [view.to_dict() for view in project.views],
-        "sequences": [{"paths": [_relative(p, base) for p in seq.paths]} for seq in project.sequences],
+        "sequences": [{"paths": [_relative(p, base) for p in seq.paths]}
+                      | ({"frames_without_image": [int(f) for f in project.frames[len(seq.paths):]]}
+                         if len(seq.paths) < len(project.frames) else {})
+                      for seq in project.sequences],
         "frames": [int(f) for f in project.frames],
         "models": [
             {
@@ -307,17 +352,100 @@ def _relative(p: Path, base: Path) -> str:
 
 
 # -- document -> Project --------------------------------------------------------------------------
-def project_from_document(document: dict, base: Path) -> Project:
+def project_from_document(document: dict, base: Path, consume: bool = False) -> Project:
     """A Project from a current-schema document (checked against ``ProjectDocument`` and its
-    invariants); relative paths are joined to ``base``. Raises _Malformed naming the field."""
+    invariants); relative paths are joined to ``base``. Raises _Malformed naming the field.
+    With ``consume`` the document's records and poses are emptied as they are converted,
+    which keeps a large project's memory near that of its JSON."""
     try:
         doc = ProjectDocument.model_validate(document)
     except ValidationError as exc:
         raise _Malformed(describe(exc)) from None
-    for where, value in [("settings", doc.settings)] + [
-            (f"poses[{i}].match", p.match.settings | p.match.quality) for i, p in enumerate(doc.poses) if p.match]:
-        if not _all_finite(value):
-            raise _Malformed(f"'{where}' holds a number too large to be finite")
+    _check_settings(doc)
+    views = []
+    for i, raw in enumerate(doc.views):
+        try:
+            view = View.from_dict(raw.model_dump())
+        except GeometryError as exc:
+            raise _Malformed(f"'views[{i}]': {exc}") from None
+        problem = view_problem(view)
+        if problem:
+            kind, sentence = problem
+            raise _Malformed(f"views[{i}].{_VIEW_FIELDS[kind]}: {sentence}")
+        views.append(view)
+    frames, components = set(doc.frames), [m.component for m in doc.models]
+    records = {}
+    for i, raw in _items(doc.records, consume):
+        item = _checked(RecordDocument, raw, "records", i, frames, components, len(views))
+        key = (item.frame, item.view, item.component)
+        if key in records:
+            raise _Malformed(f"'records[{i}]' repeats the outline of frame {key[0]}, view {key[1]}, {key[2]}")
+        spline = item.spline
+        records[key] = OutlineRecord(
+            points=item.points,
+            spline=None if spline is None else SplineRecord(spline.knots, spline.coefficients,
+                                                            spline.degree, tuple(spline.t_range)),
+            reviewed=item.reviewed,
+            weights=item.weights,
+        )
+    poses = {}
+    for i, raw in _items(doc.poses, consume):
+        item = _checked(PoseDocument, raw, "poses", i, frames, components, len(views))
+        key = (item.frame, item.component)
+        if key in poses:
+            raise _Malformed(f"'poses[{i}]' repeats the pose of frame {key[0]}, {key[1]}")
+        if item.match is not None and not _all_finite(item.match.settings | item.match.quality):
+            raise _Malformed(f"'poses[{i}].match' holds a number too large to be finite")
+        poses[key] = PoseRecord(
+            pose=np.array(item.pose, dtype=float),
+            match=None if item.match is None else MatchRecord(**(item.match.model_dump() | {
+                "history": [float(v) for v in item.match.history]})),
+            reviewed=item.reviewed,
+            status=item.status,
+            reason=item.reason,
+        )
+    return Project(
+        views=views,
+        sequences=[ImageSequence([_absolute(p, base) for p in seq.paths]) for seq in doc.sequences],
+        frames=list(doc.frames),
+        models=[ModelEntry(m.component, _absolute(m.mesh_path, base), m.point_density, np.array(m.local_frame))
+                for m in doc.models],
+        records=records,
+        poses=poses,
+        settings=document["settings"],
+    )
+
+
+#: a view's field in a project file for each kind of ``plausible.view_problem``
+_VIEW_FIELDS = {"size": "image_size_px", "focal": "distance_mm", "pitch": "pitch_mm", "distance": "distance_mm",
+                "principal": "principal_point_px", "source": "source_mm"}
+
+
+def _items(items: list, consume: bool):
+    """``enumerate(items)``; with ``consume`` each item is dropped from the list once taken."""
+    for i in range(len(items)):
+        item = items[i]
+        if consume:
+            items[i] = None
+        yield i, item
+
+
+def _checked(model, raw, kind: str, index: int, frames: set, components: list, views: int):
+    """One record or pose checked by its schema and against its project."""
+    try:
+        item = model.model_validate(raw)
+    except ValidationError as exc:
+        raise _Malformed(describe(exc, f"{kind}[{index}]")) from None
+    problem = item_problem(kind, index, item, frames, components, views)
+    if problem:
+        raise _Malformed(problem)
+    return item
+
+
+def _check_settings(doc: ProjectDocument) -> None:
+    """The settings: finite, of the kinds the engine reads (``check_typed_settings``)."""
+    if not _all_finite(doc.settings):
+        raise _Malformed("'settings' holds a number too large to be finite")
     try:
         check_settings(doc.settings)
         for section, (cls, defaults) in _engine_settings().items():
@@ -332,48 +460,6 @@ def project_from_document(document: dict, base: Path) -> Project:
         raise _Malformed(describe(exc, "settings")) from None
     except ValueError as exc:
         raise _Malformed(str(exc)) from None
-    views = []
-    for i, raw in enumerate(doc.views):
-        try:
-            views.append(View.from_dict(raw.model_dump()))
-        except GeometryError as exc:
-            raise _Malformed(f"'views[{i}]': {exc}") from None
-    records = {}
-    for i, raw in enumerate(doc.records):
-        key = (raw.frame, raw.view, raw.component)
-        if key in records:
-            raise _Malformed(f"'records[{i}]' repeats the outline of frame {key[0]}, view {key[1]}, {key[2]}")
-        spline = raw.spline
-        records[key] = OutlineRecord(
-            points=raw.points,
-            spline=None if spline is None else SplineRecord(spline.knots, spline.coefficients,
-                                                            spline.degree, tuple(spline.t_range)),
-            reviewed=raw.reviewed,
-            weights=raw.weights,
-        )
-    poses = {}
-    for i, raw in enumerate(doc.poses):
-        key = (raw.frame, raw.component)
-        if key in poses:
-            raise _Malformed(f"'poses[{i}]' repeats the pose of frame {key[0]}, {key[1]}")
-        poses[key] = PoseRecord(
-            pose=np.array(raw.pose, dtype=float),
-            match=None if raw.match is None else MatchRecord(**(raw.match.model_dump() | {
-                "history": [float(v) for v in raw.match.history]})),
-            reviewed=raw.reviewed,
-            status=raw.status,
-            reason=raw.reason,
-        )
-    return Project(
-        views=views,
-        sequences=[ImageSequence([_absolute(p, base) for p in seq.paths]) for seq in doc.sequences],
-        frames=list(doc.frames),
-        models=[ModelEntry(m.component, _absolute(m.mesh_path, base), m.point_density, np.array(m.local_frame))
-                for m in doc.models],
-        records=records,
-        poses=poses,
-        settings=document["settings"],
-    )
 
 
 def _all_finite(value) -> bool:
