@@ -6,39 +6,49 @@ so regular grids on parallel plates, helices and scattered beads are all handled
 
 1. **Marker.** The largest blob, if its area is at least ``MARKER_AREA_RATIO`` times the
    median blob's; when the next-largest blobs come close to it, each is tried in turn.
-2. **Affine hypotheses seeded at the marker.** A few bases, each the marker and three
-   phantom beads spanning a large tetrahedron with it (chosen to share few beads, so one
-   hidden or merged bead does not sink them all), are paired with every ordered triple of
-   other detections. The affine camera through the four pairs projects the whole phantom;
-   a hypothesis scores the number of *distinct* detections that some projected bead lands
-   near. Counting distinct detections matters on regular grids: there an affine camera
-   that squeezes the phantom onto a few blobs would otherwise outscore the true one.
-3. **Perspective check.** On a deep cage an affine camera is off by tens of pixels (a
-   120 mm cage seen from 750 mm), so the affine winner is often wrong. The best
-   ``HYPOTHESES`` (up to ``MORE_HYPOTHESES`` while none has matched) are each refined
-   perspectively: tentative pairs from the affine camera, then a small seeded RANSAC over
-   DLT cameras through the four seed pairs and two tentative ones; the camera landing
-   most beads on distinct detections is kept, then the beads are re-paired (mutually
-   nearest) and the DLT refitted until the pairs stop changing, pairs whose residual
-   stands out (a merged blob, a speck) being dropped one by one.
+2. **Hypotheses seeded at the marker.** Bases, each the marker and three phantom beads
+   spanning a large tetrahedron with it (chosen to share few beads, so one hidden bead
+   does not sink them all), are paired with every ordered triple of other detections.
+   The four pairs fix an affine camera; a perspective camera needs a viewing axis and a
+   distance too, and the affine camera gives the axis (``_perspective_guesses``), so each
+   hypothesis is scored through its affine camera and through the perspective cameras at
+   a few distances (``SCORE_DEPTHS``), by the number of *distinct* detections that some
+   projected bead lands near (``_HitTable``). Perspective matters on a deep cage: two
+   plates 120 mm apart seen from 750 mm differ in scale by 17 %, and an affine camera
+   through the right seeds misses the far plate by tens of pixels, so the right hypothesis
+   would rank in the thousands. Distinct detections matter on regular grids: there a
+   camera that squeezes the phantom onto a few blobs would otherwise score best. Bases
+   come in rounds (``_basis_rounds``); later rounds only while nothing has matched, for
+   when the first bases' beads (the phantom's extremes) are outside the image.
+3. **Refinement.** The best ``HYPOTHESES`` (up to ``MORE_HYPOTHESES`` while none has
+   matched) are refined: the camera landing most beads on distinct detections among the
+   perspective guesses at finer distances (``DEPTHS``) and a small seeded RANSAC over DLT
+   cameras through the four seed pairs and two tentative ones; then the beads are
+   re-paired (mutually nearest) and the DLT refitted until the pairs stop changing, pairs
+   whose residual stands out (a merged blob, a speck) being dropped one by one.
 4. **Choice.** Most inlier pairs, then the smallest RMS, among cameras a fluoroscope can
    be (``_is_plausible``): proper (beads in front, ``det(P[:, :3]) > 0``; a mirrored
    camera is what a left-handed phantom file or a mirror-symmetric wrong match gives),
-   with nearly zero skew and nearly square pixels. That rules out the ambiguity of two
-   parallel grids, one plate matched a node over: the DLT absorbs that parallax with a
-   skew of a few percent. The marker must project onto the marker blob (within the
-   pairing tolerance, not necessarily as an inlier: a marker touching a bead is a merged
-   blob whose centre is off), which rules out a whole grid matched a node over. And the
-   match must pair at least ``MIN_BEADS`` beads and ``MIN_SHARE`` of the detections (of
-   the phantom's beads, if fewer): a DLT fits eight to ten wrong pairs of an unrelated
-   phantom to a couple of pixels now and then, and a partly symmetric dense grid half of
-   its beads. Otherwise a ``BeadError`` says what is missing; when the phantom mirrored
-   would match, it says so.
+   with nearly zero skew and nearly square pixels. That rules out most of the ambiguity
+   of two parallel grids, one plate matched a node over: the DLT absorbs that parallax
+   with a skew of a few percent. The marker bead must project onto the marker blob
+   (within ``MARKER_REACH`` of its radius, not necessarily as an inlier: a bead touching
+   the marker makes a merged blob whose centre is a little off), which rules out a whole
+   grid matched a node over and two like plates seen as from the cage's other side. And
+   the match must pair at least ``MIN_BEADS`` beads and ``MIN_SHARE`` of the detections
+   (of the phantom's beads, if fewer): a DLT fits eight to ten wrong pairs of an
+   unrelated phantom to a couple of pixels now and then. Otherwise a ``BeadError`` says
+   what is missing; when the phantom mirrored would match, it says so.
 
-Limits (measured on generated cages, ``fluorogui.simulation.cages``): a dense 72-bead
-grid (two 6x6 plates, 20 mm pitch) is matched in about three views of four and refused in
-the others, never matched wrongly; the affine enumeration grows as the cube of the number
-of blobs (about 20 s for 70).
+Measured on generated cages (``fluorogui.simulation.cages``, 1024 px views tilted 0-60°
+from the plates' normal, 500-1000 mm from the source; ``benchmarks/bench_cages.py``
+reports the accuracy): the 28-bead two-plate grid, a 32-bead one, plates 60 or 200 mm
+apart, a 24-bead helix, 26 scattered beads and a dense 72-bead grid (two 6x6 plates) are
+matched in every view whose marker stands out, none wrongly, in 0.2-0.6 s (about 1.5 s
+for 70 blobs; the enumeration grows as the cube of the number of blobs). Limits: a
+helix's file that does not list the marker first still matches all but its end beads
+(a helix shifted along itself is the same helix), and a cage seen from so close that the
+near plate's beads look as large as the far marker is refused for its marker.
 """
 from __future__ import annotations
 
@@ -49,16 +59,21 @@ from scipy.spatial import cKDTree
 
 MIN_BEADS = 8
 MARKER_AREA_RATIO = 1.8
-BASES = 5  # phantom bases (marker + 3 beads) tried
-HYPOTHESES = 40  # affine hypotheses refined perspectively ...
-MORE_HYPOTHESES = 400  # ... and how far down the list to go while none has matched
+BASES, ALL_BASES = 5, 15  # phantom bases (marker + 3 beads) tried per round, and in all
+HYPOTHESES = 10  # affine hypotheses refined perspectively ...
+MORE_HYPOTHESES = 60  # ... and how far down the list to go while none has matched (per round)
 SAMPLES = 16  # RANSAC samples per refined hypothesis
+DEPTHS = 1.25 ** np.arange(2, 15)  # source-to-phantom distances tried, in phantom radii (1.6 to 23)
+SCORE_DEPTHS = np.array([2.5, 4.0, 7.0])  # and those every hypothesis is scored at (besides affine)
 MARKER_CANDIDATES = 3
+# the marker bead must project within this share of the marker blob's radius of its centre: a
+# bead touching the marker shifts the merged blob's centre by about a sixth of the radius
+MARKER_REACH = 0.5
 SCORED_BEADS = 32  # phantom beads (spread out) an affine hypothesis is scored on
 WORK = 15_000_000  # projected beads over all affine hypotheses: fewer bases for a dense phantom
 SAMPLE_SKEW, SAMPLE_ASPECT = 0.05, 1.25  # what a six-bead DLT of a fluoroscope can be
 MAX_SKEW, MAX_ASPECT = 0.01, 1.12  # what the match's DLT can be (right matches: < 1e-4, 1.0001)
-MIN_SHARE = 0.7  # of the detections (or of the phantom's beads, if fewer) a match must pair
+MIN_SHARE = 0.8  # of the detections (or of the phantom's beads, if fewer) a match must pair (right ones: > 0.9)
 OUTLIER_FACTOR, RESIDUAL_FLOOR_PX = 4.0, 0.25  # a 2D residual 4x its median: 1 in 60000 for round noise
 # a pair is an inlier within INLIER_SPACING x the median bead spacing in the image (at least
 # INLIER_MIN_PX): right matches leave ~0.02 px on generated cages and a few tenths of a pixel on
@@ -168,7 +183,7 @@ def _marker_candidates(centres, areas) -> list[int]:
     if areas[order[0]] < MARKER_AREA_RATIO * typical:
         ratio = areas[order[0]] / typical
         raise BeadError(f"found {len(centres)} beads; the marker bead (the phantom's first, larger one) could not be "
-                        f"told apart: the largest blob is only {ratio:.1f}\u00d7 the median (need "
+                        f"told apart: the largest blob is only {ratio:.2f}\u00d7 the median (need "
                         f"{MARKER_AREA_RATIO:.1f}\u00d7)")
     return [int(k) for k in order[:MARKER_CANDIDATES] if areas[k] >= max(MARKER_AREA_RATIO * typical,
                                                                         0.7 * areas[order[0]])]
@@ -206,28 +221,80 @@ def _spread(beads, count) -> np.ndarray:
     return np.array(chosen)
 
 
-def _affine_hypotheses(beads, centres, marker, tolerance, keep) -> list[tuple[int, tuple, np.ndarray]]:
-    """The ``keep`` best (score, basis, detection quadruple) over the bases and every
-    ordered triple of detections other than the marker. A dense phantom seen with many
-    blobs is scored on ``SCORED_BEADS`` of its beads and with fewer bases (``WORK``)."""
-    tree = cKDTree(centres)
+class _HitTable:
+    """Which detection a pixel position is near: a raster of cells a quarter of the
+    tolerance wide, each holding the detection nearest its centre if within the tolerance
+    (so a hit is within 0.82 to 1.18 times it), with an empty border that positions
+    outside fall onto. Five times faster than a k-d tree query on the hundreds of
+    thousands of projected beads the hypotheses are scored on."""
+
+    def __init__(self, centres, tolerance):
+        self.missing = len(centres)
+        self.cell = tolerance / 4
+        self.origin = centres.min(axis=0) - tolerance - self.cell  # one empty cell before the first
+        shape = np.ceil((centres.max(axis=0) + tolerance - self.origin) / self.cell).astype(int) + 2
+        grid = np.stack(np.meshgrid(*(self.origin[d] + (np.arange(shape[d]) + 0.5) * self.cell for d in range(2)),
+                                    indexing="ij"), axis=-1).reshape(-1, 2)
+        table = cKDTree(centres).query(grid, distance_upper_bound=tolerance)[1].reshape(shape)
+        table[[0, -1], :] = table[:, [0, -1]] = self.missing
+        self.shape, self.table = shape, table.ravel()
+
+    def distinct(self, u, v) -> np.ndarray:
+        """Per hypothesis (u, v: N, Q, N projected beads each), how many distinct detections
+        are hit; ``u`` and ``v`` finite."""
+        cu = np.clip((u - self.origin[0]) * (1.0 / self.cell), 0, self.shape[0] - 1).astype(np.int32)
+        cv = np.clip((v - self.origin[1]) * (1.0 / self.cell), 0, self.shape[1] - 1).astype(np.int32)
+        hit = np.sort(self.table[cu * self.shape[1] + cv], axis=0)
+        distinct = np.concatenate([np.ones((1, hit.shape[1]), bool), np.diff(hit, axis=0) != 0], axis=0)
+        return ((hit < self.missing) & distinct).sum(axis=0)
+
+
+def _basis_rounds(beads, detections) -> list[list[tuple[int, int, int]]]:
+    """The phantom bases in rounds: as many per round as ``WORK`` allows (at most
+    ``BASES``: a dense phantom seen with many blobs has one per round), ``ALL_BASES`` in
+    all. Later rounds are tried only while nothing has matched: when the beads the first
+    bases are made of (the phantom's extremes) lie outside the image or are hidden."""
+    hypotheses = detections * (detections - 1) * (detections - 2) * min(len(beads), SCORED_BEADS)
+    per_round = int(np.clip(WORK // max(hypotheses * (1 + len(SCORE_DEPTHS)), 1), 1, BASES))
+    bases = _bases(beads, ALL_BASES)
+    return [bases[k:k + per_round] for k in range(0, len(bases), per_round)]
+
+
+def _affine_hypotheses(beads, centres, marker, tolerance, keep, bases) -> list[tuple[int, tuple, np.ndarray]]:
+    """The ``keep`` best (score, basis, detection quadruple) over the ``bases`` and every
+    ordered triple of detections other than the marker, a dense phantom being scored on
+    ``SCORED_BEADS`` of its beads.
+
+    Each hypothesis is scored through its affine camera and through the perspective
+    cameras of ``_perspective_guesses`` at ``SCORE_DEPTHS`` (the best count counts): on a
+    deep cage seen from close by, the affine camera through the right seeds misses most
+    beads of the far plate, and the right hypothesis would otherwise rank in the
+    thousands."""
+    table = _HitTable(centres, tolerance)
     others = [k for k in range(len(centres)) if k != marker]
     combos = np.array(list(itertools.permutations(others, 3)), dtype=int).reshape(-1, 3)
     scored = _spread(beads, SCORED_BEADS)
     homogeneous = np.column_stack([beads[scored], np.ones(len(scored))])
-    bases = _bases(beads, int(np.clip(WORK // max(len(combos) * len(scored), 1), 1, BASES)))
+    centre = beads.mean(axis=0)
+    depths = SCORE_DEPTHS * float(np.max(np.linalg.norm(beads - centre, axis=1)))
     scores, owners = [], []
     for b, basis in enumerate(bases):
-        seeds = np.column_stack([beads[[0, *basis]], np.ones(4)])
-        C = homogeneous @ np.linalg.inv(seeds)  # the scored beads in terms of the 4 seeds
+        seeds = beads[[0, *basis]]
+        inverse = np.linalg.inv(np.column_stack([seeds, np.ones(4)]))
+        C = homogeneous @ inverse  # the scored beads in terms of the 4 seeds
         for start in range(0, len(combos), 20000):
             chunk = combos[start:start + 20000]
-            corners = np.concatenate([np.repeat(centres[marker][None, None], len(chunk), 0), centres[chunk]], axis=1)
-            projected = np.einsum("nk,qkd->qnd", C, corners)  # the affine camera of each hypothesis
-            hit = tree.query(projected.reshape(-1, 2), distance_upper_bound=tolerance)[1].reshape(len(chunk), -1)
-            hit = np.sort(hit, axis=1)
-            distinct = np.concatenate([np.ones((len(chunk), 1), bool), np.diff(hit, axis=1) != 0], axis=1)
-            scores.append(((hit < len(centres)) & distinct).sum(axis=1))
+            # (4, Q) pixels: seed k's detection in hypothesis q
+            u = np.vstack([np.full(len(chunk), centres[marker, 0]), centres[chunk.T, 0]])
+            v = np.vstack([np.full(len(chunk), centres[marker, 1]), centres[chunk.T, 1]])
+            score = table.distinct(C @ u, C @ v)  # the affine cameras: (n, Q) scored beads
+            axis = np.cross((inverse[:3] @ u).T, (inverse[:3] @ v).T)  # (Q, 3): their 2x3 parts' rows crossed,
+            axis /= np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-300)  # as in _perspective_guesses
+            for depth in depths:
+                w_seeds = 1.0 + (seeds - centre) @ axis.T / depth  # (4, Q) projective depths
+                w_beads = np.maximum(1.0 + (beads[scored] - centre) @ axis.T / depth, 1e-6)  # behind: far off
+                score = np.maximum(score, table.distinct(C @ (w_seeds * u) / w_beads, C @ (w_seeds * v) / w_beads))
+            scores.append(score)
             owners.append(np.column_stack([np.full(len(chunk), b), np.arange(start, start + len(chunk))]))
     scores, owners = np.concatenate(scores), np.concatenate(owners)
     best = np.argsort(-scores, kind="stable")[:keep]
@@ -267,13 +334,54 @@ def _converge(P, beads, centres, tolerance) -> tuple[list[tuple[int, int]], np.n
     return pairs, P
 
 
+def _through_seeds(third_row, X, x) -> np.ndarray:
+    """The camera with this third row (projective depth) through the four seed pairs
+    (``X`` homogeneous 4x4, ``x`` pixels 4x2): its first two rows solve four equations each."""
+    w = X @ third_row
+    return np.vstack([np.linalg.solve(X, w * x[:, 0]), np.linalg.solve(X, w * x[:, 1]), third_row])
+
+
+def _perspective_guesses(X, x, beads) -> list[np.ndarray]:
+    """Perspective cameras through the four seed pairs, from their affine camera.
+
+    Near the seeds an affine camera is the perspective one's linearisation: its 2x3 part
+    is ``(f r1 + (c - u0) r3, f r2 + (c - u0) r3) / Z0`` with ``u0`` the image of the
+    phantom's centre, so with the pixels taken about the seeds' mean the cross product of
+    its rows points along the viewing axis ``r3`` (to within the principal point's offset
+    over the focal length, a few degrees). What the affine camera cannot tell is the
+    distance ``Z0`` from the source; it is scanned over ``DEPTHS`` times the phantom's
+    radius, both ways along the axis. Each third row ``(r3 / Z0, 1 - r3 . X0 / Z0)`` then
+    fixes the first two through the seeds (``_through_seeds``). Seeds spanning two
+    plates 120 mm apart seen from 750 mm are off by up to 60 px affinely, by a few pixels
+    here."""
+    mean = x.mean(axis=0)
+    affine = np.linalg.solve(X, x - mean).T
+    axis = np.cross(affine[0, :3], affine[1, :3])
+    if not np.any(axis):
+        return []
+    axis /= np.linalg.norm(axis)
+    centre = beads.mean(axis=0)
+    radius = float(np.max(np.linalg.norm(beads - centre, axis=1)))
+    shift = np.array([[1.0, 0.0, mean[0]], [0.0, 1.0, mean[1]], [0.0, 0.0, 1.0]])
+    guesses = []
+    for sign in (1.0, -1.0):
+        for depth in DEPTHS * radius:
+            third = np.append(sign * axis / depth, 1.0 - sign * axis @ centre / depth)
+            try:
+                guesses.append(shift @ _through_seeds(third, X, x - mean))
+            except np.linalg.LinAlgError:
+                continue
+    return guesses
+
+
 def _refine_hypothesis(basis, quadruple, beads, centres, tolerance, rng):
     """Perspective refinement of one affine hypothesis: (pairs, P) or ([], None)."""
     seeds3, seeds2 = [0, *basis], list(quadruple)
     X = np.column_stack([beads[seeds3], np.ones(4)])
     affine = np.linalg.solve(X, centres[seeds2]).T  # 2x4
     predicted = np.column_stack([beads, np.ones(len(beads))]) @ affine.T
-    dist, nearest = cKDTree(centres).query(predicted, distance_upper_bound=1.5 * tolerance)
+    tree = cKDTree(centres)
+    dist, nearest = tree.query(predicted, distance_upper_bound=1.5 * tolerance)
     order = np.argsort(dist)
     taken, tentative = set(seeds2), []
     for i in order:
@@ -282,10 +390,15 @@ def _refine_hypothesis(basis, quadruple, beads, centres, tolerance, rng):
             continue
         taken.add(j)
         tentative.append((int(i), j))
-    if len(tentative) < 2:
-        return [], None
-    tree = cKDTree(centres)
     best, best_hits = None, 0
+    for P in _perspective_guesses(X, centres[seeds2], beads):
+        if not _is_proper(P, beads):
+            continue
+        hits = _distinct_hits(tree, project(P, beads), 0.5 * tolerance)
+        if hits > best_hits:
+            best, best_hits = P, hits
+    if len(tentative) < 2 and best is None:
+        return [], None
     all_pairs = list(itertools.combinations(range(len(tentative)), 2))
     picks = all_pairs if len(all_pairs) <= SAMPLES else [all_pairs[k] for k in
                                                          rng.choice(len(all_pairs), SAMPLES, replace=False)]
@@ -303,13 +416,17 @@ def _refine_hypothesis(basis, quadruple, beads, centres, tolerance, rng):
     return _converge(best, beads, centres, tolerance)
 
 
-def _search(beads, centres, markers, tolerance, need) -> tuple[list[tuple[int, int]], int]:
+def _search(beads, centres, areas, markers, tolerance, need) -> tuple[list[tuple[int, int]], int]:
     """The best inlier pairs over every marker candidate's hypotheses, and their count."""
     rng = np.random.default_rng(0)
     best, best_key = [], (0, 0.0)
-    for marker in markers:
+    rounds = _basis_rounds(beads, len(centres))
+    reach = MARKER_REACH * np.sqrt(areas / np.pi)  # of each blob taken for the marker
+    for marker, bases in itertools.product(markers, rounds):
+        if best_key[0] >= need:
+            break  # this blob did serve as the marker, these bases as the seeds
         for rank, (_, basis, quadruple) in enumerate(_affine_hypotheses(beads, centres, marker, tolerance,
-                                                                        MORE_HYPOTHESES)):
+                                                                        MORE_HYPOTHESES, bases)):
             if rank >= HYPOTHESES and best_key[0] >= need:
                 break  # the first ones matched; more only while nothing has
             pairs, P = _refine_hypothesis(basis, quadruple, beads, centres, tolerance, rng)
@@ -317,14 +434,12 @@ def _search(beads, centres, markers, tolerance, need) -> tuple[list[tuple[int, i
                 continue
             if any(j == marker and i != 0 for i, j in pairs):
                 continue  # the marker blob taken for a small bead: not this hypothesis's world
-            if np.linalg.norm(project(P, beads[:1])[0] - centres[marker]) > tolerance:
-                continue  # the marker elsewhere: a grid matched one node over, say
+            if np.linalg.norm(project(P, beads[:1])[0] - centres[marker]) > reach[marker]:
+                continue  # the marker elsewhere: a grid matched a node over, or the cage seen from its other side
             residual = np.linalg.norm(project(P, beads[[i for i, _ in pairs]]) - centres[[j for _, j in pairs]], axis=1)
             key = (len(pairs), -float(np.sqrt(np.mean(residual**2))))
             if key > best_key:
                 best, best_key = pairs, key
-        if best_key[0] >= need:
-            break  # this blob did serve as the marker
     return sorted(best), best_key[0]
 
 
@@ -338,10 +453,10 @@ def match_beads(beads: np.ndarray, centres: np.ndarray, areas: np.ndarray) -> li
     spacing = float(np.median(cKDTree(centres).query(centres, k=2)[0][:, 1]))
     tolerance = 0.35 * spacing
     need = max(MIN_BEADS, int(np.ceil(MIN_SHARE * min(len(beads), len(centres)))))
-    pairs, found = _search(beads, centres, markers, tolerance, need)
+    pairs, found = _search(beads, centres, areas, markers, tolerance, need)
     if found >= need:
         return pairs
-    if _search(beads * [1.0, 1.0, -1.0], centres, markers, tolerance, need)[1] >= need:
+    if _search(beads * [1.0, 1.0, -1.0], centres, areas, markers, tolerance, need)[1] >= need:
         raise BeadError("the beads match the phantom only mirrored: are the phantom file's coordinates "
                         "left-handed?", about_phantom=True)
     fit = f"at most {found}" if found else "none"
