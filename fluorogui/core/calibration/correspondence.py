@@ -61,7 +61,7 @@ MIN_BEADS = 8
 MARKER_AREA_RATIO = 1.8
 BASES, ALL_BASES = 5, 15  # phantom bases (marker + 3 beads) tried per round, and in all
 HYPOTHESES = 10  # affine hypotheses refined perspectively ...
-MORE_HYPOTHESES = 60  # ... and how far down the list to go while none has matched (per round)
+MORE_HYPOTHESES = 30  # ... and how far down the list to go while none has matched (per round)
 SAMPLES = 16  # RANSAC samples per refined hypothesis
 DEPTHS = 1.25 ** np.arange(2, 15)  # source-to-phantom distances tried, in phantom radii (1.6 to 23)
 SCORE_DEPTHS = np.array([2.5, 4.0, 7.0])  # and those every hypothesis is scored at (besides affine)
@@ -240,13 +240,19 @@ class _HitTable:
         self.shape, self.table = shape, table.ravel()
 
     def distinct(self, u, v) -> np.ndarray:
-        """Per hypothesis (u, v: N, Q, N projected beads each), how many distinct detections
+        """Per hypothesis (u, v: Q, N, N projected beads each), how many distinct detections
         are hit; ``u`` and ``v`` finite."""
-        cu = np.clip((u - self.origin[0]) * (1.0 / self.cell), 0, self.shape[0] - 1).astype(np.int32)
-        cv = np.clip((v - self.origin[1]) * (1.0 / self.cell), 0, self.shape[1] - 1).astype(np.int32)
-        hit = np.sort(self.table[cu * self.shape[1] + cv], axis=0)
-        distinct = np.concatenate([np.ones((1, hit.shape[1]), bool), np.diff(hit, axis=0) != 0], axis=0)
-        return ((hit < self.missing) & distinct).sum(axis=0)
+        cu = np.clip((u - float(self.origin[0])) * (1.0 / self.cell), 0, self.shape[0] - 1).astype(np.int32)
+        cv = np.clip((v - float(self.origin[1])) * (1.0 / self.cell), 0, self.shape[1] - 1).astype(np.int32)
+        hit = np.sort(self.table[cu * self.shape[1] + cv], axis=1)
+        distinct = np.concatenate([np.ones((len(hit), 1), bool), hit[:, 1:] != hit[:, :-1]], axis=1)
+        return ((hit < self.missing) & distinct).sum(axis=1)
+
+
+def _times(a, b) -> np.ndarray:
+    """``a @ b`` for a short inner dimension (4 or 3), without BLAS: its threads contend on a
+    loaded machine and took 8 ms for what takes 0.5 ms here."""
+    return np.einsum("qk,kn->qn", a, b)
 
 
 def _basis_rounds(beads, detections) -> list[list[tuple[int, int, int]]]:
@@ -281,19 +287,25 @@ def _affine_hypotheses(beads, centres, marker, tolerance, keep, bases) -> list[t
     for b, basis in enumerate(bases):
         seeds = beads[[0, *basis]]
         inverse = np.linalg.inv(np.column_stack([seeds, np.ones(4)]))
-        C = homogeneous @ inverse  # the scored beads in terms of the 4 seeds
+        C = (homogeneous @ inverse).T.astype(np.float32)  # the scored beads in terms of the 4 seeds, (4, n)
+        inverse = inverse.astype(np.float32)  # single precision: ample for scoring, and much faster
         for start in range(0, len(combos), 20000):
             chunk = combos[start:start + 20000]
-            # (4, Q) pixels: seed k's detection in hypothesis q
-            u = np.vstack([np.full(len(chunk), centres[marker, 0]), centres[chunk.T, 0]])
-            v = np.vstack([np.full(len(chunk), centres[marker, 1]), centres[chunk.T, 1]])
-            score = table.distinct(C @ u, C @ v)  # the affine cameras: (n, Q) scored beads
-            axis = np.cross((inverse[:3] @ u).T, (inverse[:3] @ v).T)  # (Q, 3): their 2x3 parts' rows crossed,
-            axis /= np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-300)  # as in _perspective_guesses
-            for depth in depths:
-                w_seeds = 1.0 + (seeds - centre) @ axis.T / depth  # (4, Q) projective depths
-                w_beads = np.maximum(1.0 + (beads[scored] - centre) @ axis.T / depth, 1e-6)  # behind: far off
-                score = np.maximum(score, table.distinct(C @ (w_seeds * u) / w_beads, C @ (w_seeds * v) / w_beads))
+            # (Q, 4) pixels: seed k's detection in hypothesis q
+            u = np.column_stack([np.full(len(chunk), centres[marker, 0]), centres[chunk, 0]]).astype(np.float32)
+            v = np.column_stack([np.full(len(chunk), centres[marker, 1]), centres[chunk, 1]]).astype(np.float32)
+            affine_u, affine_v = _times(u, C), _times(v, C)  # (Q, n): the scored beads through the affine cameras
+            score = table.distinct(affine_u, affine_v)
+            axis = np.cross(_times(u, inverse[:3].T), _times(v, inverse[:3].T))  # (Q, 3): their 2x3 parts' rows
+            axis /= np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-30)  # crossed (_perspective_guesses)
+            along_seeds = _times(axis, (seeds - centre).T.astype(np.float32))  # (Q, 4) and (Q, n): how far along
+            along_beads = _times(axis, (beads[scored] - centre).T.astype(np.float32))  # the axis from the centre
+            # through the seeds with projective depths w = 1 + along / depth, divided by the beads' own
+            slope_u, slope_v = _times(along_seeds * u, C), _times(along_seeds * v, C)
+            for depth in depths.tolist():  # Python floats keep the arrays single
+                reciprocal = 1.0 / np.maximum(1.0 + along_beads / depth, 1e-6)  # behind the source: far off
+                score = np.maximum(score, table.distinct((affine_u + slope_u / depth) * reciprocal,
+                                                         (affine_v + slope_v / depth) * reciprocal))
             scores.append(score)
             owners.append(np.column_stack([np.full(len(chunk), b), np.arange(start, start + len(chunk))]))
     scores, owners = np.concatenate(scores), np.concatenate(owners)
@@ -416,11 +428,12 @@ def _refine_hypothesis(basis, quadruple, beads, centres, tolerance, rng):
     return _converge(best, beads, centres, tolerance)
 
 
-def _search(beads, centres, areas, markers, tolerance, need) -> tuple[list[tuple[int, int]], int]:
-    """The best inlier pairs over every marker candidate's hypotheses, and their count."""
+def _search(beads, centres, areas, markers, tolerance, need, rounds=None) -> tuple[list[tuple[int, int]], int]:
+    """The best inlier pairs over every marker candidate's hypotheses, and their count
+    (over the first ``rounds`` of bases, all by default)."""
     rng = np.random.default_rng(0)
     best, best_key = [], (0, 0.0)
-    rounds = _basis_rounds(beads, len(centres))
+    rounds = _basis_rounds(beads, len(centres))[:rounds]
     reach = MARKER_REACH * np.sqrt(areas / np.pi)  # of each blob taken for the marker
     for marker, bases in itertools.product(markers, rounds):
         if best_key[0] >= need:
@@ -456,7 +469,7 @@ def match_beads(beads: np.ndarray, centres: np.ndarray, areas: np.ndarray) -> li
     pairs, found = _search(beads, centres, areas, markers, tolerance, need)
     if found >= need:
         return pairs
-    if _search(beads * [1.0, 1.0, -1.0], centres, areas, markers, tolerance, need)[1] >= need:
+    if _search(beads * [1.0, 1.0, -1.0], centres, areas, markers, tolerance, need, rounds=1)[1] >= need:
         raise BeadError("the beads match the phantom only mirrored: are the phantom file's coordinates "
                         "left-handed?", about_phantom=True)
     fit = f"at most {found}" if found else "none"
