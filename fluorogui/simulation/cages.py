@@ -9,21 +9,29 @@ that are not the one shipped with the package.
 - ``irregular_cage``: beads scattered in a box, kept apart.
 
 ``oblique_camera`` places a pinhole ``x_cam = R X + t``, ``uv = K x_cam / z`` (pixels,
-rows down) at a given tilt from the cage's z axis; ``render_cage`` draws the beads as
+rows down) at a given tilt from the cage's z axis (``TWO_VIEWS``: the two views the tests
+and ``benchmarks/bench_cages.py`` calibrate); ``render_cage`` draws the beads as
 X-ray attenuation: each pixel is the mean over sub-pixel rays of ``exp(-mu * chord)``,
 the chord being the ray's path through every bead it crosses (so the silhouettes are
 the exact perspective ellipses and overlapping beads darken together), times a smooth
 vignetting field, then blurred and given quantum-like noise. The projection is written
-out here, independent of the calibration code and of ``View``.
+out here, independent of the calibration code and of ``View``. ``write_cage_scene`` writes
+the images (16-bit TIFF) and the phantom file that ``fluorogui calibrate geometry`` reads.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
 
 from fluorogui.core.projection.geometry import View
+from fluorogui.io.images import write_image
+
+# (tilt from the plates' normal, azimuth, roll) in degrees of the two views calibrated by the
+# tests and the benchmark: both looking up through the cage, 100 degrees apart in azimuth
+TWO_VIEWS = ((15.0, 20.0, 5.0), (30.0, 120.0, -10.0))
 
 
 @dataclass(frozen=True)
@@ -188,3 +196,22 @@ def render_cage(cage: Cage, camera: Camera, mu_per_mm: float = 0.8, field: float
 def cage_scene(cage: Cage, cameras, seed: int = 0, **render) -> list[tuple[Camera, np.ndarray]]:
     """Each camera with its rendered image (noise seeded per view from ``seed``)."""
     return [(cam, render_cage(cage, cam, seed=seed + k, **render)) for k, cam in enumerate(cameras)]
+
+
+def two_view_cameras(**camera) -> list[Camera]:
+    """The cameras of ``TWO_VIEWS`` (``oblique_camera``'s keywords otherwise)."""
+    return [oblique_camera(tilt, azimuth, roll, **camera) for tilt, azimuth, roll in TWO_VIEWS]
+
+
+def write_cage_scene(cage: Cage, cameras, folder, seed: int = 0, **render) -> tuple[list[Path], Path]:
+    """Each camera's image as ``folder/view{k}.tif`` (16-bit) and the phantom file
+    ``folder/phantom.csv``; returns the image paths and the phantom file's."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for k, (_, image) in enumerate(cage_scene(cage, cameras, seed=seed, **render)):
+        paths.append(folder / f"view{k + 1}.tif")
+        write_image(paths[-1], image, bits=16)
+    phantom = folder / "phantom.csv"
+    phantom.write_text(cage.csv_text())
+    return paths, phantom
