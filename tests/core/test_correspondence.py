@@ -76,6 +76,18 @@ def test_dense_grid_along_the_normal_not_seen_from_the_other_side():
     assert np.linalg.norm(result.view.source - camera.source) < 1.0  # measured 0.1 mm
 
 
+def test_dense_grid_sheared_match_with_its_principal_point_inside_the_image_refused():
+    """A 6x6 grid at 6 degrees whose plate matched a node over (DLT RMS 0.014 px) moves the
+    principal point 610 px towards a corner, inside the image: its pixels' skew, which a
+    zero-skew pinhole cannot fit (0.35 px), gives it away."""
+    cage = two_plate_grid_cage(spacing=20.0, grid_a=(6, 6), grid_b=(6, 6), marker_node=(1, 4))
+    camera = oblique_camera(5.567, 336.735, -48.552, source_to_cage=587.919, aim=(-15.0, -13.187, -8.560))
+    image = render_cage(cage, camera, seed=25, noise=0.0154)
+    result = calibrate_view(image, cage.beads, pitch=camera.pitch)
+    assert wrong_pairs(cage, camera, image, result.pairs) == []
+    assert np.linalg.norm(result.view.source - camera.source) < 0.5  # measured 0.03 mm
+
+
 def test_phantom_files_that_break_the_contract_are_refused():
     camera = oblique_camera(30.0, 120.0, -10.0)
     image = render_cage(GRID, camera, seed=3)

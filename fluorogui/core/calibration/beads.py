@@ -24,13 +24,9 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.linalg import rq
-from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 
 from fluorogui.core.calibration.correspondence import MIN_BEADS, BeadError, match_beads
-from fluorogui.core.calibration.correspondence import dlt as _dlt
-from fluorogui.core.calibration.correspondence import project as _project
+from fluorogui.core.calibration.pinhole import decompose, dlt, refine
 from fluorogui.core.projection.geometry import DEFAULT_PITCH_MM, GeometryError, View
 
 __all__ = ["BeadCalibration", "BeadError", "calibrate_view", "check_phantom", "detect_beads", "match_beads"]
@@ -118,38 +114,6 @@ class BeadCalibration:
         return float(self.residual_px.max())
 
 
-def _decompose(P) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    K, R = rq(P[:, :3])
-    signs = np.diag(np.sign(np.diag(K)))
-    K, R = K @ signs, signs @ R
-    t = np.linalg.solve(K, P[:, 3])
-    if np.linalg.det(R) < 0:
-        R, t = -R, -t
-    return K / K[2, 2], R, t
-
-
-def _refine(K, R, t, points3, points2, square_pixels: bool = True):
-    """Least-squares pinhole (zero skew; one focal length when ``square_pixels``, which
-    removes most of the focal-length / distance trade-off of a shallow phantom)."""
-    n_intrinsic = 3 if square_pixels else 4
-
-    def unpack(p):
-        fx = p[0]
-        fy = p[0] if square_pixels else p[1]
-        cx, cy = p[n_intrinsic - 2:n_intrinsic]
-        rest = p[n_intrinsic:]
-        return np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]]), Rotation.from_rotvec(rest[:3]).as_matrix(), rest[3:6]
-
-    def residual(p):
-        Kp, Rp, tp = unpack(p)
-        return (_project(Kp @ np.column_stack([Rp, tp]), points3) - points2).ravel()
-
-    focal = [np.sqrt(K[0, 0] * K[1, 1])] if square_pixels else [K[0, 0], K[1, 1]]
-    start = np.concatenate([focal, [K[0, 2], K[1, 2]], Rotation.from_matrix(R).as_rotvec(), t])
-    solution = least_squares(residual, start, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=2000)
-    return unpack(solution.x)
-
-
 def calibrate_view(image: np.ndarray, beads, correction=None, pitch: float | None = None,
                    name: str = "", square_pixels: bool = True) -> BeadCalibration:
     """The view that imaged the phantom ``beads`` (N, 3 mm; the first one larger) as ``image``.
@@ -162,12 +126,12 @@ def calibrate_view(image: np.ndarray, beads, correction=None, pitch: float | Non
     centres, areas = detect_beads(image)
     if correction is not None and len(centres):
         centres = correction.correct_points(centres)
-    pairs = match_beads(beads, centres, areas)
+    h, w = np.asarray(image).shape[:2]
+    pairs = match_beads(beads, centres, areas, frame=(w, h))
     points3 = beads[[i for i, _ in pairs]]
     points2 = centres[[j for _, j in pairs]]
-    K, R, t = _decompose(_dlt(points3, points2))
-    K, R, t = _refine(K, R, t, points3, points2, square_pixels)
-    h, w = np.asarray(image).shape[:2]
+    K, R, t = decompose(dlt(points3, points2))
+    K, R, t = refine(K, R, t, points3, points2, square_pixels)
     try:
         view = View.from_pinhole(K, R, t, (w, h), pitch=pitch or DEFAULT_PITCH_MM, name=name)
     except GeometryError as exc:

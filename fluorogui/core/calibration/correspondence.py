@@ -57,6 +57,8 @@ import itertools
 import numpy as np
 from scipy.spatial import cKDTree
 
+from fluorogui.core.calibration.pinhole import decompose, dlt, dlt_conditioned, project, refine
+
 MIN_BEADS = 8
 MARKER_AREA_RATIO = 1.8
 BASES, ALL_BASES = 5, 15  # phantom bases (marker + 3 beads) tried per round, and in all
@@ -72,7 +74,13 @@ MARKER_REACH = 0.5
 SCORED_BEADS = 32  # phantom beads (spread out) an affine hypothesis is scored on
 WORK = 15_000_000  # projected beads over all affine hypotheses: fewer bases for a dense phantom
 SAMPLE_SKEW, SAMPLE_ASPECT = 0.05, 1.25  # what a six-bead DLT of a fluoroscope can be
-MAX_SKEW, MAX_ASPECT = 0.01, 1.12  # what the match's DLT can be (right matches: < 1e-4, 1.0001)
+# what the match's DLT can be: right matches of generated cages < 1e-4 and 1.0001, XMALab's calibration
+# of the real biplane data 0 and 1.0055; a 6x6 two-plate grid matched with one plate a node over: 0.006, 1.089
+MAX_SKEW, MAX_ASPECT = 0.01, 1.05
+# the principal point within a third of the image's size from its centre (the real biplane data's:
+# 0.11); one plate of a two-plate grid matched a node over moves it by f x node / gap (0.6 of it)
+CENTRE_REACH = 1 / 3
+PINHOLE_FACTOR, PINHOLE_SLACK_PX = 1.5, 0.05
 MIN_SHARE = 0.8  # of the detections (or of the phantom's beads, if fewer) a match must pair (right ones: > 0.9)
 OUTLIER_FACTOR, RESIDUAL_FLOOR_PX = 4.0, 0.25  # a 2D residual 4x its median: 1 in 60000 for round noise
 # a pair is an inlier within INLIER_SPACING x the median bead spacing in the image (at least
@@ -93,60 +101,23 @@ class BeadError(ValueError):
 # ----------------------------------------------------------------------------- cameras
 
 
-def dlt(points3, points2) -> np.ndarray:
-    """Hartley-normalised DLT: 3x4 P with points2 ~ P [points3; 1], beads in front (z > 0)."""
-    return _dlt_conditioned(points3, points2)[0]
-
-
-def _dlt_conditioned(points3, points2) -> tuple[np.ndarray, float]:
-    """The DLT and how well it is determined (the ratio of the two smallest singular values
-    of the normalised system; near 1 when two cameras fit equally, a degenerate sample)."""
-    def normaliser(p):
-        mean = p.mean(axis=0)
-        spread = np.mean(np.linalg.norm(p - mean, axis=1))
-        scale = np.sqrt(p.shape[1]) / spread if spread > 0 else 1.0
-        T = np.eye(p.shape[1] + 1)
-        T[:-1, :-1] *= scale
-        T[:-1, -1] = -scale * mean
-        return T
-
-    points3, points2 = np.asarray(points3, dtype=float), np.asarray(points2, dtype=float)
-    T3, T2 = normaliser(points3), normaliser(points2)
-    X = np.column_stack([points3, np.ones(len(points3))]) @ T3.T
-    x = np.column_stack([points2, np.ones(len(points2))]) @ T2.T
-    zeros = np.zeros((len(X), 4))
-    rows = np.empty((2 * len(X), 12))
-    rows[0::2] = np.hstack([zeros, -x[:, 2:] * X, x[:, 1:2] * X])
-    rows[1::2] = np.hstack([x[:, 2:] * X, zeros, -x[:, 0:1] * X])
-    _, s, Vt = np.linalg.svd(rows, full_matrices=len(rows) < 12)
-    s = np.concatenate([s, np.zeros(12 - len(s))])
-    P = np.linalg.inv(T2) @ Vt[-1].reshape(3, 4) @ T3
-    if np.mean(np.column_stack([points3, np.ones(len(points3))]) @ P[2]) < 0:
-        P = -P  # beads in front of the source
-    return P, float(s[-1] / s[-2]) if s[-2] > 0 else 1.0
-
-
-def project(P, points3) -> np.ndarray:
-    """Pixels of ``points3`` through P; a point on the source's plane lands far away (1e12)."""
-    h = np.column_stack([points3, np.ones(len(points3))]) @ P.T
-    w = h[:, 2:]
-    safe = np.where(np.abs(w) > 1e-12 * np.abs(h[:, :2]).max(axis=1, keepdims=True), w, np.nan)
-    return np.nan_to_num(h[:, :2] / safe, nan=1e12, posinf=1e12, neginf=-1e12)
-
-
 def _is_proper(P, points3) -> bool:
     """Beads in front and a right-handed camera (K with positive focal lengths, det R = +1)."""
     depth = np.column_stack([points3, np.ones(len(points3))]) @ P[2]
     return bool(np.all(depth > 0) and np.linalg.det(P[:, :3]) > 0)
 
 
-def _is_plausible(P, max_skew=SAMPLE_SKEW, max_aspect=SAMPLE_ASPECT) -> bool:
-    """A fluoroscope's camera: skew below ``max_skew`` of the focal length and pixels within
-    ``max_aspect`` of square. ``K K^T`` comes from ``M M^T`` (M = P[:, :3] = K R) scaled to
-    a unit last row, without a decomposition. A wrong correspondence that an 11-parameter
-    DLT still fits gives absurd intrinsics (skew of several focal lengths, aspect 3); on
-    two parallel grids, one plate matched a node over is a camera moved sideways whose
-    parallax the DLT absorbs with a skew of a few percent (``MAX_SKEW`` for the match)."""
+def _is_plausible(P, max_skew=SAMPLE_SKEW, max_aspect=SAMPLE_ASPECT, frame=None) -> bool:
+    """A fluoroscope's camera: skew below ``max_skew`` of the focal length, pixels within
+    ``max_aspect`` of square and, when the image's ``frame`` (width, height) is given, the
+    principal point within ``CENTRE_REACH`` of its size from its centre. ``K K^T`` comes
+    from ``M M^T`` (M = P[:, :3] = K R) scaled to a unit last row, without a
+    decomposition. A wrong correspondence that an 11-parameter DLT still fits gives absurd
+    intrinsics (skew of several focal lengths, aspect 3). Two parallel grids with one plate
+    matched a node over are the phantom sheared (x + s z, s the node over the plates'
+    gap), which a DLT fits exactly: the camera's principal point moves by about ``f s``
+    (600 px and more here) seen along the plates' normal, and its pixels skew or stretch
+    seen obliquely (aspect 1.09 on a 6x6 grid seen at 33 degrees; ``_fits_a_pinhole``)."""
     M = P[:, :3] / np.linalg.norm(P[2, :3])
     A = M @ M.T
     cx, cy = A[0, 2], A[1, 2]
@@ -159,7 +130,21 @@ def _is_plausible(P, max_skew=SAMPLE_SKEW, max_aspect=SAMPLE_ASPECT) -> bool:
     if fx2 <= 0:
         return False
     fx = np.sqrt(fx2)
-    return bool(abs(skew) <= max_skew * fx and 1 / max_aspect <= fx / fy <= max_aspect)
+    central = frame is None or (abs(cx - (frame[0] - 1) / 2) <= CENTRE_REACH * frame[0]
+                                and abs(cy - (frame[1] - 1) / 2) <= CENTRE_REACH * frame[1])
+    return bool(abs(skew) <= max_skew * fx and 1 / max_aspect <= fx / fy <= max_aspect and central)
+
+
+def _fits_a_pinhole(P, points3, points2) -> bool:
+    """Whether a zero-skew pinhole (its pixels free to be non-square) fits the pairs about as
+    well as their DLT: within ``PINHOLE_FACTOR`` of its RMS plus ``PINHOLE_SLACK_PX``. On
+    right matches the two agree to 0.1 %; a two-plate grid matched a node over, seen
+    obliquely, leaves 0.35 px against the DLT's 0.014 on a 6x6 grid at 6 degrees."""
+    residual = np.linalg.norm(project(P, points3) - points2, axis=1)
+    K, R, t = refine(*decompose(P), points3, points2, square_pixels=False)
+    pinhole = np.linalg.norm(project(K @ np.column_stack([R, t]), points3) - points2, axis=1)
+    rms = float(np.sqrt(np.mean(residual**2)))
+    return float(np.sqrt(np.mean(pinhole**2))) <= PINHOLE_FACTOR * rms + PINHOLE_SLACK_PX
 
 
 def mutual_pairs(projected, detections, tolerance) -> list[tuple[int, int]]:
@@ -417,7 +402,7 @@ def _refine_hypothesis(basis, quadruple, beads, centres, tolerance, rng):
     for a, b in picks:
         idx3 = seeds3 + [tentative[a][0], tentative[b][0]]
         idx2 = seeds2 + [tentative[a][1], tentative[b][1]]
-        P, conditioning = _dlt_conditioned(beads[idx3], centres[idx2])
+        P, conditioning = dlt_conditioned(beads[idx3], centres[idx2])
         if conditioning > 0.1 or not _is_proper(P, beads) or not _is_plausible(P):
             continue  # a degenerate sample, a mirrored or behind-the-source camera, or no fluoroscope
         hits = _distinct_hits(tree, project(P, beads), 0.5 * tolerance)
@@ -428,7 +413,8 @@ def _refine_hypothesis(basis, quadruple, beads, centres, tolerance, rng):
     return _converge(best, beads, centres, tolerance)
 
 
-def _search(beads, centres, areas, markers, tolerance, need, rounds=None) -> tuple[list[tuple[int, int]], int]:
+def _search(beads, centres, areas, markers, tolerance, need, frame=None,
+            rounds=None) -> tuple[list[tuple[int, int]], int]:
     """The best inlier pairs over every marker candidate's hypotheses, and their count
     (over the first ``rounds`` of bases, all by default)."""
     rng = np.random.default_rng(0)
@@ -443,21 +429,24 @@ def _search(beads, centres, areas, markers, tolerance, need, rounds=None) -> tup
             if rank >= HYPOTHESES and best_key[0] >= need:
                 break  # the first ones matched; more only while nothing has
             pairs, P = _refine_hypothesis(basis, quadruple, beads, centres, tolerance, rng)
-            if P is None or not _is_proper(P, beads) or not _is_plausible(P, MAX_SKEW, MAX_ASPECT):
+            if P is None or not _is_proper(P, beads) or not _is_plausible(P, MAX_SKEW, MAX_ASPECT, frame):
                 continue
             if any(j == marker and i != 0 for i, j in pairs):
                 continue  # the marker blob taken for a small bead: not this hypothesis's world
             if np.linalg.norm(project(P, beads[:1])[0] - centres[marker]) > reach[marker]:
                 continue  # the marker elsewhere: a grid matched a node over, or the cage seen from its other side
-            residual = np.linalg.norm(project(P, beads[[i for i, _ in pairs]]) - centres[[j for _, j in pairs]], axis=1)
-            key = (len(pairs), -float(np.sqrt(np.mean(residual**2))))
-            if key > best_key:
+            points3, points2 = beads[[i for i, _ in pairs]], centres[[j for _, j in pairs]]
+            key = (len(pairs), -float(np.sqrt(np.mean(np.sum((project(P, points3) - points2) ** 2, axis=1)))))
+            if key > best_key and _fits_a_pinhole(P, points3, points2):
                 best, best_key = pairs, key
     return sorted(best), best_key[0]
 
 
-def match_beads(beads: np.ndarray, centres: np.ndarray, areas: np.ndarray) -> list[tuple[int, int]]:
-    """(phantom index, detection index) pairs, outliers left out; raises BeadError."""
+def match_beads(beads: np.ndarray, centres: np.ndarray, areas: np.ndarray, frame=None) -> list[tuple[int, int]]:
+    """(phantom index, detection index) pairs, outliers left out; raises BeadError.
+
+    ``frame``: the image's (width, height) in pixels, when known; the match's principal
+    point must then lie inside it."""
     beads = np.asarray(beads, dtype=float)
     if len(centres) < MIN_BEADS:
         raise BeadError(f"too few beads found in the image: {len(centres)} (need at least {MIN_BEADS}; the "
@@ -466,10 +455,10 @@ def match_beads(beads: np.ndarray, centres: np.ndarray, areas: np.ndarray) -> li
     spacing = float(np.median(cKDTree(centres).query(centres, k=2)[0][:, 1]))
     tolerance = 0.35 * spacing
     need = max(MIN_BEADS, int(np.ceil(MIN_SHARE * min(len(beads), len(centres)))))
-    pairs, found = _search(beads, centres, areas, markers, tolerance, need)
+    pairs, found = _search(beads, centres, areas, markers, tolerance, need, frame)
     if found >= need:
         return pairs
-    if _search(beads * [1.0, 1.0, -1.0], centres, areas, markers, tolerance, need, rounds=1)[1] >= need:
+    if _search(beads * [1.0, 1.0, -1.0], centres, areas, markers, tolerance, need, frame, rounds=1)[1] >= need:
         raise BeadError("the beads match the phantom only mirrored: are the phantom file's coordinates "
                         "left-handed?", about_phantom=True)
     fit = f"at most {found}" if found else "none"
