@@ -88,10 +88,33 @@ def test_dense_grid_sheared_match_with_its_principal_point_inside_the_image_refu
     assert np.linalg.norm(result.view.source - camera.source) < 0.5  # measured 0.03 mm
 
 
+def test_merged_blobs_left_out():
+    """Plates 60 mm apart seen at 12 degrees: six of the 20 blobs are two beads merged, two
+    of them were paired 1.7 and 1.95 px off (the source 14 mm off)."""
+    cage = two_plate_grid_cage(plate_gap=60.0)
+    camera = oblique_camera(12.389, 275.372, 15.676, source_to_cage=958.521, aim=(0.319, 11.065, -5.705))
+    image = render_cage(cage, camera, seed=75, noise=0.0138)
+    result = calibrate_view(image, cage.beads, pitch=camera.pitch)
+    assert wrong_pairs(cage, camera, image, result.pairs) == []
+    assert result.used == 14 and result.rms_px <= 0.07  # measured 14 of 20 blobs, 0.034 px
+    assert np.linalg.norm(result.view.source - camera.source) < 11.3  # measured 5.6 mm: 14 beads, mostly one plate
+
+
+def test_marker_outside_the_image_refused():
+    """Plates 200 mm apart 530 mm from the source, the marker outside the image: the near
+    plate's beads look as large as a marker, and the cage seen from its other side fitted
+    20 of them to 0.011 px before the marker's size was checked with perspective taken out."""
+    cage = two_plate_grid_cage(plate_gap=200.0)
+    camera = oblique_camera(28.663, 256.446, -8.244, source_to_cage=529.585, aim=(1.865, -12.4, 12.88))
+    image = render_cage(cage, camera, seed=41, noise=0.0128)
+    with pytest.raises(BeadError, match="cannot be matched.*is the marker bead in the image"):
+        calibrate_view(image, cage.beads, pitch=camera.pitch)
+
+
 def test_phantom_files_that_break_the_contract_are_refused():
     camera = oblique_camera(30.0, 120.0, -10.0)
     image = render_cage(GRID, camera, seed=3)
-    with pytest.raises(BeadError, match="cannot be matched.*first bead the large marker") as info:
+    with pytest.raises(BeadError, match="cannot be matched.*is the marker bead in the image, and the phan") as info:
         calibrate_view(image, np.roll(GRID.beads, -1, axis=0))  # the marker listed last
     assert "of the 28 detected beads" in str(info.value)
     with pytest.raises(BeadError, match="only mirrored") as info:

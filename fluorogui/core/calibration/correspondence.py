@@ -27,28 +27,41 @@ so regular grids on parallel plates, helices and scattered beads are all handled
    re-paired (mutually nearest) and the DLT refitted until the pairs stop changing, pairs
    whose residual stands out (a merged blob, a speck) being dropped one by one.
 4. **Choice.** Most inlier pairs, then the smallest RMS, among cameras a fluoroscope can
-   be (``_is_plausible``): proper (beads in front, ``det(P[:, :3]) > 0``; a mirrored
-   camera is what a left-handed phantom file or a mirror-symmetric wrong match gives),
-   with nearly zero skew and nearly square pixels. That rules out most of the ambiguity
-   of two parallel grids, one plate matched a node over: the DLT absorbs that parallax
-   with a skew of a few percent. The marker bead must project onto the marker blob
-   (within ``MARKER_REACH`` of its radius, not necessarily as an inlier: a bead touching
-   the marker makes a merged blob whose centre is a little off), which rules out a whole
-   grid matched a node over and two like plates seen as from the cage's other side. And
-   the match must pair at least ``MIN_BEADS`` beads and ``MIN_SHARE`` of the detections
-   (of the phantom's beads, if fewer): a DLT fits eight to ten wrong pairs of an
-   unrelated phantom to a couple of pixels now and then. Otherwise a ``BeadError`` says
-   what is missing; when the phantom mirrored would match, it says so.
+   be: proper (beads in front, ``det(P[:, :3]) > 0``; a mirrored camera is what a
+   left-handed phantom file or a mirror-symmetric wrong match gives), with nearly zero
+   skew, nearly square pixels and the principal point near the image's centre
+   (``_is_plausible``), and fitted by a zero-skew pinhole about as well as by the DLT
+   (``_fits_a_pinhole``). That rules out the ambiguity of two parallel grids, one plate
+   matched a node over: a DLT fits that sheared phantom exactly, with the principal
+   point hundreds of pixels off or skewed pixels. The marker bead must project onto the
+   marker blob (within ``MARKER_REACH`` of its radius, not necessarily as an inlier: a
+   bead touching the marker makes a merged blob whose centre is a little off), which
+   rules out a whole grid matched a node over and two like plates seen as from the
+   cage's other side. And the match must pair at least ``MIN_BEADS`` beads and
+   ``MIN_SHARE`` of the detections (of the phantom's beads, if fewer): a DLT fits eight
+   to ten wrong pairs of an unrelated phantom to a couple of pixels now and then.
+   Otherwise a ``BeadError`` says what is missing; when the phantom mirrored would match,
+   it says so.
 
-Measured on generated cages (``fluorogui.simulation.cages``, 1024 px views tilted 0-60°
-from the plates' normal, 500-1000 mm from the source; ``benchmarks/bench_cages.py``
-reports the accuracy): the 28-bead two-plate grid, a 32-bead one, plates 60 or 200 mm
-apart, a 24-bead helix, 26 scattered beads and a dense 72-bead grid (two 6x6 plates) are
-matched in every view whose marker stands out, none wrongly, in 0.2-0.6 s (about 1.5 s
-for 70 blobs; the enumeration grows as the cube of the number of blobs). Limits: a
-helix's file that does not list the marker first still matches all but its end beads
-(a helix shifted along itself is the same helix), and a cage seen from so close that the
-near plate's beads look as large as the far marker is refused for its marker.
+After the search the blobs that are two beads merged are dropped (``_single_blobs``: with
+perspective taken out they are larger than one bead), and the marker blob must be larger
+than the small beads' on the same terms (``_apparent_sizes``), which rules out a near bead
+taken for a marker that is outside the image. The camera maths (DLT, projection, pinhole)
+is ``core.calibration.pinhole``.
+
+Measured on generated cages (``fluorogui.simulation.cages``, 1024 px views tilted 0-60
+degrees from the plates' normal, 500-1000 mm from the source, 160 random views per design
+over two seeds; ``benchmarks/bench_cages.py`` reports the accuracy): none matched wrongly.
+Matched: the 28-bead two-plate grid 159, a 32-bead one 160, plates 60 mm apart 160, 200 mm
+apart 151, a 24-bead helix 156, 26 scattered beads 159, a dense 72-bead grid (two 6x6
+plates) 79 of 80; the others refused because the marker is outside the image or does not
+stand out from the near plate's beads, or because ten to fourteen beads were found, nearly
+all on one plate. A view takes 0.2-0.4 s (28-32 beads; up to 3 s), the dense grid's about
+1 s (up to 6: the enumeration grows as the cube of the number of blobs). Limits: a helix's
+file that does not list the marker first still matches all but its end beads (a helix
+shifted along itself is the same helix); a two-plate grid whose node is small against its
+plates' gap (a sheared match moving the principal point less than a third of the image),
+seen along the plates' normal, would be ambiguous.
 """
 from __future__ import annotations
 
@@ -71,6 +84,9 @@ MARKER_CANDIDATES = 3
 # the marker bead must project within this share of the marker blob's radius of its centre: a
 # bead touching the marker shifts the merged blob's centre by about a sixth of the radius
 MARKER_REACH = 0.5
+# with perspective taken out (_apparent_sizes), the marker blob at least MARKER_SIZE times a small
+# bead's (a 5 mm marker among 2.5 mm beads: 4), a blob more than MERGED_SIZE times two beads merged
+MARKER_SIZE, MERGED_SIZE = np.sqrt(MARKER_AREA_RATIO), 1.3
 SCORED_BEADS = 32  # phantom beads (spread out) an affine hypothesis is scored on
 WORK = 15_000_000  # projected beads over all affine hypotheses: fewer bases for a dense phantom
 SAMPLE_SKEW, SAMPLE_ASPECT = 0.05, 1.25  # what a six-bead DLT of a fluoroscope can be
@@ -318,6 +334,29 @@ def _inliers(beads, centres, pairs, spacing) -> tuple[list[tuple[int, int]], np.
     return pairs, None
 
 
+def _apparent_sizes(P, beads, areas, pairs) -> np.ndarray:
+    """Each pair's blob area times its bead's squared depth from the source, over the median
+    of the small beads' (the marker, bead 0, left out of the median): perspective taken out,
+    a single small bead is 1 (0.96-1.03 measured; a far one up to 1.13 where blur widens
+    small blobs), two beads merged into one blob up to 2, the marker (d_marker / d_bead)^2."""
+    depth = np.column_stack([beads[[i for i, _ in pairs]], np.ones(len(pairs))]) @ P[2]
+    size = areas[[j for _, j in pairs]] * depth**2
+    small = [k for k, (i, _) in enumerate(pairs) if i != 0]
+    return size / np.median(size[small]) if small else size / size.max()
+
+
+def _single_blobs(beads, centres, areas, pairs) -> list[tuple[int, int]]:
+    """The match's pairs without the blobs that are two beads merged (``MERGED_SIZE``), the
+    rest re-checked for outliers. A merged blob's centre lies between the beads' (1.7-2 px
+    off on a 60 mm deep grid at 12 degrees), and an 11-parameter DLT bends towards it
+    instead of showing it as an outlier (residuals up to 0.9 px, the right pairs' up to
+    0.6). The search counts merged blobs as paired: they are explained detections."""
+    size = _apparent_sizes(dlt(beads[[i for i, _ in pairs]], centres[[j for _, j in pairs]]), beads, areas, pairs)
+    single = [pair for pair, s in zip(pairs, size) if pair[0] == 0 or s <= MERGED_SIZE]
+    kept = single if len(single) == len(pairs) else _inliers(beads, centres, single, 0.0)[0]
+    return kept if len(kept) >= MIN_BEADS else pairs
+
+
 def _converge(P, beads, centres, tolerance) -> tuple[list[tuple[int, int]], np.ndarray | None]:
     """Re-pair and refit until the pairs stop changing; the inlier pairs and their DLT."""
     pairs: list[tuple[int, int]] = []
@@ -435,6 +474,8 @@ def _search(beads, centres, areas, markers, tolerance, need, frame=None,
                 continue  # the marker blob taken for a small bead: not this hypothesis's world
             if np.linalg.norm(project(P, beads[:1])[0] - centres[marker]) > reach[marker]:
                 continue  # the marker elsewhere: a grid matched a node over, or the cage seen from its other side
+            if _apparent_sizes(P, beads, areas, [(0, marker), *pairs])[0] < MARKER_SIZE:
+                continue  # a near bead looking large: the marker is another blob, or outside the image
             points3, points2 = beads[[i for i, _ in pairs]], centres[[j for _, j in pairs]]
             key = (len(pairs), -float(np.sqrt(np.mean(np.sum((project(P, points3) - points2) ** 2, axis=1)))))
             if key > best_key and _fits_a_pinhole(P, points3, points2):
@@ -457,11 +498,11 @@ def match_beads(beads: np.ndarray, centres: np.ndarray, areas: np.ndarray, frame
     need = max(MIN_BEADS, int(np.ceil(MIN_SHARE * min(len(beads), len(centres)))))
     pairs, found = _search(beads, centres, areas, markers, tolerance, need, frame)
     if found >= need:
-        return pairs
+        return sorted(_single_blobs(beads, centres, areas, pairs))
     if _search(beads * [1.0, 1.0, -1.0], centres, areas, markers, tolerance, need, frame, rounds=1)[1] >= need:
         raise BeadError("the beads match the phantom only mirrored: are the phantom file's coordinates "
                         "left-handed?", about_phantom=True)
     fit = f"at most {found}" if found else "none"
-    raise BeadError(f"the beads cannot be matched to the phantom: {fit} of the {len(centres)} detected "
-                    f"beads fit one camera with the phantom's {len(beads)} (need {need}; is the phantom file's first "
-                    "bead the large marker?)")
+    raise BeadError(f"the beads cannot be matched to the phantom: {fit} of the {len(centres)} detected beads fit "
+                    f"one camera with the phantom's {len(beads)} (need {need}; is the marker bead in the image, and "
+                    "the phantom file's first bead?)")
