@@ -76,6 +76,7 @@ def test_dense_grid_along_the_normal_not_seen_from_the_other_side():
     assert np.linalg.norm(result.view.source - camera.source) < 1.0  # measured 0.1 mm
 
 
+@pytest.mark.slow
 def test_dense_grid_sheared_match_with_its_principal_point_inside_the_image_refused():
     """A 6x6 grid at 6 degrees whose plate matched a node over (DLT RMS 0.014 px) moves the
     principal point 610 px towards a corner, inside the image: its pixels' skew, which a
@@ -100,6 +101,7 @@ def test_merged_blobs_left_out():
     assert np.linalg.norm(result.view.source - camera.source) < 11.3  # measured 5.6 mm: 14 beads, mostly one plate
 
 
+@pytest.mark.slow
 def test_marker_outside_the_image_refused():
     """Plates 200 mm apart 530 mm from the source, the marker outside the image: the near
     plate's beads look as large as a marker, and the cage seen from its other side fitted
@@ -111,6 +113,7 @@ def test_marker_outside_the_image_refused():
         calibrate_view(image, cage.beads, pitch=camera.pitch)
 
 
+@pytest.mark.slow
 def test_phantom_files_that_break_the_contract_are_refused():
     camera = oblique_camera(30.0, 120.0, -10.0)
     image = render_cage(GRID, camera, seed=3)

@@ -48,6 +48,7 @@ LONG_REASON = ("outline distance 2.31 mm in view 1 (limit 0.90 mm, typical 0.30 
 
 
 @pytest.mark.parametrize("width, height", [(1280, 720), (1366, 768), (1920, 1080)])
+@pytest.mark.slow
 def test_the_first_window_fits_the_screen(width, height, tmp_path):
     screens = tmp_path / "screens.json"
     screens.write_text(json.dumps({"screens": [{"name": "s", "x": 0, "y": 0, "width": width, "height": height,

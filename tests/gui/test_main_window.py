@@ -28,6 +28,7 @@ def test_opening_a_session_shows_images_outlines_and_frames(window, demo):
     assert c.frame == 1 and window.timeline.current_frame == 1
 
 
+@pytest.mark.slow
 def test_match_runs_in_the_worker_and_lands_on_the_truth(window, demo, qtbot):
     window.open_project(demo)
     c, s = window.controller, window.controller.session
@@ -212,6 +213,7 @@ def test_dropping_a_project_opens_it(window, demo):
     assert window.controller.path == demo
 
 
+@pytest.mark.slow
 def test_track_following_frames_matches_every_frame(window, demo, qtbot):
     window.open_project(demo)
     c, s = window.controller, window.controller.session

@@ -51,6 +51,7 @@ def _app_match(window, qtbot, project, frame, component, poses):
     return s.pose_record(component, frame)
 
 
+@pytest.mark.slow
 def test_a_frame_that_needs_the_probe_gives_the_same_pose_everywhere(window, fine_demo, qtbot, capsys):
     """The tibial tray turned 35 deg about its stem converges to a false minimum that passes
     every check; the ambiguity probe (a start turned back by 20 deg) finds the truth."""
@@ -79,6 +80,7 @@ def overlapping(tmp_path_factory):
     return build_knee_sequence(folder / "knee", meshes["femoral"], meshes["tibial"], frames=1, image_size=512, seed=3)
 
 
+@pytest.mark.slow
 def test_a_frame_that_needs_occlusion_masks_gives_the_same_pose_everywhere(window, overlapping, qtbot, capsys):
     api = Session.open(overlapping)
     truth = {c: np.asarray(p, float) for c, p in api.project.settings["truth"]["0"].items()}

@@ -15,6 +15,7 @@ pytestmark = pytest.mark.skipif(not os.environ.get("DISPLAY"), reason="needs an 
 
 
 @pytest.mark.parametrize("gl", ["interactive", "image"])
+@pytest.mark.slow
 def test_main_window_screenshot_shows_images_and_models(tmp_path, gl):
     out = tmp_path / "window.png"
     env = dict(os.environ, QT_QPA_PLATFORM="xcb", FLUOROGUI_DATA_DIR=str(tmp_path / "data"), FLUOROGUI_GL=gl)

@@ -11,6 +11,7 @@ from fluorogui.io.project.document import save_project  # noqa: E402
 from fluorogui.workflow.messages import SINGLE_PLANE_NOTE  # noqa: E402
 
 
+@pytest.mark.slow
 def test_single_plane_match_in_the_app(window, shared_data, tmp_path, qtbot, dialogs, demo):
     path = tmp_path / "single.fluoro"
     save_project(import_folder(shared_data / "single-plane-tka"), path)

@@ -34,6 +34,7 @@ def start_from_truth(session, frame, reviewed=False):
                                                    status=Status.MATCHED), "Match")
 
 
+@pytest.mark.slow
 def test_match_both_lands_on_the_demo_truth_and_undoes_in_one_step(window, fine_demo, qtbot):
     window.open_project(fine_demo)
     c, s = window.controller, window.controller.session
@@ -61,6 +62,7 @@ def test_match_both_lands_on_the_demo_truth_and_undoes_in_one_step(window, fine_
     assert all(s.pose_record(n, 0).status == "matched" for n in s.components())
 
 
+@pytest.mark.slow
 def test_track_both_from_a_matched_frame_keeps_it_and_lands_on_the_truth(window, fine_demo, qtbot):
     window.open_project(fine_demo)
     c, s = window.controller, window.controller.session
@@ -99,6 +101,7 @@ def test_track_both_from_a_matched_frame_keeps_it_and_lands_on_the_truth(window,
     assert stored and window.matcher.plot.values == pytest.approx(stored)
 
 
+@pytest.mark.slow
 def test_the_app_and_a_script_give_the_identical_pose(window, demo, qtbot, tmp_path):
     script = Session.open(demo)  # the same project file, read before the app touches it
     window.open_project(demo)
@@ -112,6 +115,7 @@ def test_the_app_and_a_script_give_the_identical_pose(window, demo, qtbot, tmp_p
     np.testing.assert_array_equal(s.outline_points((0, 0, name)), script.outline_points((0, 0, name)))
 
 
+@pytest.mark.slow
 def test_a_flagged_frame_is_shown_as_needing_review_and_tracking_goes_on(window, demo, qtbot):
     window.open_project(demo)
     c, s = window.controller, window.controller.session
@@ -152,6 +156,7 @@ def test_a_flagged_frame_is_shown_as_needing_review_and_tracking_goes_on(window,
     assert "accepted" in window.matcher.status.text()
 
 
+@pytest.mark.slow
 def test_cancelled_tracking_keeps_the_stored_frames_and_leaves_the_rest(window, demo, qtbot):
     window.open_project(demo)
     s = window.controller.session

@@ -4,6 +4,8 @@ a full save folds the journal in and deletes it, and a journal of another file o
 cut short is left out."""
 import json
 
+import pytest
+
 from fluorogui.io.project.journal import journal_path
 from fluorogui.workflow import Session
 
@@ -23,6 +25,7 @@ def test_a_run_journals_its_frames_and_a_reopened_project_has_them(demo):
     assert reopened.rim_models() == session.rim_models()  # the settings came along
 
 
+@pytest.mark.slow
 def test_a_whole_run_ends_with_a_full_save_and_no_journal(demo):
     session = Session.open(demo)
     results = list(session.track(first=1, last=3, autosave=True))

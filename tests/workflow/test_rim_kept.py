@@ -1,9 +1,12 @@
 """The images' rim models are judged once per project: kept in the project after the first
 matched frames, and a later run (or a reopened project) starts from them without fitting."""
+import pytest
+
 import fluorogui.core.matching.loop as loop
 from fluorogui.workflow import Session
 
 
+@pytest.mark.slow
 def test_rim_models_are_kept_in_the_project_and_not_fitted_again(demo, monkeypatch):
     session = Session.open(demo)
     session.project.settings.pop("rim_models", None)  # the demo's frame 0 was matched: forget its judgement

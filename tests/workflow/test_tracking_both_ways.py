@@ -2,6 +2,7 @@
 and a frame that fails forward is tracked again backward from the next match; results come
 out once per frame and component, in frame order."""
 import numpy as np
+import pytest
 
 import fluorogui.workflow.tracking as tracking
 from fluorogui.core.projection.pose import motion_between
@@ -14,6 +15,7 @@ def _errors(session, result, truth):
     return motion_between(result.pose, truth[result.frame][result.component], session.mesh(result.component).centroid)
 
 
+@pytest.mark.slow
 def test_frames_before_the_first_found_are_tracked_back_to_the_start(demo, truth, monkeypatch):
     """Find refuses frames 0 and 1 (as it does where the components overlap); tracking starts
     at frame 2 and goes back: every frame ends matched at the truth."""
