@@ -103,12 +103,10 @@ def run(args) -> int:
         written += exports.export_jts(session, args.jts, args.view - 1, args.include_unreviewed)
     flagged = exports.unreviewed_matches(session) if (args.tra or args.jts) else []
     if flagged:
-        frames = sorted({frame for frame, _, _ in flagged})
         what = ("written although flagged for review" if args.include_unreviewed else
                 "flagged for review and left out of --tra/--jts as NaN "
                 "(accept them in the app, or --include-unreviewed)")
-        warn(f"{len(flagged)} pose{'s' if len(flagged) > 1 else ''} {what}: frame{'s' if len(frames) > 1 else ''} "
-             f"{frame_list(frames)}")
+        _warn_poses(flagged, what)
     if args.c3d:
         written.append(exports.export_c3d(session, args.c3d, args.fps, args.include_unreviewed))
     if args.trc:
@@ -119,12 +117,10 @@ def run(args) -> int:
         written.append(exports.export_xromm(session, args.xromm, args.include_unreviewed))
     left_out = exports.left_out_of_motion_files(session) if any(motion) else []
     if left_out:
-        frames = sorted({frame for frame, _, _ in left_out})
         what = ("written although not matched or accepted" if args.include_unreviewed else
                 "placed by hand or flagged for review and not accepted, left out of --c3d/--trc/--mot/--xromm "
                 "(invalid markers, NaN values; accept them in the app, or --include-unreviewed)")
-        warn(f"{len(left_out)} pose{'s' if len(left_out) > 1 else ''} {what}: frame{'s' if len(frames) > 1 else ''} "
-             f"{frame_list(frames)}")
+        _warn_poses(left_out, what)
     if args.c3d and not exports.consecutive_frames(session):
         warn("the project's frame numbers are not consecutive: a C3D reader times C3D frames one 1/fps apart, so "
              "its times are not frame / fps; the C3D's FLUOROGUI:FRAMES and FLUOROGUI:TIMES hold the true ones "
@@ -140,6 +136,13 @@ def run(args) -> int:
     for p in written:
         print(f"wrote {p}")
     return 0
+
+
+def _warn_poses(poses, what: str) -> None:
+    """One warning line for poses (frame, component, ...) treated as ``what`` says."""
+    frames = sorted({pose[0] for pose in poses})
+    warn(f"{len(poses)} pose{'s' if len(poses) > 1 else ''} {what}: frame{'s' if len(frames) > 1 else ''} "
+         f"{frame_list(frames)}")
 
 
 def frame_list(frames: list[int]) -> str:

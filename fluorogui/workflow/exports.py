@@ -152,19 +152,22 @@ def _exported(record: PoseRecord | None, include_unreviewed: bool) -> bool:
     return include_unreviewed or record.status != Status.NEEDS_REVIEW or record.reviewed
 
 
+def _pose_matrices(session, components, keep) -> list[list[np.ndarray | None]]:
+    """Per frame, per component the pose's 4×4 (model → world), or None where ``keep``
+    (given the pose record, or None) leaves it out."""
+    table = []
+    for frame in session.frames:
+        records = [session.project.poses.get((frame, c)) for c in components]
+        table.append([pose_to_matrix(r.pose) if keep(r) else None for r in records])
+    return table
+
+
 def export_tra(session, path, include_unreviewed: bool = False) -> Path:
     """Autoscoper: one row per frame, femoral then tibial, 16 numbers each (row by row);
     NaN where a pose is missing, failed or flagged for review and not accepted (unless
     ``include_unreviewed``: see ``unreviewed_matches``)."""
     path = check_output_file(path)
-    matrices = []
-    for frame in session.frames:
-        row = []
-        for c in KNEE_COMPONENTS:
-            record = session.project.poses.get((frame, c))
-            row.append(pose_to_matrix(record.pose) if _exported(record, include_unreviewed) else None)
-        matrices.append(row)
-    write_tra(path, matrices)
+    write_tra(path, _pose_matrices(session, KNEE_COMPONENTS, lambda r: _exported(r, include_unreviewed)))
     return path
 
 
@@ -362,13 +365,7 @@ def export_xromm(session, path, include_unreviewed: bool = False) -> Path:
     world, mm) column by column; NaN where the pose is left out (see the module)."""
     path = check_output_file(path)
     components = motion_components(session)
-    matrices = []
-    for frame in session.frames:
-        row = []
-        for c in components:
-            record = session.project.poses.get((frame, c))
-            row.append(pose_to_matrix(record.pose) if in_motion_files(record, include_unreviewed) else None)
-        matrices.append(row)
+    matrices = _pose_matrices(session, components, lambda r: in_motion_files(r, include_unreviewed))
     write_xromm_csv(path, components, matrices)
     return path
 
