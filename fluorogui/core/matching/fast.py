@@ -60,6 +60,7 @@ class _FastEvaluation:
         rho = mesh.radius
         self.per_view_mm: list[float] = []
         self.outlines_px: list[np.ndarray] = []
+        self.outline_model_points: list[np.ndarray] = []  # per view, the model points imaged on the outline
         self.r, self.J, self.w = [], [], []
         # per residual block: its view and where along the image outline (px of chord
         # length) each residual sits, for the covariance's clusters of neighbours
@@ -76,6 +77,7 @@ class _FastEvaluation:
             X = fwd.model_points @ R.T + t
             uv, Jp = view.project_jacobian(X)
             self.outlines_px.append(sil.points_px)
+            self.outline_model_points.append(sil.model_points)
             if mask is not None:
                 seen = visible_points(mask, uv)
                 X, uv, Jp = X[seen], uv[seen], Jp[seen]

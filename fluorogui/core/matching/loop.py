@@ -5,8 +5,10 @@ The outline of a component is segmented along the projection of a rough pose
 edge fall outside the search band and the spline bridges them with a chord; matching
 and segmenting again along the matched pose removes that, as a user reviewing the
 outline would. The loop runs at least ``LoopSettings.min_passes`` passes (one when the
-first pass moved less than ``settled_first``: its outline was already chosen along the
-right pose) and stops when
+first pass moved less than ``settled_first``, or when its model outline, the shift in the
+image set aside, lies within ``settled_first_px`` of the start's: the first segmentation
+searches for that shift, so its outline was already chosen along the right pose) and
+stops when
 a pass moves the model centroid by less than ``LoopSettings.settled`` mm and turns it by
 less than that many degrees, or after ``max_passes``. (Re-segmentation jitters the pose
 by a few hundredths of a mm / degree on real images, so a tighter threshold would only
@@ -58,6 +60,9 @@ class LoopSettings:
     max_passes: int = 6
     settled: float = 0.05  # a pass moving the centroid less (mm) and turning less (deg) ends the loop
     settled_first: float = 0.25  # ... and the first pass already, when it moved less than this from its start
+    # ... or when its model outline, its shift in the image aside, lies within this many pixels of
+    # the start's in every view: the edges were chosen along the matched pose already (0: off)
+    settled_first_px: float = 1.0
     search_px: int = 60  # first pass: how far the outline may sit from the prediction
     later_search_px: int = 8  # later passes start from a matched pose
     # later passes move the outline to the boundary the metal's rim profile gives (core.rim):
@@ -82,6 +87,32 @@ class LoopSettings:
 
 
 RIM_MODES = ("auto", "on", "off")
+
+
+def outline_change_px(mesh: PreparedMesh, views: Sequence[View], before, after, outline_points=None) -> float:
+    """How far (pixels, the largest over views) the model outline at ``after`` lies from where
+    the same model points are at ``before``, once each view's median shift is taken out: the
+    change of shape that a translation of the prediction (which segmentation searches for)
+    does not undo. ``outline_points`` (per view, the model points on the outline at ``after``)
+    save drawing the silhouettes again."""
+    before, after = np.asarray(before, dtype=float), np.asarray(after, dtype=float)
+    R0, R1 = rotation_matrix(*before[3:]), rotation_matrix(*after[3:])
+    worst = 0.0
+    for k, view in enumerate(views):
+        if outline_points is not None and k < len(outline_points):
+            points = outline_points[k][::4]
+        else:
+            points = mesh_silhouette(mesh, R1, after[:3], view, spacing_px=4.0).model_points
+        change = view.project(points @ R1.T + after[:3]) - view.project(points @ R0.T + before[:3])
+        change -= np.median(change, axis=0)
+        worst = max(worst, float(np.sqrt((change ** 2).sum(axis=1)).max()))
+    return worst
+
+
+def _outline_points(result: MatchResult) -> list | None:
+    """Per view, the model points on the outline at the result's pose, where its evaluation kept them."""
+    evaluation = result._evaluation
+    return getattr(evaluation[1], "outline_model_points", None) if evaluation is not None else None
 
 
 def predicted_outline(mesh: PreparedMesh, pose, view: View, spacing_px: float = 2.0) -> np.ndarray:
@@ -337,7 +368,9 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
         rim_pending = bool(missing) and use_rim and (rim_views is None or (bool(rim_views) and not refined))
         if passes >= loop.min_passes and moved < loop.settled and not rim_pending:
             break
-        if passes == 1 and moved < loop.settled_first and not rim_pending:
+        if passes == 1 and not rim_pending and (
+                moved < loop.settled_first
+                or outline_change_px(mesh, views, previous, pose, _outline_points(result)) < loop.settled_first_px):
             # the start was within a fraction of a pixel: segmenting along the result would
             # pick the same edges (the search band is several pixels wide)
             break
