@@ -7,7 +7,8 @@ overlap (``occlusion_masks``) and so is whatever lies beyond the intensifier's f
 view (``_hidden``: a component partly out of view is matched on what is visible), then
 every quality check (``core.matching.quality``). A frame that fails a
 check is not given up at once: other starts are tried - the last matched pose when the
-prediction extrapolated, a search near the prediction (*find implants*), the prediction
+prediction extrapolated, a search near the prediction (*find implants*; first, before the
+prediction itself, when the last match is several frames back), the prediction
 turned by a few degrees about the recent motion axis (between neighbouring frames), and
 a search of the whole image - and the best result is kept (recovery starts run a
 shorter loop). Whatever fails its checks in the end is returned as
@@ -43,6 +44,9 @@ from fluorogui.workflow.settings import WorkflowSettings
 
 _RANK = {Status.MATCHED: 0, Status.NEEDS_REVIEW: 1, Status.FAILED: 2}
 
+#: frames since the last match beyond which recovery searches near the prediction first
+NEAR_FIRST_GAP = 2
+
 #: a component's rim judgement (``core.outlines.rim``: per view, is the edge a soft rim, and its
 #: attenuation and blur) is the same for a whole sequence; unless its first matched frame
 #: finds a clear step it rests on this many matched frames, each judged on its own, not on
@@ -66,6 +70,7 @@ class ComponentInput:
     probe: bool = True  # look for a second orientation that fits as well (no motion to tell them apart)
     predicted: bool = True  # ``start`` predicts the pose (tracking): far from it is suspect; a hand placement is not
     search: bool = True  # recovery may search with *find implants* (off where that was tried already)
+    first: np.ndarray | None = None  # a start tried before ``start``: this frame's own earlier match
 
 
 def occlusion_masks(views: Sequence[View], others: Sequence[tuple[PreparedMesh, np.ndarray]], near: np.ndarray | None,
@@ -266,32 +271,53 @@ class FrameMatcher:
 
     def _starts(self, images, job: ComponentInput, cancel):
         """(label, start) pairs, cheapest and likeliest first; each is computed only when
-        the ones before it failed."""
-        yield "", np.asarray(job.start, dtype=float)
+        the ones before it failed. Where the last match is more than ``NEAR_FIRST_GAP`` frames
+        back, the prediction extrapolates the motion further than it was seen, and the
+        searches come first (near the prediction, then the whole image): on the real
+        sequence's 10-20 frame jumps, full loops from the prediction and from the last pose
+        failed in most such frames and cost 1-4 s, where a search and a match from its
+        placement took well under one."""
         t = self.settings.tracking
+        search = t.recover and t.find_near and self.find_near is not None and job.search
+        if job.first is not None:
+            yield "", np.asarray(job.first, dtype=float)
+        searches_first = search and job.gap > NEAR_FIRST_GAP
+        if searches_first:
+            yield from self._searches(images, job, cancel)
+        yield "", np.asarray(job.start, dtype=float)
         if not t.recover:
             return
         if job.fallback is not None and np.abs(np.asarray(job.fallback) - job.start).max() > 0.5:
             yield "last pose", np.asarray(job.fallback, dtype=float)
-        search = t.find_near and self.find_near is not None and job.search
-        if search:
-            pose = self.find_near(images, job.component, job.mesh, job.start, cancel)
-            if pose is not None:
-                yield "find near the prediction", np.asarray(pose, dtype=float)
-        if job.gap <= 2:  # a small miss between neighbouring frames: turn the prediction a little
-            centroid = job.mesh.centroid
-            if job.axis is not None and np.linalg.norm(job.axis) > 0:
-                axes = [np.asarray(job.axis, float) / np.linalg.norm(job.axis)]
-            else:
-                R = rotation_matrix(*job.start[3:])
-                axes = [R[:, k] for k in range(3)]  # the model's own axes in the world
-            for axis in axes:
-                for sign in (1.0, -1.0):
-                    yield "turned start", turned(job.start, centroid, axis, sign * t.rotated_start_deg)
-        if search:
-            pose = self.find_near(images, job.component, job.mesh, None, cancel)
-            if pose is not None:
-                yield "find implants", np.asarray(pose, dtype=float)
+        if search and not searches_first:
+            yield from self._searches(images, job, cancel, turned_between=job.gap <= 2)
+        elif job.gap <= 2:
+            yield from self._turned_starts(job)
+
+    def _searches(self, images, job: ComponentInput, cancel, turned_between: bool = False):
+        """The search near the prediction, (optionally the turned starts,) then the whole image."""
+        pose = self.find_near(images, job.component, job.mesh, job.start, cancel)
+        if pose is not None:
+            yield "find near the prediction", np.asarray(pose, dtype=float)
+        if turned_between:
+            yield from self._turned_starts(job)
+        pose = self.find_near(images, job.component, job.mesh, None, cancel)
+        if pose is not None:
+            yield "find implants", np.asarray(pose, dtype=float)
+
+    def _turned_starts(self, job: ComponentInput):
+        """A small miss between neighbouring frames: the prediction turned a little either
+        way about the recent motion axis (or the model's own axes)."""
+        t = self.settings.tracking
+        centroid = job.mesh.centroid
+        if job.axis is not None and np.linalg.norm(job.axis) > 0:
+            axes = [np.asarray(job.axis, float) / np.linalg.norm(job.axis)]
+        else:
+            R = rotation_matrix(*job.start[3:])
+            axes = [R[:, k] for k in range(3)]  # the model's own axes in the world
+        for axis in axes:
+            for sign in (1.0, -1.0):
+                yield "turned start", turned(job.start, centroid, axis, sign * t.rotated_start_deg)
 
     # -- all components of a frame ----------------------------------------------------------------
     def match_frame(self, frame: int, images, jobs: Sequence[ComponentInput], fixed: dict | None = None,
@@ -313,7 +339,10 @@ class FrameMatcher:
             for job in jobs:  # a second round where a mask was placed far from where the other ended up
                 used = masked_with.get(job.component, {})
                 if any(_moved(known[o][0], used[o], known[o][1]) for o in used):
-                    results[job.component] = self._match_masked(frame, images, job, known, masked_with, cancel)
+                    # from its own match with the old mask, if it had one: the best start there is
+                    earlier = results[job.component]
+                    again = replace(job, first=earlier.pose) if earlier.status == Status.MATCHED else job
+                    results[job.component] = self._match_masked(frame, images, again, known, masked_with, cancel)
                     if results[job.component].status != Status.FAILED:
                         known[job.component] = (job.mesh, results[job.component].pose)
         return results
