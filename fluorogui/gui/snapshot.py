@@ -57,6 +57,10 @@ def main(argv=None) -> int:
     w, h = (int(x) for x in args.size.split("x"))
     window = MainWindow(settings=settings)
     window.resize(w, h)
+    # the window centres itself at its own first size; at the requested size it must stay on
+    # the screen, or the grab shows black where it runs off the edge
+    area = window.screen().availableGeometry()
+    window.move(area.x() + max(0, (area.width() - w) // 2), area.y() + max(0, (area.height() - h) // 2))
     window.show()
     app.processEvents()
     t_window = time.perf_counter() - t0
