@@ -43,14 +43,21 @@ def test_matcher_panel_settings_and_buttons(qtbot):
     panel = MatcherPanel()
     qtbot.addWidget(panel)
     assert panel.settings().method == "fast" and panel.settings().model_points == 15000
+    assert not panel.density.isEnabled()  # the point cloud is the paper method's alone
     with qtbot.waitSignal(panel.settings_edited):
         panel.method.setCurrentIndex(1)
     assert panel.settings().method == "paper" and panel.settings().outline_points == 60
+    assert panel.density.isEnabled()
+    panel.set_running(True)
+    assert not panel.density.isEnabled()
+    panel.set_running(False)
+    assert panel.density.isEnabled()
     base = MatchSettings(max_calls=123)
     assert panel.settings(base).max_calls == 123  # the session's other settings are kept
     with qtbot.assertNotEmitted(panel.settings_edited):
         panel.set_settings(MatchSettings(method="fast", model_points=3500))
     assert panel.settings().method == "fast" and panel.settings().model_points == 3500
+    assert not panel.density.isEnabled()
     for button, signal in ((panel.run_button, panel.run_requested), (panel.run_both_button, panel.run_both_requested),
                            (panel.track_button, panel.track_requested),
                            (panel.track_both_button, panel.track_both_requested)):

@@ -163,6 +163,7 @@ class MatcherPanel(QWidget):
             self.density.addItem(label, n)
         self.density.setCurrentIndex(1)
         self.density.setToolTip("Surface points of the model (used by the paper method)")
+        self.density.setEnabled(False)  # the fast method matches the mesh itself
         self.outline_points = QSpinBox()
         self.outline_points.setRange(0, 1000)
         self.outline_points.setSpecialValueText("auto")
@@ -170,6 +171,7 @@ class MatcherPanel(QWidget):
         self.outline_points.setToolTip(
             "Outline points per view (auto: model one per px, image one per 2 px; paper: 60)")
         self.method.currentIndexChanged.connect(lambda _i: self.settings_edited.emit())
+        self.method.currentIndexChanged.connect(lambda _i: self._show_density())
         self.density.currentIndexChanged.connect(lambda _i: self.settings_edited.emit())
         self.outline_points.valueChanged.connect(lambda _v: self.settings_edited.emit())
         form = QFormLayout()
@@ -293,6 +295,11 @@ class MatcherPanel(QWidget):
         finally:
             for w in widgets:
                 w.blockSignals(False)
+        self._show_density()
+
+    def _show_density(self) -> None:
+        """The point-cloud density only means something to the paper method: greyed out for the fast one."""
+        self.density.setEnabled(self.method.currentData() == "paper" and self.run_button.isEnabled())
 
     def set_accepted(self, accepted: bool | None) -> None:
         """The acceptance of the active pose: False shows *Accept*, True *Un-accept*
@@ -311,8 +318,9 @@ class MatcherPanel(QWidget):
     # -- running ---------------------------------------------------------------------------------
     def set_running(self, running: bool) -> None:
         for w in (self.run_button, self.run_both_button, self.track_button, self.track_both_button,
-                  self.place_button, self.method, self.density, self.outline_points):
+                  self.place_button, self.method, self.outline_points):
             w.setEnabled(not running)
+        self._show_density()
         self.accept_button.setEnabled(not running and self._accepted is not None)
         self.cancel_button.setEnabled(running)
         if running:
