@@ -46,7 +46,7 @@ def load_images(paths, views):
 
 def load_model(path):
     """An implant mesh prepared for matching, read as the session reads its models."""
-    from fluorogui.workflow.session import prepared_model, read_model
+    from fluorogui.io.meshes.model import prepared_model, read_model
 
     return prepared_model(path, *read_model(path))
 

@@ -30,12 +30,12 @@ from typing import Callable, Iterable
 
 import numpy as np
 
-from fluorogui.core.outlines.rim import RimModel
 from fluorogui.core.projection.geometry import triangulate
-from fluorogui.core.projection.mesh import MeshError, PreparedMesh, check_plausible_mm, prepare_mesh
+from fluorogui.core.projection.mesh import PreparedMesh
 from fluorogui.core.records import ImageSequence, ModelEntry, PoseRecord, Project
 from fluorogui.io.corrections import read_view_image
 from fluorogui.io.errors import InputError
+from fluorogui.io.meshes.model import prepared_model, read_model
 from fluorogui.io.meshes.read import load_mesh
 from fluorogui.io.project.document import journal_frames, load_project, save_project
 from fluorogui.workflow.edits import EditsMixin, fitted_outline  # noqa: F401 (fitted_outline: its old home)
@@ -46,8 +46,6 @@ from fluorogui.workflow.settings import SETTINGS_KEY, WorkflowSettings
 from fluorogui.workflow.work import WorkMixin
 
 COMPONENT_ORDER = ("femoral", "tibial")
-#: ``project.settings`` key of the components' rim models (``Session.rim_models``)
-RIM_KEY = "rim_models"
 IMAGE_CACHE_FRAMES = 6
 #: Default depth of a model along a single view's central ray, as a fraction of the source-intensifier distance.
 SINGLE_PLANE_DEPTH = 0.85
@@ -68,42 +66,6 @@ class FrameState(enum.IntEnum):
     MATCHED = 2  # every component matched and passing its checks
     REVIEWED = 3  # every component accepted by the user
     NEEDS_REVIEW = 4  # a component failed its checks (or could not be matched)
-
-
-def read_model(path, local_frame: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (mm, in the component's local frame) and faces of an implant mesh file: the
-    one reading of a model for the app, the command line and scripts. A mesh whose size
-    cannot be an implant in millimetres is refused; raises InputError naming the file."""
-    vertices, faces = load_mesh(path)
-    try:
-        check_plausible_mm(vertices)
-    except MeshError as exc:
-        raise InputError(path, str(exc)) from None
-    if local_frame is not None and not np.allclose(local_frame, np.eye(4)):
-        vertices = vertices @ local_frame[:3, :3].T + local_frame[:3, 3]
-    return vertices, faces
-
-
-#: a model may have this many edges bordering one triangle (or more than two) before it is
-#: taken for a triangle soup: the matcher takes every such edge as a silhouette candidate
-#: in every view, which made a 400,000-triangle soup need 15 GB
-MAX_OPEN_EDGES = 1000
-MAX_OPEN_EDGE_SHARE = 0.05
-
-
-def prepared_model(path, vertices: np.ndarray, faces: np.ndarray) -> PreparedMesh:
-    """A model read by ``read_model`` prepared for matching; raises InputError naming ``path``,
-    also for a model that is not a closed surface (more than ``MAX_OPEN_EDGES`` and
-    ``MAX_OPEN_EDGE_SHARE`` of its edges open: a real implant model has a few dozen)."""
-    try:
-        mesh = prepare_mesh(vertices, faces)
-    except MeshError as exc:
-        raise InputError(path, str(exc)) from None
-    open_edges, edges = len(mesh.open_edges), len(mesh.open_edges) + len(mesh.edges)
-    if open_edges > MAX_OPEN_EDGES and open_edges > MAX_OPEN_EDGE_SHARE * edges:
-        raise InputError(path, f"mesh is not a closed surface: {open_edges:,} of its {edges:,} edges border one "
-                               "triangle (or more than two); an implant model is closed (is it a triangle soup?)")
-    return mesh
 
 
 class Session(EditsMixin, WorkMixin, KneeMixin):
@@ -612,36 +574,6 @@ class Session(EditsMixin, WorkMixin, KneeMixin):
                     self._keep_rim_models(r.component, r.rim_settled)
         finally:
             self.history.end_macro()
-
-    # -- the images' rim models -----------------------------------------------------------------
-    def rim_models(self) -> dict[str, list[RimModel]]:
-        """Each component's rim models per view, as kept in the project.
-
-        The models (``core.outlines.rim.RimModel``: the metal's attenuation in 1/mm and the
-        images' blur in px) are judged in a component's first matched frames and kept in
-        ``project.settings["rim_models"]``, so that later matches and runs start from them
-        instead of fitting them again.
-
-        Returns
-        -------
-        dict of str to list of RimModel
-            By component, one model per view; components not judged yet (or whose entry
-            is damaged or has another number of views) are absent.
-        """
-        out = {}
-        for component, models in (self.project.settings.get(RIM_KEY) or {}).items():
-            try:
-                out[component] = [RimModel(float(m["mu"]), float(m["sigma"])) for m in models]
-            except (KeyError, TypeError, ValueError):
-                continue  # a damaged entry is judged again
-            if len(out[component]) != self.n_views:
-                del out[component]
-        return out
-
-    def _keep_rim_models(self, component: str, models: list) -> None:
-        kept = [{"mu": round(float(m.mu), 6), "sigma": round(float(m.sigma), 6)} for m in models]
-        if self.project.settings.get(RIM_KEY, {}).get(component) != kept:
-            self.project.settings.setdefault(RIM_KEY, {})[component] = kept
 
     # -- progress of the work --------------------------------------------------------------------
     def frame_state(self, frame: int) -> FrameState:

@@ -5,7 +5,8 @@ plain data taken on the caller's thread that can run anywhere (a worker thread, 
 process) and returns results without touching the session - and as a method that runs
 the job and stores its results (``match``, ``find``, ``track``). The desktop app runs the
 jobs in its worker thread and stores the results on the GUI thread; the command line and
-scripts call the methods. Same frame, same settings, same code: same pose.
+scripts call the methods. Same frame, same settings, same code: same pose. The images' rim
+models that the jobs start from are kept in the project (``rim_models``).
 """
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
+from fluorogui.core.outlines.rim import RimModel
 from fluorogui.core.projection.geometry import View
 from fluorogui.core.projection.mesh import PreparedMesh
 from fluorogui.core.search.find import Placement
@@ -68,8 +70,42 @@ class FindJob:
         return find_in_frame(self.frame, images, self.views, self.meshes, progress=progress, cancel=cancel)
 
 
+#: ``project.settings`` key of the components' rim models (``WorkMixin.rim_models``)
+RIM_KEY = "rim_models"
+
+
 class WorkMixin:
     """Match, find and track for ``Session`` (a mixin: uses its project and caches)."""
+
+    # -- the images' rim models -----------------------------------------------------------------
+    def rim_models(self) -> dict[str, list[RimModel]]:
+        """Each component's rim models per view, as kept in the project.
+
+        The models (``core.outlines.rim.RimModel``: the metal's attenuation in 1/mm and the
+        images' blur in px) are judged in a component's first matched frames and kept in
+        ``project.settings["rim_models"]``, so that later matches and runs start from them
+        instead of fitting them again.
+
+        Returns
+        -------
+        dict of str to list of RimModel
+            By component, one model per view; components not judged yet (or whose entry
+            is damaged or has another number of views) are absent.
+        """
+        out = {}
+        for component, models in (self.project.settings.get(RIM_KEY) or {}).items():
+            try:
+                out[component] = [RimModel(float(m["mu"]), float(m["sigma"])) for m in models]
+            except (KeyError, TypeError, ValueError):
+                continue  # a damaged entry is judged again
+            if len(out[component]) != self.n_views:
+                del out[component]
+        return out
+
+    def _keep_rim_models(self, component: str, models: list) -> None:
+        kept = [{"mu": round(float(m.mu), 6), "sigma": round(float(m.sigma), 6)} for m in models]
+        if self.project.settings.get(RIM_KEY, {}).get(component) != kept:
+            self.project.settings.setdefault(RIM_KEY, {})[component] = kept
 
     # -- helpers ---------------------------------------------------------------------------------
     def _components(self, components) -> list[str]:

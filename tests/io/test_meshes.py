@@ -112,7 +112,7 @@ def test_models_of_more_faces_than_the_matcher_takes_are_refused_before_reading(
 
 
 def test_a_triangle_soup_is_refused_and_a_real_model_is_not(tmp_path):
-    from fluorogui.workflow.session import MAX_OPEN_EDGES, prepared_model, read_model
+    from fluorogui.io.meshes.model import MAX_OPEN_EDGES, prepared_model, read_model
 
     rng = np.random.default_rng(0)
     triangles = rng.uniform(-30, 30, (MAX_OPEN_EDGES, 3, 3))  # no two share an edge: 3,000 open edges
