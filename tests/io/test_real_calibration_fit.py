@@ -30,6 +30,8 @@ def test_one_pose_fits_both_views_of_the_real_data(shared_data):
     result, _ = match_images(images, views, mesh, pose + np.array([3.0, -2.0, 2.0, 3.0, -2.0, 2.0]))
     assert result.converged
     px_mm = [v.mm_per_px() for v in views]
-    # measured 0.42 / 0.47 px and 0.0008 mm from the reference pose
+    # measured 0.43 / 0.47 px and 0.0063 mm from the reference pose (made by the matcher when it
+    # still retried steps below the objective's noise floor: 0.0008 mm then; its SDs here are
+    # 0.04-0.07 mm)
     assert all(m / p < 0.6 for m, p in zip(result.per_view_mean_mm, px_mm)), result.per_view_mean_mm
-    assert np.abs(result.pose[:3] - pose[:3]).max() < 0.0016
+    assert np.abs(result.pose[:3] - pose[:3]).max() < 0.013
