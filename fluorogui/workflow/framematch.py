@@ -279,31 +279,29 @@ class FrameMatcher:
         placement took well under one."""
         t = self.settings.tracking
         search = t.recover and t.find_near and self.find_near is not None and job.search
+        searches_first = search and job.gap > NEAR_FIRST_GAP
         if job.first is not None:
             yield "", np.asarray(job.first, dtype=float)
-        searches_first = search and job.gap > NEAR_FIRST_GAP
         if searches_first:
-            yield from self._searches(images, job, cancel)
+            yield from self._search(images, job, cancel, near=True)
+            yield from self._search(images, job, cancel, near=False)
         yield "", np.asarray(job.start, dtype=float)
         if not t.recover:
             return
         if job.fallback is not None and np.abs(np.asarray(job.fallback) - job.start).max() > 0.5:
             yield "last pose", np.asarray(job.fallback, dtype=float)
         if search and not searches_first:
-            yield from self._searches(images, job, cancel, turned_between=job.gap <= 2)
-        elif job.gap <= 2:
+            yield from self._search(images, job, cancel, near=True)
+        if job.gap <= 2:
             yield from self._turned_starts(job)
+        if search and not searches_first:
+            yield from self._search(images, job, cancel, near=False)
 
-    def _searches(self, images, job: ComponentInput, cancel, turned_between: bool = False):
-        """The search near the prediction, (optionally the turned starts,) then the whole image."""
-        pose = self.find_near(images, job.component, job.mesh, job.start, cancel)
+    def _search(self, images, job: ComponentInput, cancel, near: bool):
+        """*Find implants* near the prediction, or in the whole image: its placement, if any."""
+        pose = self.find_near(images, job.component, job.mesh, job.start if near else None, cancel)
         if pose is not None:
-            yield "find near the prediction", np.asarray(pose, dtype=float)
-        if turned_between:
-            yield from self._turned_starts(job)
-        pose = self.find_near(images, job.component, job.mesh, None, cancel)
-        if pose is not None:
-            yield "find implants", np.asarray(pose, dtype=float)
+            yield ("find near the prediction" if near else "find implants"), np.asarray(pose, dtype=float)
 
     def _turned_starts(self, job: ComponentInput):
         """A small miss between neighbouring frames: the prediction turned a little either
