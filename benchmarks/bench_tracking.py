@@ -249,8 +249,7 @@ def _knee_curves(session: Session, figure: Path | None) -> dict:
 
 def _body_spread(centroid, poses, window: int = 7) -> np.ndarray:
     """Per variable (centroid world x, y, z mm; turn about the model's own x, y, z deg), the
-    noise SD of a run of consecutive poses: residuals at the centres of a local quadratic fit
-    over ``window`` frames, scaled for the fit's own share (its centre weight 1/3 at 7)."""
+    noise SD of a run of consecutive poses (``_local_spread``)."""
     from scipy.spatial.transform import Rotation
 
     from fluorogui.core.projection.pose import rotation_matrix
@@ -258,13 +257,51 @@ def _body_spread(centroid, poses, window: int = 7) -> np.ndarray:
     R = [rotation_matrix(*p[3:]) for p in poses]
     mid = R[len(R) // 2]
     turn = np.array([np.degrees(Rotation.from_matrix(mid.T @ r).as_rotvec()) for r in R])  # model axes
-    values = np.hstack([np.array([r @ centroid + p[:3] for r, p in zip(R, poses)]), turn])
+    return _local_spread(np.hstack([np.array([r @ centroid + p[:3] for r, p in zip(R, poses)]), turn]), window)
+
+
+def _local_spread(values: np.ndarray, window: int = 7) -> np.ndarray:
+    """Per column of ``values`` (one row per consecutive frame), the noise SD left by a local
+    quadratic fit over ``window`` frames: residuals at the windows' centres, scaled for the
+    fit's own share (its centre weight, 1/3 at 7)."""
     half = window // 2
     x = np.arange(-half, half + 1, dtype=float)
-    V = np.vander(x, 3)
-    centre = np.linalg.lstsq(V, np.eye(window), rcond=None)[0][-1]  # the fit's value at the centre
+    centre = np.linalg.lstsq(np.vander(x, 3), np.eye(window), rcond=None)[0][-1]  # the fit's value at the centre
     residuals = [values[i] - centre @ values[i - half:i + half + 1] for i in range(half, len(values) - half)]
     return np.sqrt(np.mean(np.square(residuals), axis=0) / (1.0 - centre[half]))
+
+
+def _relative_sd_over_spread(session: Session, rows, first: int = 50, last: int = 69):
+    """Reported SD over frame-to-frame spread (local quadratic removed) of the femur relative
+    to the tibia on consecutive frames: their centroids' difference and the femur's turn,
+    both in the tibia's model axes. Motion of the whole knee (both bones move together
+    between frames) cancels here, which inflates each bone's own spread in world
+    coordinates. The SDs combine both bones' (independent errors; each SD taken along its
+    own axes, their covariances' off-diagonal terms left out)."""
+    from scipy.spatial.transform import Rotation
+
+    from fluorogui.core.projection.pose import rotation_matrix
+
+    by = {(r.frame, r.component): r for r in rows if r.status == "matched" and first <= r.frame <= last}
+    frames = [f for f in range(first, last + 1) if (f, "femoral") in by and (f, "tibial") in by]
+    if len(frames) < 9 or frames[-1] - frames[0] != len(frames) - 1:
+        return None
+    centroid = {c: session.mesh(c).centroid for c in COMPONENTS}
+    offsets, turns, sds = [], [], []
+    for f in frames:
+        fem, tib = by[(f, "femoral")], by[(f, "tibial")]
+        Rf, Rt = rotation_matrix(*fem.pose[3:]), rotation_matrix(*tib.pose[3:])
+        cf, ct = Rf @ centroid["femoral"] + fem.pose[:3], Rt @ centroid["tibial"] + tib.pose[:3]
+        offsets.append(Rt.T @ (cf - ct))
+        turns.append(Rt.T @ Rf)
+        sf, st = np.square(fem.match.sd_body), np.square(tib.match.sd_body)
+        Rrel = Rt.T @ Rf
+        shift = np.diag(Rt.T @ np.diag(sf[:3] + st[:3]) @ Rt)
+        turn = np.diag(Rrel @ np.diag(sf[3:]) @ Rrel.T) + st[3:]
+        sds.append(np.sqrt(np.r_[shift, turn]))
+    mid = turns[len(turns) // 2]
+    angles = np.array([np.degrees(Rotation.from_matrix(r @ mid.T).as_rotvec()) for r in turns])
+    return np.median(sds, axis=0) / _local_spread(np.hstack([np.array(offsets), angles]))
 
 
 def bench_batch(args) -> dict:
@@ -382,6 +419,11 @@ def bench_real(args) -> dict:
             print(f"  reported SD / spread (smooth motion removed) {c:8s} centroid x y z, turn about the model's "
                   "x y z: " + " ".join(f"{v:.2f}" for v in ratio) + "  (SD " + " ".join(f"{v:.3f}" for v in sd_body)
                   + "; spread " + " ".join(f"{v:.3f}" for v in spread) + ")")
+    relative = _relative_sd_over_spread(session, rows)
+    if relative is not None:
+        jitter["relative_sd_over_spread"] = relative.tolist()
+        print("  reported SD / spread of the femur relative to the tibia (motion of the whole knee cancels; "
+              "tibia axes) centroid x y z, turn x y z: " + " ".join(f"{v:.2f}" for v in relative))
     knee = _knee_curves(session, args.figure)
     print()
     return {"seconds": wall, **timing, **counts, "jitter": jitter, "reasons": reasons, "kinematics": knee}
