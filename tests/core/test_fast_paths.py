@@ -2,46 +2,47 @@
 
 Each shortcut is checked against the straightforward version it replaced, on the values
 themselves (bit for bit where the arithmetic is the same), so a speed-up cannot move a
-matched pose."""
+matched pose; the silhouette's drawing and snapping against what they promise."""
 import numpy as np
 
 from fluorogui.core.matching.fast import _polyline_normals, _times_skew
-from fluorogui.core.projection.silhouette import _band_samples, _edge_samples, _segments_near_band
+from fluorogui.core.projection.silhouette import _segment_cells, _snap
 
 
-def _random_segments(rng, n, size):
-    """Segments of 0-12 px (some off the canvas) on a (h, w) canvas at scale 2."""
-    a = rng.uniform(-10, np.array(size[::-1]) / 2 + 10, (n, 2))
-    b = a + rng.normal(0, 4, (n, 2))
-    b[: n // 10] = a[: n // 10]  # zero-length segments
-    return np.stack([a, b], axis=1)
-
-
-def test_band_prefilter_keeps_exactly_the_samples_of_all_segments():
+def test_segment_cells_are_eight_connected_from_end_to_end():
     rng = np.random.default_rng(3)
-    scale, origin = 2.0, np.array([-4.0, -2.5])
-    for trial in range(20):
-        h, w = 120 + trial, 150
-        band = np.zeros((h, w), np.uint8)
-        band[rng.integers(0, h, 40), rng.integers(0, w, 40)] = 1
-        band[h // 2, :] = 1  # a line across, so that long segments cross it
-        segs = _random_segments(rng, 400, (h, w)) + origin
-        P0, P1 = segs[:, 0], segs[:, 1]
-        n_sub = np.clip(np.ceil(np.sqrt(((P1 - P0) ** 2).sum(1)) / 2.0).astype(int), 1, 400)
-        every = np.arange(len(segs))
-        which = _segments_near_band(segs, band, origin, scale)
-        assert len(which) < len(segs)  # it does leave segments out
-        full, full_id = _band_samples(P0, P1, n_sub, band, origin, scale, every)
-        kept, kept_id = _band_samples(P0, P1, n_sub, band, origin, scale, which)
-        assert np.array_equal(full, kept) and np.array_equal(full_id, kept_id)
+    segments = np.stack([rng.uniform(5, 95, (300, 2)), rng.uniform(5, 95, (300, 2))], axis=1)
+    segments[:30, 1] = segments[:30, 0]  # zero-length segments
+    for i, seg in enumerate(segments):
+        drawn = _segment_cells(seg[None], (100, 100))
+        rows, cols = np.nonzero(drawn == 0)
+        ends = np.floor(seg + 0.5).astype(int)
+        assert drawn[ends[0, 1], ends[0, 0]] == 0 and drawn[ends[1, 1], ends[1, 0]] == 0
+        # walking from one end through 8-neighbours reaches every drawn cell
+        cells = set(zip(rows.tolist(), cols.tolist()))
+        todo, seen = [(ends[0, 1], ends[0, 0])], set()
+        while todo:
+            r, c = todo.pop()
+            if (r, c) in seen or (r, c) not in cells:
+                continue
+            seen.add((r, c))
+            todo += [(r + dr, c + dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1)]
+        assert seen == cells, i
+        # and no cell's centre lies farther than half a diagonal from the segment
+        p = np.column_stack([cols, rows]).astype(float)
+        d = seg[1] - seg[0]
+        lam = np.clip(((p - seg[0]) @ d) / max(d @ d, 1e-12), 0, 1)
+        assert np.linalg.norm(seg[0] + lam[:, None] * d - p, axis=1).max() <= np.sqrt(0.5) + 1e-9
 
 
-def test_edge_samples_run_end_to_end_every_two_px_at_most():
-    P0, P1 = np.array([[0.0, 0.0], [5.0, 5.0]]), np.array([[3.0, 4.0], [5.0, 5.0]])
-    n_sub = np.clip(np.ceil(np.linalg.norm(P1 - P0, axis=1) / 2.0).astype(int), 1, 400)
-    samples, seg_id = _edge_samples(P0, P1, n_sub, np.arange(2))
-    assert seg_id.tolist() == [0, 0, 0, 0, 1, 1]
-    assert np.allclose(samples[:4], [[0, 0], [1, 4 / 3], [2, 8 / 3], [3, 4]])
+def test_snap_takes_the_nearest_candidate_segment_and_skips_empty_cells():
+    P0 = np.array([[0.0, 0.0], [0.0, 1.0], [5.0, 5.0]])
+    P1 = np.array([[10.0, 0.0], [10.0, 1.0], [6.0, 5.0]])
+    pts = np.array([[3.0, 0.2], [4.0, 0.9], [5.5, 4.0]])
+    cand = np.array([[-1, 0, 1], [0, -1, 1], [2, -1, -1]])
+    seg, lam, at = _snap(pts, cand, P0, P1)
+    assert seg.tolist() == [0, 1, 2]
+    assert np.allclose(at, [[3.0, 0.0], [4.0, 1.0], [5.5, 5.0]]) and np.allclose(lam, [0.3, 0.4, 0.5])
 
 
 def test_polyline_normals_at_indices_are_the_full_ones_there():

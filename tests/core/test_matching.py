@@ -31,9 +31,10 @@ def test_fast_recovers_the_pose_from_perturbed_starts(mesh_fn):
         res = match(problem, start, MatchSettings(method="fast"))
         err = pose_difference(res.pose, TRUTH)
         assert res.converged, res.message
-        # exact outlines: measured at most 0.00067 mm, 0.0020 deg, objective 0.0015 mm (one start of
-        # the femur's four; the rest within 0.0001 mm, 0.0005 deg)
-        assert np.all(np.abs(err[:3]) < 0.0014) and np.all(np.abs(err[3:]) < 0.004), err
+        # exact outlines: measured at most 0.00069 mm, 0.0046 deg, objective 0.0023 mm (one start of
+        # the femur's four, stopped at the objective's noise floor; the rest within 0.0004 mm,
+        # 0.0020 deg; before the silhouette's cell drawing 0.00067 mm, 0.0020 deg)
+        assert np.all(np.abs(err[:3]) < 0.0014) and np.all(np.abs(err[3:]) < 0.0092), err
         assert res.objective_mm < 0.003 and len(res.per_view_mean_mm) == 2
         assert res.method == "fast" and res.calls > 1 and res.seconds > 0
 
@@ -59,11 +60,13 @@ def test_paper_method_improves_on_the_start_and_reports_its_record():
     assert res.objective_mm < calls[0][1]
     # not converged, and it says why
     assert not res.converged and res.message == "call limit reached" and res.calls == 300
-    # what it achieves: the objective 5.30 -> 1.03 mm (0.55 / 0.48 per view); translation
-    # 0.23 / 0.34 / 0.33 mm; angles 2.51 / 0.53 / 0.87 deg (from 3 / 2 / 2)
-    assert calls[0][1] > 5.0 and res.objective_mm < 2.06, (calls[0][1], res.objective_mm)
-    assert np.all(error[:3] < 0.68), error
-    assert np.all(error[3:] < np.minimum(start_error[3:], [5.0, 1.07, 1.74])), error
+    # what it achieves: the objective 5.30 -> 0.95 mm (0.45 / 0.50 per view); translation
+    # 0.34 / 0.14 / 0.12 mm; angles 0.87 / 1.19 / 1.03 deg (from 3 / 2 / 2). Its path through
+    # the non-smooth objective moves with the exact outlines' sampling: before the
+    # silhouette's cell drawing 0.23 / 0.34 / 0.33 mm and 2.51 / 0.53 / 0.87 deg
+    assert calls[0][1] > 5.0 and res.objective_mm < 1.9, (calls[0][1], res.objective_mm)
+    assert np.all(error[:3] < 0.69), error
+    assert np.all(error[3:] < np.minimum(start_error[3:], [1.74, 2.38, 2.06])), error
 
 
 @pytest.mark.parametrize("method", ["fast", "paper"])

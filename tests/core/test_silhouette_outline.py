@@ -42,6 +42,52 @@ def test_silhouette_points_carry_their_model_points():
     assert len(sub.points_px) == 60
 
 
+def _filled_outline(mesh, R, t, view, cells_per_px: int = 16) -> np.ndarray:
+    """An outline made without the silhouette code: the outer contour of every projected
+    triangle filled at ``cells_per_px`` (its cell centres, so within ~1/32 px of the edge)."""
+    import cv2
+
+    uv = view.project(mesh.vertices @ R.T + t)
+    origin = uv.min(0) - 2
+    size = np.ceil((uv.max(0) - origin + 2) * cells_per_px).astype(int)
+    canvas = np.zeros((size[1], size[0]), np.uint8)
+    cv2.fillPoly(canvas, list(np.round((uv[mesh.faces] - origin) * cells_per_px * 16).astype(np.int32)), 1,
+                 cv2.LINE_8, 4)
+    contours, _ = cv2.findContours(canvas, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    return (max(contours, key=len)[:, 0, :] + 0.5) / cells_per_px + origin
+
+
+def _distance_to_polyline(points, polyline):
+    from scipy.spatial import cKDTree
+
+    nearest = cKDTree(polyline).query(points, k=4)[1]
+    best = np.full(len(points), np.inf)
+    for a, b in ((polyline, np.roll(polyline, -1, 0)), (np.roll(polyline, 1, 0), polyline)):
+        for j in range(4):
+            p0, d = a[nearest[:, j]], b[nearest[:, j]] - a[nearest[:, j]]
+            lam = np.clip(np.sum((points - p0) * d, 1) / np.maximum(np.sum(d * d, 1), 1e-12), 0, 1)
+            best = np.minimum(best, np.linalg.norm(p0 + lam[:, None] * d - points, axis=1))
+    return best
+
+
+def test_silhouette_lies_on_the_outline_of_the_filled_triangles():
+    mesh = prepare_mesh(*femoral_component_mesh())
+    view = _view()
+    rng = np.random.default_rng(0)
+    distances = []
+    for _ in range(4):
+        pose = np.r_[rng.normal(0, 5, 3), rng.uniform(-40, 40, 3)]
+        R = rotation_matrix(*pose[3:])
+        reference = _filled_outline(mesh, R, pose[:3], view)
+        for spacing in (None, 2.0):
+            outline = mesh_silhouette(mesh, R, pose[:3], view, spacing_px=spacing).points_px
+            distances.append(_distance_to_polyline(outline, reference))
+    d = np.concatenate(distances)
+    # measured mean 0.029 px (mostly the reference's own cells), 99 % within 0.078 px,
+    # largest 0.28 px (where an inner silhouette edge meets the outer one)
+    assert d.mean() < 0.058 and np.percentile(d, 99) < 0.156 and d.max() < 0.56, (d.mean(), d.max())
+
+
 def test_grid_outline_of_a_disc_lies_just_inside_it():
     rng = np.random.default_rng(0)
     th, r = rng.uniform(0, 2 * np.pi, 20000), 100 * np.sqrt(rng.uniform(0, 1, 20000))
