@@ -298,10 +298,10 @@ def _relative_sd_over_spread(session: Session, rows, first: int = 50, last: int 
         fem, tib = by[(f, "femoral")], by[(f, "tibial")]
         Rf, Rt = rotation_matrix(*fem.pose[3:]), rotation_matrix(*tib.pose[3:])
         cf, ct = Rf @ centroid["femoral"] + fem.pose[:3], Rt @ centroid["tibial"] + tib.pose[:3]
+        Rrel = Rt.T @ Rf  # the femur's orientation in the tibia's axes
         offsets.append(Rt.T @ (cf - ct))
-        turns.append(Rt.T @ Rf)
+        turns.append(Rrel)
         sf, st = np.square(fem.match.sd_body), np.square(tib.match.sd_body)
-        Rrel = Rt.T @ Rf
         shift = np.diag(Rt.T @ np.diag(sf[:3] + st[:3]) @ Rt)
         turn = np.diag(Rrel @ np.diag(sf[3:]) @ Rrel.T) + st[3:]
         sds.append(np.sqrt(np.r_[shift, turn]))
