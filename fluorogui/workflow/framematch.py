@@ -8,7 +8,8 @@ view (``_hidden``: a component partly out of view is matched on what is visible)
 every quality check (``core.matching.quality``). A frame that fails a
 check is not given up at once: other starts are tried - the last matched pose when the
 prediction extrapolated, a search near the prediction (*find implants*; first, before the
-prediction itself, when the last match is several frames back), the prediction
+prediction itself, when the last match is several frames back, and then near where the
+images located the component: ``ComponentInput.located``), the prediction
 turned by a few degrees about the recent motion axis (between neighbouring frames), and
 a search of the whole image - and the best result is kept (recovery starts run a
 shorter loop). Whatever fails its checks in the end is returned as
@@ -71,6 +72,7 @@ class ComponentInput:
     predicted: bool = True  # ``start`` predicts the pose (tracking): far from it is suspect; a hand placement is not
     search: bool = True  # recovery may search with *find implants* (off where that was tried already)
     first: np.ndarray | None = None  # a start tried before ``start``: this frame's own earlier match
+    located: np.ndarray | None = None  # at a jump: ``start`` moved to where the images put the component; searched near
 
 
 def occlusion_masks(views: Sequence[View], others: Sequence[tuple[PreparedMesh, np.ndarray]], near: np.ndarray | None,
@@ -133,8 +135,9 @@ class FrameMatcher:
 
     def _frame_state(self, images) -> dict:
         """What is worked out once per frame, for this set of images: "fields" (their
-        fields of view) and "rims" (component -> a matched attempt's rim models). Holding
-        the images keeps their ids unique while they are compared by identity."""
+        fields of view), "rims" (component -> a matched attempt's rim models) and "searches"
+        ((component, centre) -> a search's placement). Holding the images keeps their ids
+        unique while they are compared by identity."""
         held = self._frame
         if held is None or len(held[0]) != len(images) or any(a is not b for a, b in zip(held[0], images)):
             held = self._frame = (list(images), {"rims": {}})
@@ -298,8 +301,17 @@ class FrameMatcher:
             yield from self._search(images, job, cancel, near=False)
 
     def _search(self, images, job: ComponentInput, cancel, near: bool):
-        """*Find implants* near the prediction, or in the whole image: its placement, if any."""
-        pose = self.find_near(images, job.component, job.mesh, job.start if near else None, cancel)
+        """*Find implants* near the prediction (where the images located the component, at a
+        jump), or in the whole image: its placement, if any. A search sees no masks, so one
+        already made in this frame (a second round) is not made again."""
+        centre = None
+        if near:
+            centre = np.asarray(job.located if job.located is not None else job.start, float)
+        made = self._frame_state(images).setdefault("searches", {})
+        key = (job.component, None if centre is None else centre.tobytes())
+        if key not in made:
+            made[key] = self.find_near(images, job.component, job.mesh, centre, cancel)
+        pose = made[key]
         if pose is not None:
             yield ("find near the prediction" if near else "find implants"), np.asarray(pose, dtype=float)
 
@@ -341,6 +353,9 @@ class FrameMatcher:
                     earlier = results[job.component]
                     again = replace(job, first=earlier.pose) if earlier.status == Status.MATCHED else job
                     results[job.component] = self._match_masked(frame, images, again, known, masked_with, cancel)
+                    # the component's time and attempts in this frame: both rounds
+                    results[job.component].seconds += earlier.seconds
+                    results[job.component].attempts += earlier.attempts
                     if results[job.component].status != Status.FAILED:
                         known[job.component] = (job.mesh, results[job.component].pose)
         return results

@@ -6,8 +6,10 @@ caller's thread; ``run`` can then go on in a worker thread or another process. F
 frame it predicts every component from the frames matched so far (``MotionModel``),
 matches all components together with each other's projections masked
 (``FrameMatcher``), checks every result and recovers what fails (other starts, a search
-near the prediction). A frame that still fails is ``needs_review`` (or ``failed`` when no
-outline could be traced or an image is missing) and tracking goes on: the prediction then
+near the prediction; across a jump of several frames, near where the component's image
+from its last matched frame lies now: ``core.search.relocate``). A frame that still fails
+is ``needs_review`` (or ``failed`` when no outline could be traced or an image is missing)
+and tracking goes on: the prediction then
 comes from the last frames that did match. A component with nothing to start from is
 searched for (*find implants*) in the frame, again in every following frame until it is
 found.
@@ -38,11 +40,12 @@ from fluorogui.core.projection.geometry import View
 from fluorogui.core.projection.mesh import PreparedMesh
 from fluorogui.core.projection.pose import angles_from_matrix, rotation_matrix
 from fluorogui.core.records import PoseRecord
+from fluorogui.core.search.relocate import relocated_centroid, with_centroid
 from fluorogui.core.status import Status
 from fluorogui.io.corrections import read_view_image
 from fluorogui.io.errors import InputError
 from fluorogui.workflow.finding import find_in_frame, near_search
-from fluorogui.workflow.framematch import ComponentInput, FrameMatcher, better_result
+from fluorogui.workflow.framematch import NEAR_FIRST_GAP, ComponentInput, FrameMatcher, better_result
 from fluorogui.workflow.results import FrameResult
 from fluorogui.workflow.settings import WorkflowSettings
 
@@ -68,6 +71,8 @@ class TrackJob:
     find: bool = True  # search for components with no anchor and no start
     image_counts: list[int] = field(default_factory=list)  # images per camera, for messages
     rim: dict = field(default_factory=dict)  # component -> rim models per view judged before (the project's)
+    # the latest frames' images (frame -> images): a jump's relocation compares the last matched one's
+    _recent: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def run(self, progress: TrackProgress | None = None,
             cancel: Callable[[], bool] | None = None) -> Iterator[FrameResult]:
@@ -208,7 +213,8 @@ class TrackJob:
                                              f"{p.reason}", seconds=time.perf_counter() - t0, failed=["find"])
             todo = [c for c in todo if c not in results]
         fixed = {c: (self.meshes[c], r.pose) for c, r in results.items() if r.kept and r.pose is not None}
-        jobs = [self._input(c, frame, motion, residuals, starts, probe=c not in found_here) for c in todo]
+        jobs = [self._input(c, frame, motion, residuals, starts, probe=c not in found_here, images=images)
+                for c in todo]
         found = matcher.match_frame(frame, images, jobs, fixed, cancel)
         for c in todo:
             results[c] = found[c]
@@ -216,14 +222,19 @@ class TrackJob:
         return results
 
     def _images(self, frame: int) -> list[np.ndarray]:
-        return read_frame_images(frame, self.image_paths.get(frame, []), len(self.views), self.image_counts,
-                                 self.views)
+        """The frame's images; the latest three frames' are kept (a jump compares the last matched one's)."""
+        if frame not in self._recent:
+            self._recent[frame] = read_frame_images(frame, self.image_paths.get(frame, []), len(self.views),
+                                                    self.image_counts, self.views)
+            while len(self._recent) > 3:
+                self._recent.pop(next(iter(self._recent)))
+        return self._recent[frame]
 
     def _predicted(self, c, frame, motion, starts) -> np.ndarray | None:
         p = motion[c].predict(frame)
         return p if p is not None else starts.get(c)
 
-    def _input(self, c, frame, motion, residuals, starts, probe: bool = True) -> ComponentInput:
+    def _input(self, c, frame, motion, residuals, starts, probe: bool = True, images=None) -> ComponentInput:
         m = motion[c]
         start = starts.get(c) if len(m) == 0 else m.predict(frame)
         last = m.last(before=frame)
@@ -234,8 +245,21 @@ class TrackJob:
         gap = frame - before[-1] if before else 1
         # a matched frame before tells orientations apart (a flip would be a jump from it), and
         # find implants checks its own placements for one; a start placed by hand is probed
+        located = None
+        if images is not None and before and gap > NEAR_FIRST_GAP:
+            located = self._located(c, before[-1], last, start, images)
         return ComponentInput(c, self.meshes[c], np.asarray(start, float), last, self.given.get((frame, c)),
-                              typical, _recent_axis(m, frame), gap, probe=probe and not before)
+                              typical, _recent_axis(m, frame), gap, probe=probe and not before, located=located)
+
+    def _located(self, c: str, last_frame: int, last_pose, start, images) -> np.ndarray | None:
+        """The prediction ``start`` moved to where ``c``'s image in ``last_frame`` (matched
+        at ``last_pose``) lies in ``images``; None when the images do not tell."""
+        try:
+            earlier = self._images(last_frame)
+        except InputError:
+            return None
+        centroid = relocated_centroid(earlier, images, self.views, self.meshes[c], last_pose)
+        return None if centroid is None else with_centroid(start, self.meshes[c], centroid)
 
 
 def read_frame_images(frame: int, paths: Sequence[Path | None], n_views: int,

@@ -1,8 +1,10 @@
 """Which starts recovery tries, in which order: after a jump of several frames the searches
 come first (the prediction extrapolates further than the motion was seen); between
 neighbouring frames the prediction, the last pose, the search near the prediction, the
-turned starts and the whole-image search, as before. A component matched again because
-the other one moved far from its mask starts from its own first match."""
+turned starts and the whole-image search, as before. After a jump the search near the
+prediction looks where the images located the component, when they did. A component
+matched again because the other one moved far from its mask starts from its own first
+match, without searching again, and its time counts both rounds."""
 from __future__ import annotations
 
 from types import SimpleNamespace
@@ -20,6 +22,7 @@ VIEWS = two_views(image_size=(512, 512), pitch=315.0 / 512)
 PREDICTED = np.array([0.0, 0.0, 0.0, 10.0, 0.0, 0.0])
 LAST = np.array([3.0, 0.0, 0.0, 5.0, 0.0, 0.0])
 NEAR, WHOLE = np.full(6, 1.0), np.full(6, 2.0)
+IMAGES = [np.zeros((4, 4)), np.zeros((4, 4))]
 
 
 def _labels(gap: int, found=(NEAR, WHOLE)) -> tuple[list[str], list]:
@@ -29,7 +32,7 @@ def _labels(gap: int, found=(NEAR, WHOLE)) -> tuple[list[str], list]:
     matcher = FrameMatcher(VIEWS, WorkflowSettings(), find_near)
     job = ComponentInput("tibial", SimpleNamespace(centroid=np.zeros(3)), PREDICTED, LAST, gap=gap,
                          axis=np.array([0.0, 0.0, 1.0]))
-    starts = list(matcher._starts(None, job, None))
+    starts = list(matcher._starts(IMAGES, job, None))
     return [label for label, _ in starts], starts
 
 
@@ -58,7 +61,7 @@ def test_starts_are_worked_out_only_when_the_ones_before_failed():
 
     matcher = FrameMatcher(VIEWS, WorkflowSettings(), find_near)
     job = ComponentInput("tibial", SimpleNamespace(centroid=np.zeros(3)), PREDICTED, LAST, gap=5)
-    starts = matcher._starts(None, job, None)
+    starts = matcher._starts(IMAGES, job, None)
     assert next(starts)[0] == "find near the prediction" and searched == [True]  # the whole image not yet
 
 
@@ -71,15 +74,77 @@ def test_a_second_round_starts_from_the_first_match(monkeypatch):
     def match_component(self, frame, images, job, occluded=None, cancel=None):
         seen.append((job.component, None if job.first is None else job.first.copy(), job.start.copy()))
         pose = job.start + (5.0 if job.component == "tibial" else 0.5)
-        return FrameResult(frame, job.component, pose, Status.MATCHED, "")
+        return FrameResult(frame, job.component, pose, Status.MATCHED, "", seconds=0.25, attempts=1)
 
     monkeypatch.setattr(FrameMatcher, "match_component", match_component)
     monkeypatch.setattr(framematch, "occlusion_masks", lambda *a, **k: [np.zeros((4, 4), bool)] * 2)
     mesh = SimpleNamespace(centroid=np.zeros(3), radius=30.0)
     jobs = [ComponentInput("femoral", mesh, np.zeros(6)), ComponentInput("tibial", mesh, np.ones(6))]
-    FrameMatcher(VIEWS, WorkflowSettings()).match_frame(0, None, jobs)
+    results = FrameMatcher(VIEWS, WorkflowSettings()).match_frame(0, None, jobs)
+    assert (results["femoral"].seconds, results["femoral"].attempts) == (0.5, 2)  # both rounds
     # (the femur ended 0.5 mm / deg from where the tibia was masked with it: no second round there)
     assert [c for c, _, _ in seen] == ["femoral", "tibial", "femoral"]
     assert seen[0][1] is None and seen[2][1] is not None
     np.testing.assert_allclose(seen[2][1], np.full(6, 0.5))  # the first round's match
     np.testing.assert_allclose(seen[2][2], np.zeros(6))  # the prediction, for the jump check
+
+
+def test_after_a_jump_the_search_looks_where_the_images_located_it():
+    searched = []
+
+    def find_near(images, component, mesh, pose, cancel=None):
+        searched.append(None if pose is None else pose.copy())
+        return NEAR
+
+    located = PREDICTED + np.array([30.0, -20.0, 5.0, 0.0, 0.0, 0.0])
+    job = ComponentInput("tibial", SimpleNamespace(centroid=np.zeros(3)), PREDICTED, LAST, gap=5, located=located)
+    starts = FrameMatcher(VIEWS, WorkflowSettings(), find_near)._starts(IMAGES, job, None)
+    assert next(starts)[0] == "find near the prediction"
+    np.testing.assert_array_equal(searched[0], located)
+
+
+def test_a_search_is_made_once_per_frame():
+    """A search sees no masks: a second round in the same frame gets the first one's placements."""
+    searched = []
+
+    def find_near(images, component, mesh, pose, cancel=None):
+        searched.append(pose is not None)
+        return None  # nothing placed: every start after the searches is tried
+
+    matcher = FrameMatcher(VIEWS, WorkflowSettings(), find_near)
+    job = ComponentInput("tibial", SimpleNamespace(centroid=np.zeros(3)), PREDICTED, LAST, gap=5)
+    for _ in range(2):
+        assert [label for label, _ in matcher._starts(IMAGES, job, None)] == ["", "last pose"]
+    assert searched == [True, False]
+    list(matcher._starts([np.zeros((4, 4)), np.zeros((4, 4))], job, None))  # another frame's images
+    assert searched == [True, False, True, False]
+
+
+def test_tracking_locates_a_component_after_a_jump_only(monkeypatch):
+    """Tracking hands the matcher the prediction moved to where the images put the
+    component's centroid (``core.search.relocate``), compared with the images of its last
+    matched frame, and only across a jump; the images read are kept for that."""
+    from fluorogui.workflow import tracking
+
+    reads, compared = [], []
+    monkeypatch.setattr(tracking, "read_frame_images",
+                        lambda frame, *a, **k: reads.append(frame) or [np.full((4, 4), frame, float)] * 2)
+
+    def relocated(before, after, views, mesh, pose):
+        compared.append((before[0][0, 0], after[0][0, 0]))
+        return np.array([10.0, 20.0, 30.0])
+
+    monkeypatch.setattr(tracking, "relocated_centroid", relocated)
+    mesh = SimpleNamespace(centroid=np.zeros(3))
+    job = tracking.TrackJob(VIEWS, {"tibial": mesh}, [0, 1, 20], {}, ["tibial"], WorkflowSettings())
+    motion = {"tibial": tracking.MotionModel(mesh.centroid)}
+    for frame in (0, 1):
+        motion["tibial"].add(frame, np.array([float(frame), 0, 0, 0, 0, 0]))
+        job._images(frame)
+    residuals = {"tibial": []}
+    near = job._input("tibial", 2, motion, residuals, {}, images=job._images(2))
+    far = job._input("tibial", 20, motion, residuals, {}, images=job._images(20))
+    assert near.located is None and far.located is not None
+    np.testing.assert_allclose(far.located, [10.0, 20.0, 30.0, 0.0, 0.0, 0.0])  # the prediction's turn kept
+    assert compared == [(1.0, 20.0)]  # the last matched frame's images against this one's
+    assert reads == [0, 1, 2, 20]  # frame 1's from memory
