@@ -16,7 +16,7 @@ import numpy as np
 
 from fluorogui.core.projection.geometry import View
 from fluorogui.core.projection.mesh import PreparedMesh
-from fluorogui.core.search.find import Placement, find_components
+from fluorogui.core.search.find import Placement, find_components, near_candidates
 
 
 def find_in_frame(frame: int, images: Sequence[np.ndarray], views: Sequence[View], meshes: dict[str, PreparedMesh],
@@ -40,17 +40,20 @@ def find_in_frame(frame: int, images: Sequence[np.ndarray], views: Sequence[View
 
 
 def near_search(views: Sequence[View], settings=None):
-    """A ``find_near(images, component, mesh, pose, cancel) -> pose or None`` for recovery
-    (None when ``settings.tracking.find_near`` is off): the search limited to around the
-    predicted pose (the whole image when ``pose`` is None). A placement the search is not
-    confident of is still returned: the match from it is judged by its own checks."""
+    """A ``find_near(images, component, mesh, pose, cancel) -> poses, pose or None`` for
+    recovery (None when ``settings.tracking.find_near`` is off). Near a predicted ``pose``:
+    the search's candidates, best first (``near_candidates``: without its Canny fit, which
+    the match from each makes). With ``pose`` None, a search of the whole image: its
+    placement, which is returned even when the search is not confident of it (the match
+    from it is judged by its own checks)."""
     if settings is not None and not settings.tracking.find_near:
         return None
 
     def find_near(images, component: str, mesh: PreparedMesh, pose, cancel=None):
-        near = None if pose is None else {component: pose}
         try:
-            found = find_components(list(images), list(views), {component: mesh}, near=near, cancel=cancel)
+            if pose is not None:
+                return near_candidates(list(images), list(views), mesh, pose, cancel) or None
+            found = find_components(list(images), list(views), {component: mesh}, cancel=cancel)
         except ValueError:  # Cancelled passes through to the caller
             return None
         p = found.get(component)

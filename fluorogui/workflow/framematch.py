@@ -123,7 +123,7 @@ class FrameMatcher:
                  rim: dict[str, list] | None = None) -> None:
         self.views = list(views)
         self.settings = settings or WorkflowSettings()
-        # find_near(images, component, mesh, pose or None (a search of the whole image), cancel) -> pose or None
+        # find_near(images, component, mesh, pose or None (the whole image), cancel) -> pose, poses or None
         self.find_near = find_near
         self.live = live  # live(component, calls, objective_mm, pose) at every step of a match
         # each component's rim models per view (core.rim): judged in its first matched frames, then
@@ -311,9 +311,9 @@ class FrameMatcher:
         key = (job.component, None if centre is None else centre.tobytes())
         if key not in made:
             made[key] = self.find_near(images, job.component, job.mesh, centre, cancel)
-        pose = made[key]
-        if pose is not None:
-            yield ("find near the prediction" if near else "find implants"), np.asarray(pose, dtype=float)
+        placed = made[key]  # a pose, poses best first, or None
+        for pose in [] if placed is None or len(placed) == 0 else np.atleast_2d(np.asarray(placed, dtype=float)):
+            yield ("find near the prediction" if near else "find implants"), pose
 
     def _turned_starts(self, job: ComponentInput):
         """A small miss between neighbouring frames: the prediction turned a little either

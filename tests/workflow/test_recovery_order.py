@@ -44,6 +44,12 @@ def test_after_a_jump_the_searches_come_first():
     # a search that places nothing is passed over
     labels, _ = _labels(NEAR_FIRST_GAP + 1, found=(None, WHOLE))
     assert labels == ["find implants", "", "last pose"]
+    # a near search's candidates (best first) are starts in turn
+    labels, starts = _labels(NEAR_FIRST_GAP + 1, found=([NEAR, NEAR + 1.0], WHOLE))
+    assert labels == ["find near the prediction"] * 2 + ["find implants", "", "last pose"]
+    np.testing.assert_array_equal(starts[1][1], NEAR + 1.0)
+    labels, _ = _labels(NEAR_FIRST_GAP + 1, found=([], WHOLE))
+    assert labels == ["find implants", "", "last pose"]
 
 
 def test_between_neighbouring_frames_the_prediction_comes_first():

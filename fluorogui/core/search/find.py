@@ -455,6 +455,28 @@ class _Rounds:
         return self._rounds[k]
 
 
+def _near(lib, views, maps, mesh, pose, steps: _Steps, span: float) -> list[_Candidate]:
+    """The candidates about a predicted ``pose``: orientations within ``NEAR_DEG``, 64 px either way."""
+    pose = np.asarray(pose, float)
+    R0 = rotation_matrix(*pose[3:])
+    centre = R0 @ mesh.centroid + pose[:3]
+    return _candidates(lib, views, maps, [centre], near_rotations(R0), ss.shift_grid(64, 16), 4, steps, 0.0, span)
+
+
+def near_candidates(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMesh, pose,
+                    cancel: Callable[[], bool] | None = None) -> list[np.ndarray]:
+    """Tracking recovery's search near a predicted ``pose``: the poses ``find_components``
+    would fit on Canny outlines (the best candidate whose edges fit, and a runner-up within
+    ``CLOSE_SCORE``), best first, without that fit and its verdict - recovery matches from
+    each and judges the match itself, so the fit would be made twice. Empty when nothing
+    near fits its outline."""
+    steps = _Steps(None, cancel, 1)
+    maps = [ss.EdgeMaps(image, field_of_view(image)) for image in images]
+    cands = [c for c in _near(ss.shape_library(mesh), views, maps, mesh, pose, steps, 1.0)
+             if c.score >= MIN_CANDIDATE_SCORE and min(c.scores) >= MIN_EDGE_SCORE]
+    return [c.pose(mesh) for c in cands[:2] if c.score >= cands[0].score - CLOSE_SCORE]
+
+
 def _find_one(name, mesh, images, views, maps, rounds, near_pose, steps: _Steps, occupied) -> Placement:
     """Near a predicted pose, or from the position hypotheses: ``rounds`` are lists of
     hypotheses tried in turn until the component is found; hypotheses closer than half
@@ -463,10 +485,7 @@ def _find_one(name, mesh, images, views, maps, rounds, near_pose, steps: _Steps,
     t0 = time.perf_counter()
     lib = ss.shape_library(mesh)
     if near_pose is not None:
-        near_pose = np.asarray(near_pose, float)
-        R0 = rotation_matrix(*near_pose[3:])
-        centres = [R0 @ mesh.centroid + near_pose[:3]]
-        cands = _candidates(lib, views, maps, centres, near_rotations(R0), ss.shift_grid(64, 16), 4, steps, 0.0, 0.5)
+        cands = _near(lib, views, maps, mesh, near_pose, steps, 0.5)
         return _conclude(name, mesh, lib, images, views, maps, cands, steps, t0, " near the predicted pose")
     best, seen = None, False
     for r, hypotheses in enumerate(rounds):
