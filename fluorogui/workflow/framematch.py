@@ -39,6 +39,7 @@ from fluorogui.core.projection.mesh import PreparedMesh
 from fluorogui.core.projection.pose import angles_from_matrix, motion_between, rotation_matrix
 from fluorogui.core.projection.silhouette import projected_region
 from fluorogui.core.status import Status
+from fluorogui.core.threads import each_view
 from fluorogui.workflow import messages
 from fluorogui.workflow.results import FrameResult
 from fluorogui.workflow.settings import WorkflowSettings
@@ -82,19 +83,19 @@ def occlusion_masks(views: Sequence[View], others: Sequence[tuple[PreparedMesh, 
     (and None overall when no view needs a mask)."""
     placed = [(other_mesh, rotation_matrix(*np.asarray(pose, dtype=float)[3:]), np.asarray(pose, dtype=float)[:3])
               for other_mesh, pose in others]
-    out: list[np.ndarray | None] = []
-    for view in views:
+
+    def one(view: View) -> np.ndarray | None:
         mask = projected_region(view, placed, margin_px)
         if not mask.any():
-            out.append(None)
-            continue
+            return None
         if near is not None and mesh is not None:
             lo, hi = _projected_box(mesh, near, view)
             box = mask[max(lo[1] - 20, 0):max(hi[1] + 20, 0), max(lo[0] - 20, 0):max(hi[0] + 20, 0)]
             if not box.any():
-                out.append(None)
-                continue
-        out.append(mask)
+                return None
+        return mask
+
+    out = each_view(one, views)  # the views side by side
     return out if any(m is not None for m in out) else None
 
 
@@ -218,8 +219,9 @@ class FrameMatcher:
         light = replace(self.settings.loop, max_passes=min(3, self.settings.loop.max_passes))
         for label, start in self._starts(images, job, cancel):
             check_cancel(cancel)
-            # recovery starts get a shorter loop: most of them lead nowhere
-            candidate = self.attempt(images, job, start, occluded, cancel, None if not label else light)
+            # only the first start runs the whole loop: recovery starts (every later one, the
+            # prediction too after a jump's searches) get a shorter one, most lead nowhere
+            candidate = self.attempt(images, job, start, occluded, cancel, None if tried == 0 and not label else light)
             tried += 1
             if best is None or better_result(candidate, best):
                 best = candidate
@@ -279,15 +281,18 @@ class FrameMatcher:
         searches come first (near the prediction, then the whole image): on the real
         sequence's 10-20 frame jumps, full loops from the prediction and from the last pose
         failed in most such frames and cost 1-4 s, where a search and a match from its
-        placement took well under one."""
+        placement took well under one. When the images located the component
+        (``ComponentInput.located``) and the search there placed it, the whole image is not
+        searched: it would show the same place."""
         t = self.settings.tracking
         search = t.recover and t.find_near and self.find_near is not None and job.search
         searches_first = search and job.gap > NEAR_FIRST_GAP
         if job.first is not None:
             yield "", np.asarray(job.first, dtype=float)
         if searches_first:
-            yield from self._search(images, job, cancel, near=True)
-            yield from self._search(images, job, cancel, near=False)
+            placed = yield from self._search(images, job, cancel, near=True)
+            if not (placed and job.located is not None):  # (else the whole image shows the same place)
+                yield from self._search(images, job, cancel, near=False)
         yield "", np.asarray(job.start, dtype=float)
         if not t.recover:
             return
@@ -302,8 +307,9 @@ class FrameMatcher:
 
     def _search(self, images, job: ComponentInput, cancel, near: bool):
         """*Find implants* near the prediction (where the images located the component, at a
-        jump), or in the whole image: its placement, if any. A search sees no masks, so one
-        already made in this frame (a second round) is not made again."""
+        jump), or in the whole image: its placements, if any (returns whether there were).
+        A search sees no masks, so one already made in this frame (a second round) is not
+        made again."""
         centre = None
         if near:
             centre = np.asarray(job.located if job.located is not None else job.start, float)
@@ -312,8 +318,10 @@ class FrameMatcher:
         if key not in made:
             made[key] = self.find_near(images, job.component, job.mesh, centre, cancel)
         placed = made[key]  # a pose, poses best first, or None
-        for pose in [] if placed is None or len(placed) == 0 else np.atleast_2d(np.asarray(placed, dtype=float)):
+        poses = [] if placed is None or len(placed) == 0 else np.atleast_2d(np.asarray(placed, dtype=float))
+        for pose in poses:
             yield ("find near the prediction" if near else "find implants"), pose
+        return len(poses) > 0
 
     def _turned_starts(self, job: ComponentInput):
         """A small miss between neighbouring frames: the prediction turned a little either

@@ -42,6 +42,7 @@ from fluorogui.core.projection.pose import angles_from_matrix, rotation_matrix
 from fluorogui.core.records import PoseRecord
 from fluorogui.core.search.relocate import relocated_centroid, with_centroid
 from fluorogui.core.status import Status
+from fluorogui.core.threads import each_view, is_view_thread_name, set_threads
 from fluorogui.io.corrections import read_view_image
 from fluorogui.io.errors import InputError
 from fluorogui.workflow.finding import find_in_frame, near_search
@@ -268,13 +269,12 @@ def read_frame_images(frame: int, paths: Sequence[Path | None], n_views: int,
     ``views`` are given); raises InputError naming the view (and how many images its camera
     has) when one is missing, or the file when it cannot be read."""
     paths = list(paths) + [None] * (n_views - len(paths))
-    out = []
     for view, path in enumerate(paths):
         if path is None:
             count = f" (this camera has {counts[view]} images)" if view < len(counts) else ""
             raise InputError(f"view {view + 1}", f"no image for frame {frame}{count}")
-        out.append(read_view_image(path, views[view] if views is not None and view < len(views) else None))
-    return out
+    return each_view(lambda k: read_view_image(paths[k], views[k] if views is not None and k < len(views) else None),
+                     range(len(paths)))
 
 
 def _recent_axis(m: MotionModel, frame: int) -> np.ndarray | None:
@@ -342,9 +342,10 @@ def run_parallel(jobs: Sequence[TrackJob], cancel: Callable[[], bool] | None = N
     from concurrent.futures import ProcessPoolExecutor
 
     # fork starts fast and needs no "if __name__ == '__main__'" in the caller's script, but is
-    # unsafe beside other threads (the GUI, Dask): spawn then
+    # unsafe beside other threads (the GUI, Dask): spawn then (the per-view helpers, idle
+    # between calls, are not copied and a child makes its own: ``core.threads``)
     methods = multiprocessing.get_all_start_methods()
-    alone = threading.active_count() == 1
+    alone = all(t is threading.current_thread() or is_view_thread_name(t.name) for t in threading.enumerate())
     context = multiprocessing.get_context("fork" if alone and "fork" in methods else "spawn")
     with context.Manager() as manager, ProcessPoolExecutor(len(jobs), mp_context=context) as pool:
         queue, stop = manager.Queue(), manager.Event()
@@ -370,6 +371,7 @@ def run_parallel(jobs: Sequence[TrackJob], cancel: Callable[[], bool] | None = N
 
 
 def _run_job(job: TrackJob, queue, stop) -> None:
+    set_threads(1)  # the worker processes keep the cores busy already
     try:
         for frame in by_frame(job.run(cancel=stop.is_set), len(job.components)):
             queue.put(frame)

@@ -52,6 +52,37 @@ def test_after_a_jump_the_searches_come_first():
     assert labels == ["find implants", "", "last pose"]
 
 
+def test_where_the_images_located_it_and_the_search_there_placed_it_the_whole_image_is_not_searched():
+    def labels(found_near, located):
+        matcher = FrameMatcher(VIEWS, WorkflowSettings(), lambda images, c, mesh, pose, cancel=None:
+                               found_near if pose is not None else WHOLE)
+        job = ComponentInput("tibial", SimpleNamespace(centroid=np.zeros(3)), PREDICTED, LAST, gap=5, located=located)
+        return [label for label, _ in matcher._starts(IMAGES, job, None)]
+
+    assert labels(NEAR, PREDICTED + 10.0) == ["find near the prediction", "", "last pose"]
+    assert labels(None, PREDICTED + 10.0) == ["find implants", "", "last pose"]  # nothing placed there
+    assert labels(NEAR, None) == ["find near the prediction", "find implants", "", "last pose"]  # not located
+
+
+def test_only_the_first_start_runs_the_whole_loop(monkeypatch):
+    """After a jump's searches the prediction is a recovery start: the shorter loop."""
+    loops = []
+
+    def attempt(self, images, job, start, occluded, cancel, loop=None):
+        loops.append(None if loop is None else loop.max_passes)
+        return FrameResult(0, job.component, start, Status.NEEDS_REVIEW, "no")
+
+    monkeypatch.setattr(FrameMatcher, "attempt", attempt)
+    settings = WorkflowSettings()
+    for gap, expected in ((1, [None, 3]), (5, [3, 3])):  # (the near search, then the prediction)
+        loops.clear()
+        matcher = FrameMatcher(VIEWS, settings, lambda images, c, mesh, pose, cancel=None: NEAR if pose is not None
+                               else None)
+        job = ComponentInput("tibial", SimpleNamespace(centroid=np.zeros(3)), PREDICTED, None, gap=gap, probe=False)
+        matcher.match_component(0, IMAGES, job)
+        assert loops[:len(expected)] == expected, (gap, loops)
+
+
 def test_between_neighbouring_frames_the_prediction_comes_first():
     labels, starts = _labels(1)
     assert labels == ["", "last pose", "find near the prediction", "turned start", "turned start", "find implants"]

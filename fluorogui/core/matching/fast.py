@@ -30,6 +30,7 @@ from fluorogui.core.matching.problem import (
 )
 from fluorogui.core.projection.pose import rotvec_matrix
 from fluorogui.core.projection.silhouette import mesh_silhouette
+from fluorogui.core.threads import each_view
 
 # -- the fast method ----------------------------------------------------------------------------
 
@@ -73,45 +74,20 @@ class _FastEvaluation:
         # length) each residual sits, for the covariance's clusters of neighbours
         self.view_of: list[int] = []
         self.where: list[np.ndarray | None] = []
-        for k, (view, spline, g) in enumerate(zip(problem.views, problem.splines, image_samples)):
-            mask = problem.occluder(k)
-            if settings.outline_points:
-                sil = mesh_silhouette(mesh, R, t, view, spacing_px=1.0)
-                fwd = sil.resample(n=settings.outline_points)
-            else:
-                sil = fwd = mesh_silhouette(mesh, R, t, view, spacing_px=settings.model_spacing_px)
-            # model outline points to the image spline: signed distance along the spline normal
-            X = fwd.model_points @ R.T + t
-            uv, Jp = view.project_jacobian(X)
+
+        def one(k: int) -> tuple:  # a view's measures, on its own (the views run side by side)
+            return _view_residuals(problem, k, R, t, settings, image_samples[k],
+                                   None if image_params is None else image_params[k])
+
+        views = range(min(len(problem.views), len(problem.splines), len(image_samples)))
+        for k, (mm, sil, blocks) in enumerate(each_view(one, views)):
+            self.per_view_mm.append(mm)
             self.outlines_px.append(sil.points_px)
             self.outline_model_points.append(sil.model_points)
-            if mask is not None:
-                seen = visible_points(mask, uv)
-                X, uv, Jp = X[seen], uv[seen], Jp[seen]
-            dist, closest_pt, normal, t_near = spline.closest(uv)
-            if settings.skip_gaps and len(spline.gaps):
-                # a model point whose nearest image outline is a chord across missing or
-                # hidden edges has nothing to be measured against
-                on_edge = ~spline.in_gap(t_near)
-                if on_edge.sum() >= MIN_VISIBLE_POINTS:
-                    X, uv, Jp = X[on_edge], uv[on_edge], Jp[on_edge]
-                    dist, closest_pt, normal = dist[on_edge], closest_pt[on_edge], normal[on_edge]
-                    t_near = t_near[on_edge]
-            self.per_view_mm.append(float(np.mean(dist)) * view.mm_per_px())
-            self._add(np.einsum("ij,ij->i", normal, uv - closest_pt), np.einsum("ij,ijk->ik", normal, Jp), X, c, rho,
-                      spline.weight_at(t_near))
-            self.view_of.append(k)
-            self.where.append(t_near)
-            if settings.symmetric:
-                # image outline samples to the model outline (the dense silhouette polyline)
-                _, idx = cKDTree(sil.points_px).query(g)
-                n_model = _polyline_normals(sil.points_px, idx)
-                Xm = sil.model_points[idx] @ R.T + t
-                uvm, Jm = view.project_jacobian(Xm)
-                self._add(np.einsum("ij,ij->i", n_model, uvm - g), np.einsum("ij,ijk->ik", n_model, Jm), Xm, c, rho,
-                          None if image_params is None else spline.weight_at(image_params[k]))
+            for r, nJ, X, weights, where in blocks:
+                self._add(r, nJ, X, c, rho, weights)
                 self.view_of.append(k)
-                self.where.append(None if image_params is None else image_params[k])
+                self.where.append(where)
         self.objective_mm = float(sum(self.per_view_mm))
 
     def _add(self, r: np.ndarray, nJ: np.ndarray, X: np.ndarray, c: np.ndarray, rho: float,
@@ -142,6 +118,44 @@ class _FastEvaluation:
             H += J.T @ (J * ww[:, None])
             g += J.T @ (ww * r)
         return H, g
+
+
+def _view_residuals(problem: MatchProblem, k: int, R, t, settings: MatchSettings, g, image_params) -> tuple:
+    """One view's part of ``_FastEvaluation``: its mean outline distance (mm), its silhouette
+    and its residual blocks (signed distances, their Jacobian along the normal, the model
+    points, weights, where along the image outline)."""
+    view, spline, mask = problem.views[k], problem.splines[k], problem.occluder(k)
+    if settings.outline_points:
+        sil = mesh_silhouette(problem.mesh, R, t, view, spacing_px=1.0)
+        fwd = sil.resample(n=settings.outline_points)
+    else:
+        sil = fwd = mesh_silhouette(problem.mesh, R, t, view, spacing_px=settings.model_spacing_px)
+    # model outline points to the image spline: signed distance along the spline normal
+    X = fwd.model_points @ R.T + t
+    uv, Jp = view.project_jacobian(X)
+    if mask is not None:
+        seen = visible_points(mask, uv)
+        X, uv, Jp = X[seen], uv[seen], Jp[seen]
+    dist, closest_pt, normal, t_near = spline.closest(uv)
+    if settings.skip_gaps and len(spline.gaps):
+        # a model point whose nearest image outline is a chord across missing or
+        # hidden edges has nothing to be measured against
+        on_edge = ~spline.in_gap(t_near)
+        if on_edge.sum() >= MIN_VISIBLE_POINTS:
+            X, uv, Jp = X[on_edge], uv[on_edge], Jp[on_edge]
+            dist, closest_pt, normal = dist[on_edge], closest_pt[on_edge], normal[on_edge]
+            t_near = t_near[on_edge]
+    blocks = [(np.einsum("ij,ij->i", normal, uv - closest_pt), np.einsum("ij,ijk->ik", normal, Jp), X,
+               spline.weight_at(t_near), t_near)]
+    if settings.symmetric:
+        # image outline samples to the model outline (the dense silhouette polyline)
+        _, idx = cKDTree(sil.points_px).query(g)
+        n_model = _polyline_normals(sil.points_px, idx)
+        Xm = sil.model_points[idx] @ R.T + t
+        uvm, Jm = view.project_jacobian(Xm)
+        blocks.append((np.einsum("ij,ij->i", n_model, uvm - g), np.einsum("ij,ijk->ik", n_model, Jm), Xm,
+                       None if image_params is None else spline.weight_at(image_params), image_params))
+    return float(np.mean(dist)) * view.mm_per_px(), sil, blocks
 
 
 def _initial_translation(problem: MatchProblem, R, c, image_samples, iterations: int = 3) -> np.ndarray:

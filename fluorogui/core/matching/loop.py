@@ -40,6 +40,7 @@ from fluorogui.core.projection.geometry import View
 from fluorogui.core.projection.mesh import PreparedMesh
 from fluorogui.core.projection.pose import motion_between, rotation_matrix
 from fluorogui.core.projection.silhouette import mesh_silhouette
+from fluorogui.core.threads import each_view
 
 
 class SegmentationError(ValueError):
@@ -127,18 +128,17 @@ def segment_outlines(images: Sequence[np.ndarray], views: Sequence[View], mesh: 
     """Ordered sub-pixel outline of the component in every image (or only in the views
     ``only``; None for the others), chosen along ``pose``. Raises SegmentationError naming
     the view."""
-    out = []
-    for k, (image, view) in enumerate(zip(images, views)):
+    def one(k: int) -> np.ndarray | None:
         if only is not None and k not in only:
-            out.append(None)
-            continue
+            return None
         exclude = occluded[k] if occluded is not None and k < len(occluded) else None
         try:
-            out.append(component_outline(image, predicted_outline(mesh, pose, view), exclude=exclude,
-                                         search_px=search_px))
+            return component_outline(images[k], predicted_outline(mesh, pose, views[k]), exclude=exclude,
+                                     search_px=search_px)
         except ValueError as exc:
             raise SegmentationError(k, str(exc)) from None
-    return out
+
+    return each_view(one, range(min(len(images), len(views))))  # the views side by side
 
 
 def refine_rims(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.ndarray | None], occluded=None,

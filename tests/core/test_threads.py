@@ -1,0 +1,77 @@
+"""Per-view work side by side (``core.threads.each_view``): the plain loop's results in its
+order, its first error, nothing left running after a call, no helper waiting on helpers,
+and a match that comes out the same to the last bit with threads or without."""
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from fluorogui.core import threads
+from fluorogui.core.threads import each_view, set_threads
+
+
+@pytest.fixture(autouse=True)
+def two_threads():
+    set_threads(2)
+    yield
+    set_threads(2)
+
+
+def test_results_come_in_order_and_the_views_run_side_by_side():
+    names = {}
+
+    def work(k):
+        names[k] = threading.current_thread().name
+        time.sleep(0.05 * (2 - k))  # the first view is the slow one
+        return k * 10
+
+    assert each_view(work, [0, 1]) == [0, 10]
+    assert names[0] == threading.current_thread().name and threads.is_view_thread_name(names[1])
+
+
+def test_the_first_views_error_is_raised_and_the_other_view_has_finished():
+    done = []
+
+    def work(k):
+        if k == 0:
+            raise ValueError("view 1: no outline")
+        time.sleep(0.05)
+        done.append(k)
+
+    with pytest.raises(ValueError, match="view 1"):
+        each_view(work, [0, 1])
+    assert done == [1]  # waited for before the error came out
+    with pytest.raises(KeyError):
+        each_view(lambda k: {}[k], [5, 0])
+
+
+def test_a_helper_runs_nested_work_itself():
+    assert each_view(lambda k: each_view(lambda j: j + k, [0, 1]), [0, 10]) == [[0, 1], [10, 11]]
+
+
+def test_one_thread_runs_on_the_callers_thread():
+    set_threads(1)
+    names = each_view(lambda k: threading.current_thread().name, [0, 1])
+    assert names == [threading.current_thread().name] * 2
+
+
+def test_a_match_is_the_same_with_threads_or_without():
+    from fluorogui.core.matching.loop import LoopSettings, segment_and_match
+    from fluorogui.core.projection.mesh import prepare_mesh
+    from fluorogui.core.projection.pose import transform_points
+    from fluorogui.simulation.phantoms import femoral_component_mesh
+    from fluorogui.simulation.protocols import dual_orthogonal_views
+    from fluorogui.simulation.render import render_fluoro
+
+    truth = np.array([2.0, 3.0, -4.0, 10.0, 20.0, -30.0])
+    mesh = prepare_mesh(*femoral_component_mesh())
+    views = dual_orthogonal_views()
+    world = transform_points(truth, mesh.vertices)
+    images = [render_fluoro(v, [(world, mesh.faces)], np.random.default_rng(3)) for v in views]
+    start = truth + np.array([0.6, -0.5, 0.4, 2.0, -1.5, 1.0])
+    poses = []
+    for n in (1, 2):
+        set_threads(n)
+        poses.append(segment_and_match(images, views, mesh, start, loop=LoopSettings(rim="off")).pose)
+    np.testing.assert_array_equal(poses[0], poses[1])
