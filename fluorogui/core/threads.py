@@ -7,8 +7,10 @@ is OpenCV and numpy on whole arrays, which let another thread run meanwhile. On 
 error in a view is raised as the loop would raise it (the first view's first).
 
 ``set_threads(1)`` runs everything on the caller's thread (worker processes that already
-keep every core busy do). A forked child starts without the parent's threads and makes
-its own when it needs them.
+keep every core busy do), and so does the environment variable
+``FLUOROGUI_VIEW_THREADS=1`` (read at import; the default is two threads, or one on a
+one-core machine). A forked child starts without the parent's threads and makes its own
+when it needs them.
 """
 from __future__ import annotations
 
@@ -20,7 +22,14 @@ from typing import Callable, Iterable, TypeVar
 T = TypeVar("T")
 R = TypeVar("R")
 
-_threads = min(2, os.cpu_count() or 1)
+def _threads_from_environment() -> int:
+    try:
+        return max(1, int(os.environ.get("FLUOROGUI_VIEW_THREADS", "")))
+    except ValueError:
+        return min(2, os.cpu_count() or 1)
+
+
+_threads = _threads_from_environment()
 _pool: ThreadPoolExecutor | None = None
 _lock = threading.Lock()
 _local = threading.local()

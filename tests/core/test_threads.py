@@ -1,6 +1,9 @@
 """Per-view work side by side (``core.threads.each_view``): the plain loop's results in its
 order, its first error, nothing left running after a call, no helper waiting on helpers,
 and a match that comes out the same to the last bit with threads or without."""
+import os
+import subprocess
+import sys
 import threading
 import time
 
@@ -75,3 +78,12 @@ def test_a_match_is_the_same_with_threads_or_without():
         set_threads(n)
         poses.append(segment_and_match(images, views, mesh, start, loop=LoopSettings(rim="off")).pose)
     np.testing.assert_array_equal(poses[0], poses[1])
+
+
+def test_the_environment_can_turn_the_threads_off():
+    code = "import fluorogui.core.threads as t; print(t._threads)"
+    default = str(min(2, os.cpu_count() or 1))
+    for value, expected in (("1", "1"), ("3", "3"), ("many", default)):  # (not a number: the default)
+        env = dict(os.environ, FLUOROGUI_VIEW_THREADS=value)
+        out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+        assert out.stdout.strip() == expected
