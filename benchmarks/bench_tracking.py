@@ -21,7 +21,8 @@ Sections (all by default, or name some):
   every frame either within 0.5 mm / 0.5 deg of tests/data/biplane_reference_poses.csv
   or flagged; flagged frames and why; the cost of a consecutive pair (target 0.2 s median)
   and of a recovered frame (target 1 s); frame-to-frame jitter per degree of freedom; the six
-  knee kinematics curves and their jitter (``--figure`` saves their figure).
+  knee kinematics curves and their jitter (``--figure`` saves their figure); first, a fixed
+  OpenCV/numpy load's seconds (``machine_reference_s``) to compare machines and days by.
 
 Errors are body-fixed (``core.projection.pose.pose_error``): translation mm, rotation angles deg.
 Usage: .venv/bin/python benchmarks/bench_tracking.py [demo] [synthetic] [partial] [batch] [real]
@@ -65,6 +66,28 @@ def _track(session: Session, workers: int, frames=None, clock: dict | None = Non
         if clock is not None:
             clock[r.frame] = time.perf_counter() - t0
     return results, time.perf_counter() - t0
+
+
+def machine_reference_s(repeats: int = 3) -> float:
+    """Seconds a fixed OpenCV and numpy load takes on this machine (best of ``repeats``),
+    none of it fluorogui's code: timings from different machines, or from one machine on
+    different days (this 2-core VM has run 2.4 times slower than on others), compare once
+    divided by it."""
+    import cv2
+
+    image = np.random.default_rng(0).random((1024, 1024)).astype(np.float32)
+    a = np.random.default_rng(1).random((300, 300))
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(10):
+            blurred = cv2.GaussianBlur(image, (0, 0), 2.0)
+            cv2.Canny((blurred * 255).astype(np.uint8), 20, 60)
+            np.sort(image.ravel()[:200000])
+        for _ in range(20):
+            a = np.tanh(a @ a.T / 300.0)
+        best = min(best, time.perf_counter() - t0)
+    return best
 
 
 def _jitter(centroid, poses) -> list[float]:
@@ -355,11 +378,14 @@ def bench_real(args) -> dict:
     refs = {(int(r["frame"]), r["component"]): np.array([float(r[k]) for k in keys])
             for r in csv.DictReader(open(REFERENCE))}
     clock: dict[int, float] = {}
+    reference = machine_reference_s()
     results, wall = _track(session, 1, clock=clock)
     session.save()
     rows = sorted(results, key=lambda r: (r.frame, r.component))
     n_frames = len(session.frames)
     print(f"(tracked project: {path})")
+    print(f"machine reference load {reference:.3f} s (fixed OpenCV/numpy work, not fluorogui's: divide "
+          f"timings by it to compare machines or days); the 33 pairs' wall time is {wall / reference:.0f} times it")
     print(f"real biplane: {n_frames} pairs x 2 components tracked from nothing in {wall:.1f} s "
           f"({wall / n_frames:.2f} s per frame)")
     # per-frame cost: both components on the consecutive pairs 51-69 (each tracked from the
@@ -438,7 +464,8 @@ def bench_real(args) -> dict:
               "tibia axes) centroid x y z, turn x y z: " + " ".join(f"{v:.2f}" for v in relative))
     knee = _knee_curves(session, args.figure)
     print()
-    return {"seconds": wall, **timing, **counts, "jitter": jitter, "reasons": reasons, "kinematics": knee}
+    return {"seconds": wall, "machine_reference_s": reference, **timing, **counts, "jitter": jitter,
+            "reasons": reasons, "kinematics": knee}
 
 
 def main(argv=None) -> int:
