@@ -209,3 +209,5 @@ def test_near_candidates_are_the_poses_a_canny_fit_would_start_from(scene):
         mm, deg = _errors(poses[0], truth[name])
         assert mm < 0.035 and deg < 0.19, (name, mm, deg)  # measured 0.0087 / 0.017 mm, 0.095 / 0.019 deg
         assert near_candidates(empty, views, meshes[name], start) == []
+    with pytest.raises(ValueError, match="two views"):  # (single-plane recovery does not search)
+        near_candidates(images[:1], views[:1], meshes["tibial"], truth["tibial"])

@@ -469,7 +469,9 @@ def near_candidates(images: Sequence[np.ndarray], views: Sequence[View], mesh: P
     would fit on Canny outlines (the best candidate whose edges fit, and a runner-up within
     ``CLOSE_SCORE``), best first, without that fit and its verdict - recovery matches from
     each and judges the match itself, so the fit would be made twice. Empty when nothing
-    near fits its outline."""
+    near fits its outline. Raises ValueError unless there are two images and two views."""
+    if len(images) != 2 or len(views) != 2:
+        raise ValueError("finding implants needs two images and two views")
     steps = _Steps(None, cancel, 1)
     maps = [ss.EdgeMaps(image, field_of_view(image)) for image in images]
     cands = [c for c in _near(ss.shape_library(mesh), views, maps, mesh, pose, steps, 1.0)
