@@ -22,6 +22,7 @@ from typing import Callable, Iterable, TypeVar
 T = TypeVar("T")
 R = TypeVar("R")
 
+
 def _threads_from_environment() -> int:
     try:
         return max(1, int(os.environ.get("FLUOROGUI_VIEW_THREADS", "")))

@@ -1,13 +1,13 @@
 """Where a component went since the frame it was last matched in, from the images alone.
 
 Across a jump of several frames a motion prediction can miss by tens of millimetres (the
-real sequence's 20-frame jumps: 30-53 mm, the whole knee moves in the field), more than
+real sequence's 10-20 frame jumps: 5-53 mm, the whole knee moves in the field), more than
 a search near it covers. The image does better: the patch of the earlier frame under the
 component's projection is found again in the new frame (normalised cross-correlation
 under the projection's mask, ``cv2.matchTemplate``) in each view, and the centroid's
 image point, moved by those shifts, triangulates to where the component now is. A pose
 that has turned changes the patch less than a search's range (the real jumps: centroids
-0.4-4.6 mm from the matched ones). Where the two views' shifts do not meet in one point
+0.5-4.1 mm from the matched ones). Where the two views' shifts do not meet in one point
 (another dark object took the match in one of them) there is no answer.
 """
 from __future__ import annotations
@@ -17,9 +17,9 @@ from typing import Sequence
 import cv2
 import numpy as np
 
+from fluorogui.core.matching.problem import _to_pose, _to_state
 from fluorogui.core.projection.geometry import View, triangulate
 from fluorogui.core.projection.mesh import PreparedMesh
-from fluorogui.core.projection.pose import angles_from_matrix, rotation_matrix
 from fluorogui.core.projection.silhouette import projected_region
 
 #: how far a patch is looked for, as a share of the image's width, either way
@@ -67,8 +67,7 @@ def relocated_centroid(before: Sequence[np.ndarray], after: Sequence[np.ndarray]
     if len(views) != 2:
         return None
     pose = np.asarray(pose, float)
-    R = rotation_matrix(*pose[3:])
-    centroid = R @ mesh.centroid + pose[:3]
+    R, centroid = _to_state(pose, mesh.centroid)
     moved = []
     for view, a, b in zip(views, before, after):
         found = image_shift(a, b, projected_region(view, [(mesh, R, pose[:3])], 0))
@@ -81,9 +80,8 @@ def relocated_centroid(before: Sequence[np.ndarray], after: Sequence[np.ndarray]
 
 def with_centroid(pose, mesh: PreparedMesh, centroid: np.ndarray) -> np.ndarray:
     """``pose`` moved (not turned) so that the mesh's centroid lies at ``centroid``."""
-    pose = np.asarray(pose, float)
-    R = rotation_matrix(*pose[3:])
-    return np.array([*(np.asarray(centroid, float) - R @ mesh.centroid), *angles_from_matrix(R)])
+    R = _to_state(np.asarray(pose, float), mesh.centroid)[0]
+    return _to_pose(R, np.asarray(centroid, float), mesh.centroid)
 
 
 __all__ = ["image_shift", "relocated_centroid", "with_centroid"]
