@@ -36,7 +36,7 @@ def smoothed_gradients(image: np.ndarray, sigma: float = 1.0):
 
 
 def canny_edges(image: np.ndarray, low: float = DEFAULT_LOW, high: float = DEFAULT_HIGH, sigma: float = 1.0,
-                roi: tuple[int, int, int, int] | None = None) -> np.ndarray:
+                roi: tuple[int, int, int, int] | None = None, gradients=None, magnitude=None) -> np.ndarray:
     """Boolean Canny edge map of a float image.
 
     The image is smoothed with a Gaussian of ``sigma`` px and its float gradients are
@@ -45,11 +45,13 @@ def canny_edges(image: np.ndarray, low: float = DEFAULT_LOW, high: float = DEFAU
     the gradient magnitude, taken inside ``roi`` (u0, v0, u1, v1) when given. A component's
     outline covers well over 0.1 % of a region around it, so the reference is an edge
     gradient, not noise, and a single very strong edge does not dominate it.
+    ``gradients`` (``smoothed_gradients(image, sigma)``) and ``magnitude`` (their hypot)
+    save computing them again where the caller has them.
     """
     if not 0 < low <= high:
         raise ValueError("Canny thresholds must satisfy 0 < low <= high")
-    _, gx, gy = smoothed_gradients(image, sigma)
-    mag = np.hypot(gx, gy)
+    _, gx, gy = gradients if gradients is not None else smoothed_gradients(image, sigma)
+    mag = magnitude if magnitude is not None else np.hypot(gx, gy)
     region = mag
     if roi is not None:
         u0, v0, u1, v1 = (int(round(x)) for x in roi)
@@ -67,7 +69,7 @@ def canny_edges(image: np.ndarray, low: float = DEFAULT_LOW, high: float = DEFAU
 
 # -- sub-pixel localisation ------------------------------------------------------------------
 def subpixel_edges(gx: np.ndarray, gy: np.ndarray, pixels: np.ndarray, max_shift: float = 1.0,
-                   fit: str = "gaussian"):
+                   fit: str = "gaussian", magnitude: np.ndarray | None = None):
     """Move edge pixels (K, 2) to the gradient-magnitude maximum along the gradient.
 
     The peak is found from the magnitude sampled at -1, 0, +1 px along the gradient
@@ -76,11 +78,13 @@ def subpixel_edges(gx: np.ndarray, gy: np.ndarray, pixels: np.ndarray, max_shift
     because Canny's non-maximum suppression favours one side of an edge, biases the mean;
     "gaussian" (default) fits the log-magnitude, exact for a Gaussian-blurred step.
 
+    ``magnitude`` (float32 hypot of gx, gy) saves computing it again.
+
     Returns refined points (K, 2) and the gradient vectors (K, 2) at the pixels."""
     pixels = np.asarray(pixels, dtype=float).reshape(-1, 2)
     if len(pixels) == 0:
         return pixels.copy(), pixels.copy()
-    mag = np.hypot(gx, gy).astype(np.float32)
+    mag = magnitude if magnitude is not None else np.hypot(gx, gy).astype(np.float32)
     col = np.clip(np.round(pixels[:, 0]).astype(int), 0, mag.shape[1] - 1)
     row = np.clip(np.round(pixels[:, 1]).astype(int), 0, mag.shape[0] - 1)
     grad = np.column_stack([gx[row, col], gy[row, col]]).astype(float)
@@ -230,6 +234,27 @@ def _arc_parameter(polyline: np.ndarray):
     return dense, np.concatenate([[0.0], np.cumsum(step)[:-1]]), float(step.sum())
 
 
+class _Along:
+    """A predicted closed outline resampled densely (``_arc_parameter``) with its k-d tree and
+    outward normals: made once per prediction and shared by the steps that measure edge
+    points against it (each used to resample it and build its tree again)."""
+
+    def __init__(self, predicted_px: np.ndarray):
+        self.dense, self.arc, self.total = _arc_parameter(np.asarray(predicted_px, dtype=float))
+        self.tree = cKDTree(self.dense)
+        self._normals = None
+
+    @property
+    def normals(self) -> np.ndarray:
+        if self._normals is None:
+            self._normals = outward_normals(self.dense)
+        return self._normals
+
+    def query(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Distance to, and index of, each point's nearest dense sample."""
+        return self.tree.query(points)
+
+
 def contour_fit(contour: np.ndarray, predicted_px: np.ndarray, tolerance_px: float = 8.0) -> float:
     """Mismatch (px, lower is better) of a contour with a predicted closed outline: the mean
     distance from predicted points to the contour plus from contour points to the
@@ -258,16 +283,19 @@ def select_outline(contours: list[np.ndarray], predicted_px: np.ndarray, merge: 
     return _merge_along(contours, predicted_px, tolerance_px)
 
 
-def _merge_along(contours, predicted_px, tolerance_px, bin_px: float = 1.0, pieces=None) -> np.ndarray:
+def _merge_along(contours, predicted_px, tolerance_px, bin_px: float = 1.0, pieces=None, along=None,
+                 near=None) -> np.ndarray:
     """Points of contours near the prediction, ordered along it: every ``bin_px`` of the
     prediction's arc is served by the piece (a contour, or the given ``pieces`` label per
     point) lying closest to the prediction on average, and the points of that piece in the
-    bin are averaged into one, so parallel duplicates cannot zigzag."""
+    bin are averaged into one, so parallel duplicates cannot zigzag. ``along`` (the
+    prediction's ``_Along``) and ``near`` (the points' ``along.query``) save making them."""
     points = np.vstack(contours)
     if pieces is None:
         pieces = np.repeat(np.arange(len(contours)), [len(c) for c in contours])
-    dense, arc, total = _arc_parameter(predicted_px)
-    dist, nearest = cKDTree(dense).query(points)
+    along = along or _Along(predicted_px)
+    arc, total = along.arc, along.total
+    dist, nearest = near if near is not None else along.query(points)
     near = dist <= tolerance_px
     points, dist, params, pieces = points[near], dist[near], arc[nearest[near]], np.asarray(pieces)[near]
     if len(points) < 4:
@@ -329,25 +357,29 @@ def best_translation(edge_mask: np.ndarray, predicted_px: np.ndarray, search_px:
     return best
 
 
-def _dark_edge_points(image, edges, predicted, sigma, polarity, gradients=None, within_px=None):
+def _dark_edge_points(image, edges, predicted, sigma, polarity, gradients=None, within_px=None, along=None,
+                      magnitude=None):
     """Sub-pixel points of the pixels of an edge map, their connected-edge labels (of the
-    whole map), and whether each has the expected polarity relative to the predicted
-    outline; with ``within_px``, only of the pixels that may lie that close to the
-    prediction once refined (noise gives a weak edge map tens of thousands of pixels)."""
+    whole map), whether each has the expected polarity relative to the predicted
+    outline, and each point's ``along.query`` (distance to the prediction's dense samples
+    and the nearest one's index); with ``within_px``, only of the pixels that may lie that
+    close to the prediction once refined (noise gives a weak edge map tens of thousands of
+    pixels). ``along`` (the prediction's ``_Along``), ``gradients`` and ``magnitude`` are
+    made here when not given."""
     _, labels = cv2.connectedComponents(edges.astype(np.uint8), connectivity=8)
     rows, cols = np.nonzero(edges if within_px is None else edges & _band(edges.shape, predicted, within_px))
     _, gx, gy = gradients if gradients is not None else smoothed_gradients(image, sigma)
-    refined, grad = subpixel_edges(gx, gy, np.column_stack([cols, rows]).astype(float))
-    if polarity == "dark":
-        dense, _, _ = _arc_parameter(predicted)
-        _, nearest = cKDTree(dense).query(refined)
-        outward = outward_normals(dense)[nearest]
-        agrees = np.einsum("ij,ij->i", grad, outward) > 0.5 * np.linalg.norm(grad, axis=1)
-    elif polarity == "any":
-        agrees = np.ones(len(refined), dtype=bool)
-    else:
+    refined, grad = subpixel_edges(gx, gy, np.column_stack([cols, rows]).astype(float), magnitude=magnitude)
+    if polarity not in ("dark", "any"):
         raise ValueError(f"unknown polarity {polarity!r}; use 'dark' or 'any'")
-    return refined, labels[rows, cols], agrees
+    along = along or _Along(predicted)
+    near = along.query(refined) if len(refined) else (np.zeros(0), np.zeros(0, dtype=int))
+    if polarity == "dark":
+        outward = along.normals[near[1]]
+        agrees = np.einsum("ij,ij->i", grad, outward) > 0.5 * np.linalg.norm(grad, axis=1)
+    else:
+        agrees = np.ones(len(refined), dtype=bool)
+    return refined, labels[rows, cols], agrees, near
 
 
 def _band(shape, predicted: np.ndarray, within_px: float) -> np.ndarray:
@@ -362,14 +394,17 @@ def _band(shape, predicted: np.ndarray, within_px: float) -> np.ndarray:
 
 def uncovered_arc(points: np.ndarray, predicted_px: np.ndarray, tolerance_px: float = 8.0,
                   bin_px: float = 1.0, min_gap_px: float = 6.0,
-                  hidden: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  hidden: np.ndarray | None = None, along: _Along | None = None,
+                  near: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Where a predicted closed outline has no edge point within ``tolerance_px``: the bin
     index of every given point's nearest arc position (``bin_px`` bins along the
     prediction) and a boolean flag per bin, True on runs of uncovered bins at least
     ``min_gap_px`` long (shorter runs are the normal breaks of an edge chain). Bins under
     ``hidden`` (a boolean image: another component's area) are expected to be bare and
-    never count as uncovered."""
-    dense, arc, total = _arc_parameter(np.asarray(predicted_px, dtype=float))
+    never count as uncovered. ``along`` (the prediction's ``_Along``) and ``near`` (the
+    points' ``along.query``) save making them again."""
+    along = along or _Along(predicted_px)
+    dense, arc, total = along.dense, along.arc, along.total
     n_bins = max(4, int(np.ceil(total / bin_px)))
     covered = np.zeros(n_bins, dtype=bool)
     if hidden is not None:
@@ -380,7 +415,7 @@ def uncovered_arc(points: np.ndarray, predicted_px: np.ndarray, tolerance_px: fl
         covered |= hidden[row, col]
     bins = np.zeros(0, dtype=int)
     if len(points):
-        dist, nearest = cKDTree(dense).query(points)
+        dist, nearest = near if near is not None else along.query(points)
         bins = np.minimum((arc[nearest] / total * n_bins).astype(int), n_bins - 1)
         covered[bins[dist <= tolerance_px]] = True
     gap = ~covered
@@ -451,48 +486,56 @@ def component_outline(image: np.ndarray, predicted_px: np.ndarray, sigma: float 
 def _outline_in_region(image, predicted, roi, keep, sigma, tolerance_px, polarity, search_px, low, high, gap_fill,
                        min_gap_px) -> np.ndarray:
     """``component_outline`` in the coordinates of an image crop; ``keep`` masks usable edges."""
-    edges = canny_edges(image, low, high, sigma, roi)
+    gradients = smoothed_gradients(image, sigma)  # shared by both Canny maps and the sub-pixel step
+    magnitude = np.hypot(gradients[1], gradients[2])
+    edges = canny_edges(image, low, high, sigma, roi, gradients, magnitude)
     hidden = None
     if keep is not None:
         edges &= keep
         hidden = ~keep
     if not edges.any():
         raise EdgeError("the image has no edges near the predicted outline")
-    gradients = smoothed_gradients(image, sigma)
     weak_map = []
 
     def weak_edges():
         if not weak_map:
-            weak = canny_edges(image, gap_fill[0], gap_fill[1], sigma, roi)
+            weak = canny_edges(image, gap_fill[0], gap_fill[1], sigma, roi, gradients, magnitude)
             inside = np.zeros_like(weak)
             inside[max(roi[1], 0):max(roi[3], 0), max(roi[0], 0):max(roi[2], 0)] = True
             weak_map.append(weak & inside if keep is None else weak & inside & keep)
         return weak_map[0]
 
     def gather(shift):
-        """Edge points along the prediction shifted by ``shift``: the pieces, whether
-        the default edges left gaps, and how many 1 px bins stay uncovered."""
+        """Edge points along the prediction shifted by ``shift``: the shifted prediction, the
+        points, their pieces, whether the default edges left gaps, how many 1 px bins stay
+        uncovered, the prediction's ``_Along`` and the points' queries against it."""
         pred = predicted + shift
+        along = _Along(pred)
         # every Canny pixel counts (no chain linking, which drops pixels where Canny's
         # edge is two pixels thick); pieces are the connected edges
         # points farther than tolerance_px from the prediction count nowhere (not as
         # cover, left out of the merge): only those near are refined
-        refined, labels, agrees = _dark_edge_points(image, edges, pred, sigma, polarity, gradients, tolerance_px)
+        refined, labels, agrees, near = _dark_edge_points(image, edges, pred, sigma, polarity, gradients,
+                                                          tolerance_px, along, magnitude)
         points, pieces = refined[agrees], labels[agrees]
+        near = (near[0][agrees], near[1][agrees])
         had_gaps = False
         if gap_fill is not None:
-            _, gap = uncovered_arc(points, pred, tolerance_px, min_gap_px=min_gap_px, hidden=hidden)
+            _, gap = uncovered_arc(points, pred, tolerance_px, min_gap_px=min_gap_px, hidden=hidden, along=along,
+                                   near=near)
             had_gaps = bool(gap.any())
             weak = weak_edges() & ~edges if had_gaps else None
             if had_gaps and weak.any():
-                w_points, w_labels, w_agrees = _dark_edge_points(image, weak, pred, sigma, polarity, gradients,
-                                                                     tolerance_px)
-                w_bins, _ = uncovered_arc(w_points, pred, tolerance_px, min_gap_px=min_gap_px)
+                w_points, w_labels, w_agrees, w_near = _dark_edge_points(image, weak, pred, sigma, polarity,
+                                                                         gradients, tolerance_px, along, magnitude)
+                w_bins, _ = uncovered_arc(w_points, pred, tolerance_px, min_gap_px=min_gap_px, along=along,
+                                          near=w_near)
                 use = w_agrees & gap[w_bins]
                 points = np.vstack([points, w_points[use]])
                 pieces = np.concatenate([pieces, w_labels[use] + (int(labels.max()) + 1 if len(labels) else 0)])
-        _, left = uncovered_arc(points, pred, tolerance_px, min_gap_px=0.0, hidden=hidden)
-        return pred, points, pieces, had_gaps, int(left.sum())
+                near = (np.concatenate([near[0], w_near[0][use]]), np.concatenate([near[1], w_near[1][use]]))
+        _, left = uncovered_arc(points, pred, tolerance_px, min_gap_px=0.0, hidden=hidden, along=along, near=near)
+        return pred, points, pieces, had_gaps, int(left.sum()), along, near
 
     shift = best_translation(edges, predicted, search_px) if search_px > 0 else np.zeros(2)
     found = gather(shift)
@@ -505,10 +548,11 @@ def _outline_in_region(image, predicted, roi, keep, sigma, tolerance_px, polarit
             other = gather(weak_shift)
             if other[4] < found[4]:
                 found = other
-    predicted, points, pieces = found[:3]
+    predicted, points, pieces, _, _, along, near = found
     if not len(points):
         raise EdgeError("no edge with the expected polarity near the predicted outline")
-    outline = untangle_outline(_merge_along([points], predicted, tolerance_px, pieces=pieces))
+    outline = untangle_outline(_merge_along([points], predicted, tolerance_px, pieces=pieces, along=along,
+                                            near=near))
     if len(outline) < 4:
         raise EdgeError("too few edge points along the predicted outline")
     return outline
