@@ -39,7 +39,7 @@ class _BowlWithRipple:
 @pytest.fixture
 def bowl(monkeypatch):
     monkeypatch.setattr(fast, "_FastEvaluation", _BowlWithRipple)
-    monkeypatch.setattr(fast, "_image_samples", lambda problem, settings, whole=False: [np.zeros((0, 2))])
+    monkeypatch.setattr(fast, "_samples_and_params", lambda problem, settings: ([np.zeros((0, 2))], [np.zeros(0)]))
     mesh = SimpleNamespace(centroid=np.zeros(3), radius=RADIUS)
     return SimpleNamespace(mesh=mesh, splines=[None])
 

@@ -193,9 +193,24 @@ def _image_samples(problem: MatchProblem, settings: MatchSettings, whole: bool =
     n_samples = [settings.outline_points or max(16, int(s.length_px / settings.spacing_px)) for s in problem.splines]
     if whole:
         return [s.sample(n) for s, n in zip(problem.splines, n_samples)]
-    samples = [s.sample(n, skip_gaps=settings.skip_gaps and len(s.gaps) > 0)
-               for s, n in zip(problem.splines, n_samples)]
-    return [g[visible_points(problem.occluder(k), g)] for k, g in enumerate(samples)]
+    return _samples_and_params(problem, settings, n_samples)[0]
+
+
+def _samples_and_params(problem: MatchProblem, settings: MatchSettings, n_samples=None):
+    """``_image_samples`` (not ``whole``) and, per view, where each sample sits along its
+    outline (its spline parameter: the covariance's stretches, the point weights)."""
+    if n_samples is None:
+        n_samples = [settings.outline_points or max(16, int(s.length_px / settings.spacing_px))
+                     for s in problem.splines]
+    params = [s.sample_params(n, skip_gaps=settings.skip_gaps and len(s.gaps) > 0)
+              for s, n in zip(problem.splines, n_samples)]
+    samples, kept = [], []
+    for k, (s, t) in enumerate(zip(problem.splines, params)):
+        g = s.evaluate(t)
+        seen = visible_points(problem.occluder(k), g)
+        samples.append(g[seen])
+        kept.append(t[seen])
+    return samples, kept
 
 
 def match_fast(problem, start, settings, progress, cancel) -> MatchResult:
@@ -203,9 +218,8 @@ def match_fast(problem, start, settings, progress, cancel) -> MatchResult:
     R, c = _to_state(start, mesh.centroid)
     if settings.centre_first:  # whole outlines: centroids of closed curves
         c = _initial_translation(problem, R, c, _image_samples(problem, settings, whole=True))
-    image_samples = _image_samples(problem, settings)
-    # where each image sample sits along its outline (for the covariance's stretches)
-    image_params = [sp.closest(g)[3] if len(g) else np.zeros(0) for sp, g in zip(problem.splines, image_samples)]
+    # the samples, and where each sits along its outline (for the covariance's stretches)
+    image_samples, image_params = _samples_and_params(problem, settings)
     calls = 0
     history: list[float] = []
     lam = 1e-3

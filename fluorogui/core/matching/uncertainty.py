@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from fluorogui.core.matching.fast import _FastEvaluation, _image_samples
+from fluorogui.core.matching.fast import _FastEvaluation, _samples_and_params
 from fluorogui.core.matching.problem import MatchProblem, MatchSettings, _to_pose, _to_state
 from fluorogui.core.projection.pose import as_pose, pose_difference, rotvec_matrix
 
@@ -48,8 +48,7 @@ def covariances(problem: MatchProblem, pose, settings: MatchSettings | None = No
     if evaluation is not None and np.allclose(evaluation[0], pose, rtol=0, atol=1e-12):
         ev = evaluation[1]  # the matcher's own last evaluation at this pose
     else:
-        samples = _image_samples(problem, settings)
-        params = [sp.closest(g)[3] if len(g) else np.zeros(0) for sp, g in zip(problem.splines, samples)]
+        samples, params = _samples_and_params(problem, settings)
         ev = _FastEvaluation(problem, R, c, settings, samples, params)
     H = np.zeros((6, 6))
     all_scores, all_keys, all_hessians = [], [], []

@@ -379,12 +379,16 @@ class OutlineSpline:
     def sample(self, n: int, skip_gaps: bool = False) -> np.ndarray:
         """``n`` points (n, 2) equally spaced in arc length, starting at t0; with
         ``skip_gaps`` the ones on chords across gaps (``gaps``) are left out."""
+        return self.evaluate(self.sample_params(n, skip_gaps))
+
+    def sample_params(self, n: int, skip_gaps: bool = False) -> np.ndarray:
+        """The parameters (in [t0, t1)) of the points ``sample`` gives."""
         pts, t, arc = self._dense_polyline()
         targets = np.arange(n) * (arc[-1] / n)
         params = np.interp(targets, arc, t)
         if skip_gaps:
             params = params[~self.in_gap(params)]
-        return self.evaluate(params)
+        return params
 
     def in_gap(self, t) -> np.ndarray:
         """True for parameters on a chord across a gap of the outline."""
