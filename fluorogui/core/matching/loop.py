@@ -26,12 +26,13 @@ same settings give the same pose everywhere.
 """
 from __future__ import annotations
 
+import time
 from dataclasses import asdict, dataclass, replace
 from typing import Sequence
 
 import numpy as np
 
-from fluorogui.core.matching.matcher import match
+from fluorogui.core.matching.matcher import judge_match, match
 from fluorogui.core.matching.problem import MatchProblem, MatchResult, MatchSettings
 from fluorogui.core.outlines.edges import component_outline
 from fluorogui.core.outlines.rim import RimModel, edge_model, is_soft, refine_outlines, rim_models_together
@@ -347,17 +348,20 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
         # later passes start from a matched pose: no need to centre the model first
         pass_settings = settings if passes == 0 or not settings.centre_first else replace(settings, centre_first=False)
         previous = pose
-        result = match(MatchProblem(mesh, views, current, occluded), pose, pass_settings, progress, cancel)
+        # each pass's result is judged (checks, uncertainty) only once the loop has kept it
+        problem = MatchProblem(mesh, views, current, occluded)
+        result = match(problem, pose, pass_settings, progress, cancel, judge=False)
         if trial is not None:
             # keep the rim's outlines only where they fit the model better than Canny's own:
             # on an image the rim model does not describe, they would only add noise
             plain = [g if g is not None else n for g, n in zip(given, trial[1])]
-            other = match(MatchProblem(mesh, views, plain, occluded), pose, pass_settings, progress, cancel)
+            plain_problem = MatchProblem(mesh, views, plain, occluded)
+            other = match(plain_problem, pose, pass_settings, progress, cancel, judge=False)
             total_calls += other.calls
             total_seconds += other.seconds
             if other.objective_mm <= result.objective_mm:
                 result, outlines, current, use_rim = other, trial[0], plain, False
-                outline_weights = None
+                outline_weights, problem = None, plain_problem
         passes += 1
         total_calls += result.calls
         total_seconds += result.seconds
@@ -374,6 +378,9 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
             # the start was within a fraction of a pixel: segmenting along the result would
             # pick the same edges (the search band is several pixels wide)
             break
+    t_judge = time.perf_counter()
+    judge_match(problem, result, pass_settings)
+    total_seconds += time.perf_counter() - t_judge
     result.calls, result.seconds, result.history = total_calls, total_seconds, history
     result.settings = dict(result.settings, loop=loop.to_dict(), passes=passes,
                            rim_refined=[k in (rim_views or []) and refined and use_rim for k in range(len(views))])

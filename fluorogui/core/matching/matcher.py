@@ -26,7 +26,8 @@ from fluorogui.core.projection.pose import as_pose
 
 
 def match(problem: MatchProblem, start, settings: MatchSettings | None = None,
-          progress: ProgressCallback | None = None, cancel: Callable[[], bool] | None = None) -> MatchResult:
+          progress: ProgressCallback | None = None, cancel: Callable[[], bool] | None = None,
+          judge: bool = True) -> MatchResult:
     """The pose of one component from its outlines in one or two views (Eq. 4-6).
 
     Runs the method ``settings.method`` from ``start`` (and ``settings.starts - 1``
@@ -46,6 +47,9 @@ def match(problem: MatchProblem, start, settings: MatchSettings | None = None,
         ``progress(calls, objective_mm, pose)`` after every step.
     cancel : callable, optional
         Polled; when it returns True the match stops.
+    judge : bool, optional
+        False leaves out the checks and the uncertainty (``judge_match`` adds them later),
+        for a caller that may discard the result, e.g. a pass the loop will redo.
 
     Returns
     -------
@@ -104,14 +108,16 @@ def match(problem: MatchProblem, start, settings: MatchSettings | None = None,
             best = res
     best.calls = total_calls
     best.optimiser_converged = best.converged
-    _judge(problem, best, settings)
+    if judge:
+        judge_match(problem, best, settings)
     best.seconds = time.perf_counter() - t0
     return best
 
 
-def _judge(problem: MatchProblem, result: MatchResult, settings: MatchSettings) -> None:
+def judge_match(problem: MatchProblem, result: MatchResult, settings: MatchSettings | None = None) -> None:
     """The result's uncertainty and its own evidence (``core.matching.quality.check_match``): a
     result that fails a check is not converged, and says why in ``message``."""
+    settings = settings or MatchSettings()
     try:
         pose_cov, body_cov = covariances(problem, result.pose, settings, evaluation=result._evaluation)
         result.sd, result.sd_body = pose_sd(pose_cov), pose_sd(body_cov)

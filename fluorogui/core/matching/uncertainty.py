@@ -67,10 +67,8 @@ def covariances(problem: MatchProblem, pose, settings: MatchSettings | None = No
     eig = np.linalg.eigvalsh(H)
     if n <= 6 or eig[0] <= 1e-12 * max(eig[-1], 1e-300):
         return np.full((6, 6), np.inf), np.full((6, 6), np.inf)
-    S = np.zeros((n, 6))
-    np.add.at(S, group.ravel(), np.vstack(all_scores))
-    Hg = np.zeros((n, 6, 6))
-    np.add.at(Hg, group.ravel(), np.concatenate(all_hessians))
+    S = _sum_by(group.ravel(), np.vstack(all_scores), n)
+    Hg = _sum_by(group.ravel(), np.concatenate(all_hessians).reshape(-1, 36), n).reshape(n, 6, 6)
     # the jackknife over stretches (CR3): each stretch's own effect on the pose, with the
     # stretch left out of H. A plain sandwich H^-1 (sum s s^T) H^-1 is biased low when
     # there are few stretches for six variables (a single view: about a dozen).
@@ -94,6 +92,12 @@ def covariances(problem: MatchProblem, pose, settings: MatchSettings | None = No
     B = np.eye(6)
     B[3:, 3:] = R.T * np.degrees(1.0 / mesh.radius)
     return A @ cov @ A.T, B @ cov @ B.T
+
+
+def _sum_by(group: np.ndarray, rows: np.ndarray, n: int) -> np.ndarray:
+    """Sums (n, m) of ``rows`` (N, m) by their ``group`` index: one bincount per column (the
+    unbuffered np.add.at did the same sums a dozen times slower)."""
+    return np.column_stack([np.bincount(group, weights=column, minlength=n) for column in rows.T])
 
 
 def pose_sd(cov: np.ndarray) -> list[float]:
