@@ -48,6 +48,11 @@ _RANK = {Status.MATCHED: 0, Status.NEEDS_REVIEW: 1, Status.FAILED: 2}
 
 #: frames since the last match beyond which recovery searches near the prediction first
 NEAR_FIRST_GAP = 2
+#: checks whose failure no other start can mend, once every other check passed: the component
+#: is partly beyond the field of view (``quality._partly_visible``), so its pose is loose or too
+#: little of it is seen from any start. Recovery stops there (frame 260's femur of the real
+#: sequence tried 6 starts for 1.7-2.2 s, each flagged the same)
+IMAGE_BOUND_CHECKS = frozenset({"visible"})
 
 #: a component's rim judgement (``core.outlines.rim``: per view, is the edge a soft rim, and its
 #: attenuation and blur) is the same for a whole sequence; unless its first matched frame
@@ -217,17 +222,22 @@ class FrameMatcher:
         best: FrameResult | None = None
         tried = 0
         light = replace(self.settings.loop, max_passes=min(3, self.settings.loop.max_passes))
+        jump = job.gap > NEAR_FIRST_GAP
         for label, start in self._starts(images, job, cancel):
             check_cancel(cancel)
-            # only the first start runs the whole loop: recovery starts (every later one, the
-            # prediction too after a jump's searches) get a shorter one, most lead nowhere
-            candidate = self.attempt(images, job, start, occluded, cancel, None if tried == 0 and not label else light)
+            # only the first start runs the whole loop: recovery starts (every later one, and
+            # every start at a jump, where the prediction extrapolates beyond what was seen)
+            # get a shorter one, most lead nowhere
+            whole = tried == 0 and not label and not jump
+            candidate = self.attempt(images, job, start, occluded, cancel, None if whole else light)
             tried += 1
             if best is None or better_result(candidate, best):
                 best = candidate
                 best.recovered = label
             if best.status == Status.MATCHED:
                 break
+            if best.failed and set(best.failed) <= IMAGE_BOUND_CHECKS:
+                break  # the pose fits; what fails is what the images show, the same from every start
             if job.given is not None and all(g is not None for g in job.given) and best.status == Status.FAILED:
                 break  # reviewed outlines that cannot be matched: other starts will not help
         if best.status == Status.MATCHED and job.probe and self.settings.tracking.probe:
