@@ -81,6 +81,20 @@ def test_sample_is_equally_spaced(circle_spline):
     assert pts.shape == (60, 2) and np.ptp(steps) < 1e-6
 
 
+def test_sample_params_are_where_the_samples_lie():
+    """The matcher takes its image samples' outline positions from ``sample_params`` instead
+    of searching each sample's closest point again: they must be the same parameters."""
+    wave = np.column_stack([np.zeros(300), 6 * np.sin(np.linspace(0, 6 * np.pi, 300))])
+    spline = OutlineSpline.fit(circle(300) + wave)
+    spline.gaps = np.array([[40.0, 90.0]])
+    for skip in (False, True):
+        t = spline.sample_params(200, skip_gaps=skip)
+        np.testing.assert_array_equal(spline.evaluate(t), spline.sample(200, skip_gaps=skip))
+        assert np.all((t >= spline.t_range[0]) & (t < spline.t_range[1]))
+        np.testing.assert_allclose(spline.closest(spline.evaluate(t))[3], t, atol=1e-6)
+    assert len(spline.sample_params(200, skip_gaps=True)) < 200  # the gap's samples left out
+
+
 def test_duplicate_and_closing_points_are_ignored():
     pts = circle(40)
     with_duplicates = np.vstack([pts[:10], pts[9:10], pts[10:], pts[:1]])

@@ -78,8 +78,10 @@ def test_only_the_first_start_runs_the_whole_loop(monkeypatch):
     settings = WorkflowSettings()
     for gap, found, expected in ((1, NEAR, [None, 3]), (5, NEAR, [3, 3]), (5, None, [3])):
         loops.clear()
-        matcher = FrameMatcher(VIEWS, settings, lambda images, c, mesh, pose, cancel=None: found if pose is not None
-                               else None)
+        def find_near(images, c, mesh, pose, cancel=None, found=found):
+            return found if pose is not None else None
+
+        matcher = FrameMatcher(VIEWS, settings, find_near)
         job = ComponentInput("tibial", SimpleNamespace(centroid=np.zeros(3)), PREDICTED, None, gap=gap, probe=False)
         matcher.match_component(0, IMAGES, job)
         assert loops[:len(expected)] == expected, (gap, loops)
