@@ -183,8 +183,8 @@ def mask_at(mask: np.ndarray, uv: np.ndarray) -> np.ndarray:
     uv = np.asarray(uv, dtype=float).reshape(-1, 2)
     h, w = mask.shape
     uv = np.nan_to_num(uv, nan=-1.0, posinf=1e9, neginf=-1e9)
-    col = np.clip(np.round(uv[:, 0]), 0, w - 1).astype(int)
-    row = np.clip(np.round(uv[:, 1]), 0, h - 1).astype(int)
+    col = np.minimum(np.maximum(np.round(uv[:, 0]), 0), w - 1).astype(int)  # (np.clip's wrapper: slower)
+    row = np.minimum(np.maximum(np.round(uv[:, 1]), 0), h - 1).astype(int)
     return mask[row, col].astype(bool)
 
 

@@ -345,8 +345,8 @@ def best_translation(edge_mask: np.ndarray, predicted_px: np.ndarray, search_px:
     pts = resample_closed_polyline(predicted_px, n=min(300, max(8, len(predicted_px))))
 
     def costs(shifts: np.ndarray) -> np.ndarray:
-        u = np.clip(np.round(pts[None, :, 0] + shifts[:, None, 0]).astype(int), 0, width - 1)
-        v = np.clip(np.round(pts[None, :, 1] + shifts[:, None, 1]).astype(int), 0, height - 1)
+        u = np.minimum(np.maximum(np.round(pts[None, :, 0] + shifts[:, None, 0]).astype(int), 0), width - 1)
+        v = np.minimum(np.maximum(np.round(pts[None, :, 1] + shifts[:, None, 1]).astype(int), 0), height - 1)
         return distance[v, u].mean(axis=1)
 
     best = np.zeros(2)

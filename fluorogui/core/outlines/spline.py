@@ -189,6 +189,11 @@ def validate_outline(points) -> np.ndarray:
     return pts
 
 
+def _unit_interval(x: np.ndarray) -> np.ndarray:
+    """``x`` clipped to [0, 1] (np.clip's wrapper costs more than the work on short arrays)."""
+    return np.minimum(np.maximum(x, 0.0), 1.0)
+
+
 # -- the spline -------------------------------------------------------------------------------
 class OutlineSpline:
     """Closed cubic spline g(t) through an ordered outline; t in pixels of chord length."""
@@ -336,8 +341,9 @@ class OutlineSpline:
                 self._lookup = (start, width, piece)
         start, width, table = self._lookup
         if table is None:
-            return np.clip(np.searchsorted(breaks, t, side="right") - 1, 0, n_pieces - 1)
-        i = table[np.clip(((t - start) / width).astype(np.int64), 0, len(table) - 1)]
+            return np.minimum(np.maximum(np.searchsorted(breaks, t, side="right") - 1, 0), n_pieces - 1)
+        # (np.minimum/maximum: np.clip's wrapper costs more than the work on these short arrays)
+        i = table[np.minimum(np.maximum(((t - start) / width).astype(np.int64), 0), len(table) - 1)]
         # a bin is narrower than any piece, so the piece is the tabled one or the next
         return np.minimum(i + (t >= breaks[np.minimum(i + 1, n_pieces)]), n_pieces - 1)
 
@@ -427,10 +433,11 @@ class OutlineSpline:
         t_before = tp[before] - np.where(k == 0, self.period, 0.0)
         # project on the chords before and after the nearest vertex; keep the nearer foot
         rel = p - poly[k]
-        w_after = np.clip(np.einsum("ij,ij->i", rel, chords[k]) / np.einsum("ij,ij->i", chords[k], chords[k]), 0.0, 1.0)
+        along = chords[k]
+        w_after = _unit_interval(np.einsum("ij,ij->i", rel, along) / np.einsum("ij,ij->i", along, along))
         back = -chords[before]
-        w_before = np.clip(np.einsum("ij,ij->i", rel, back) / np.einsum("ij,ij->i", back, back), 0.0, 1.0)
-        miss_after = rel - w_after[:, None] * chords[k]
+        w_before = _unit_interval(np.einsum("ij,ij->i", rel, back) / np.einsum("ij,ij->i", back, back))
+        miss_after = rel - w_after[:, None] * along
         miss_before = rel - w_before[:, None] * back
         use_after = np.einsum("ij,ij->i", miss_after, miss_after) <= np.einsum("ij,ij->i", miss_before, miss_before)
         t = np.where(use_after, tp[k] + w_after * (tp[k + 1] - tp[k]), tp[k] - w_before * (tp[k] - t_before))
@@ -449,7 +456,7 @@ class OutlineSpline:
             f = np.einsum("ij,ij->i", d1, r)
             gn = np.einsum("ij,ij->i", d1, d1)
             fp = gn + np.einsum("ij,ij->i", d2, r)
-            t_new = np.clip(t - damping * f / np.where(fp > 1e-3 * gn, fp, gn), lo, hi)
+            t_new = np.minimum(np.maximum(t - damping * f / np.where(fp > 1e-3 * gn, fp, gn), lo), hi)
             last = iteration == steps - 1
             new = self._evaluate_all(t_new, 1 if last else 2)
             r_new = new[0] - p
