@@ -22,11 +22,13 @@ Sections (all by default, or name some):
   or flagged; flagged frames and why; the cost of a consecutive pair (target 0.2 s median)
   and of a recovered frame (target 1 s); frame-to-frame jitter per degree of freedom; the six
   knee kinematics curves and their jitter (``--figure`` saves their figure); first, a fixed
-  OpenCV/numpy load's seconds (``machine_reference_s``) to compare machines and days by.
+  OpenCV/numpy load's seconds (``machine_reference_s``) to compare machines and days by;
+  with ``--region-fit``, every matched pose against the independent region-overlap fit
+  (their systematic difference, its spread over frames, and the reported SDs over that).
 
 Errors are body-fixed (``core.projection.pose.pose_error``): translation mm, rotation angles deg.
 Usage: .venv/bin/python benchmarks/bench_tracking.py [demo] [synthetic] [partial] [batch] [real]
-           [--workers N] [--frames N] [--no-occlusion] [--json OUT] [--figure OUT.png]
+           [--workers N] [--frames N] [--no-occlusion] [--json OUT] [--figure OUT.png] [--region-fit]
 """
 from __future__ import annotations
 
@@ -333,6 +335,45 @@ def _relative_sd_over_spread(session: Session, rows, first: int = 50, last: int 
     return np.median(sds, axis=0) / _local_spread(np.hstack([np.array(offsets), angles]))
 
 
+def _against_region_fit(session: Session, rows) -> dict:
+    """Every matched real pose against the independent region-overlap fit
+    (``fluorogui.reference.region_fit``, started from it): per component, the mean and the SD
+    over frames of their difference (centroid world x, y, z mm; turn about the model's own
+    x, y, z deg), and the median reported SD over that SD. The mean is the two methods'
+    systematic disagreement (where each puts the edge); the SD, what changes from frame to
+    frame, both methods' noise together: a second reference for the SDs beside the spread."""
+    from scipy.spatial.transform import Rotation
+
+    from fluorogui.core.projection.pose import rotation_matrix
+    from fluorogui.io.meshes.read import load_mesh
+    from fluorogui.reference.region_fit import EdgeMesh, field_of_view, fit_pose
+
+    out = {}
+    for c in COMPONENTS:
+        mesh = EdgeMesh.from_arrays(*load_mesh(DATA / "biplane-tka" / "models" / f"{c}_component.stl"))
+        centroid = session.mesh(c).centroid
+        diffs, sds = [], []
+        for r in rows:
+            if r.component != c or r.status != "matched":
+                continue
+            images = session.images(r.frame)
+            fit = fit_pose(session.views, images, mesh, np.asarray(r.pose, float),
+                           fields=[field_of_view(im) for im in images])
+            R0, R1 = rotation_matrix(*r.pose[3:]), rotation_matrix(*fit.pose[3:])
+            shift = (R1 @ centroid + fit.pose[:3]) - (R0 @ centroid + r.pose[:3])
+            diffs.append(np.r_[shift, np.degrees(Rotation.from_matrix(R0.T @ R1).as_rotvec())])
+            sds.append(r.match.sd_body)
+        d = np.array(diffs)
+        spread = d.std(axis=0, ddof=1)
+        out[c] = {"frames": len(d), "mean_difference": d.mean(axis=0).tolist(), "sd_difference": spread.tolist(),
+                  "sd_over_sd_difference": (np.median(np.array(sds, dtype=float), axis=0) / spread).tolist()}
+        print(f"  against the independent region fit, {c:8s} ({len(d)} frames), centroid x y z mm, turn about "
+              "the model's x y z deg: mean difference " + " ".join(f"{v:+.3f}" for v in out[c]["mean_difference"])
+              + "; SD over frames " + " ".join(f"{v:.3f}" for v in spread) + "; reported SD / that SD "
+              + " ".join(f"{v:.2f}" for v in out[c]["sd_over_sd_difference"]))
+    return out
+
+
 def bench_batch(args) -> dict:
     """Two generated bends through the command line's batch run, then each frame against its truth."""
     from fluorogui.cli import main as cli_main
@@ -463,9 +504,10 @@ def bench_real(args) -> dict:
         print("  reported SD / spread of the femur relative to the tibia (motion of the whole knee cancels; "
               "tibia axes) centroid x y z, turn x y z: " + " ".join(f"{v:.2f}" for v in relative))
     knee = _knee_curves(session, args.figure)
+    independent = _against_region_fit(session, rows) if args.region_fit else None
     print()
     return {"seconds": wall, "machine_reference_s": reference, **timing, **counts, "jitter": jitter,
-            "reasons": reasons, "kinematics": knee}
+            "reasons": reasons, "kinematics": knee, "region_fit": independent}
 
 
 def main(argv=None) -> int:
@@ -477,6 +519,8 @@ def main(argv=None) -> int:
                     help="synthetic: track without masking the other component (to compare)")
     ap.add_argument("--json", type=Path, help="write the numbers here")
     ap.add_argument("--figure", type=Path, help="write the real sequence's kinematics figure here (png/svg/pdf)")
+    ap.add_argument("--region-fit", action="store_true",
+                    help="real: compare every matched pose with the independent region-overlap fit (minutes)")
     args = ap.parse_args(argv)
     sections = args.sections or ["demo", "synthetic", "partial", "batch", "real"]
     if any(s in sections for s in ("synthetic", "partial", "batch", "real")) and not DATA.is_dir():

@@ -153,7 +153,7 @@ class FrameMatcher:
         """The fields of view of this frame's images (computed once per set of images)."""
         state = self._frame_state(images)
         if "fields" not in state:
-            state["fields"] = [field_of_view(image, margin_px=2) for image in images]
+            state["fields"] = each_view(lambda image: field_of_view(image, margin_px=2), images)  # side by side
         return state["fields"]
 
     def _hidden(self, images, occluded) -> list[np.ndarray]:

@@ -190,20 +190,20 @@ def _polygon_centroid(p: np.ndarray) -> np.ndarray:
 def _image_samples(problem: MatchProblem, settings: MatchSettings, whole: bool = False) -> list[np.ndarray]:
     """Image outline samples per view (about ``spacing_px`` apart, or ``outline_points``);
     unless ``whole``, without chords across gaps and without occluded points."""
-    n_samples = [settings.outline_points or max(16, int(s.length_px / settings.spacing_px)) for s in problem.splines]
     if whole:
-        return [s.sample(n) for s, n in zip(problem.splines, n_samples)]
-    return _samples_and_params(problem, settings, n_samples)[0]
+        return [s.sample(n) for s, n in zip(problem.splines, _sample_counts(problem, settings))]
+    return _samples_and_params(problem, settings)[0]
 
 
-def _samples_and_params(problem: MatchProblem, settings: MatchSettings, n_samples=None):
+def _sample_counts(problem: MatchProblem, settings: MatchSettings) -> list[int]:
+    return [settings.outline_points or max(16, int(s.length_px / settings.spacing_px)) for s in problem.splines]
+
+
+def _samples_and_params(problem: MatchProblem, settings: MatchSettings):
     """``_image_samples`` (not ``whole``) and, per view, where each sample sits along its
     outline (its spline parameter: the covariance's stretches, the point weights)."""
-    if n_samples is None:
-        n_samples = [settings.outline_points or max(16, int(s.length_px / settings.spacing_px))
-                     for s in problem.splines]
     params = [s.sample_params(n, skip_gaps=settings.skip_gaps and len(s.gaps) > 0)
-              for s, n in zip(problem.splines, n_samples)]
+              for s, n in zip(problem.splines, _sample_counts(problem, settings))]
     samples, kept = [], []
     for k, (s, t) in enumerate(zip(problem.splines, params)):
         g = s.evaluate(t)
