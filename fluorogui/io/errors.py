@@ -3,11 +3,14 @@ a note) and the words for operating-system errors (the opening and writing of fi
 format shares is in ``fluorogui.io.files``).
 
 ``InputError(path, problem)`` reads as a single line ``"<path>: <problem>"`` so the CLI can
-print it on stderr and the GUI can show it in a dialog as is.
+print it on stderr and the GUI can show it in a dialog as is; ``collected_input_warnings``
+gathers the warnings for a caller that shows them itself (the desktop app's dialog).
 """
 from __future__ import annotations
 
 import errno
+import warnings
+from contextlib import contextmanager
 
 
 class InputError(Exception):
@@ -58,6 +61,24 @@ class InputWarning(UserWarning):
 
 def warn_input(path, problem: str) -> None:
     """Emit an InputWarning about ``path``."""
-    import warnings
-
     warnings.warn(InputWarning(path, problem), stacklevel=3)
+
+
+@contextmanager
+def collected_input_warnings():
+    """While the block runs, every ``InputWarning`` is added (its one line) to the list the
+    block gets, each once, instead of being emitted; other warnings go on as before."""
+    notes: list[str] = []
+    with warnings.catch_warnings():
+        shown = warnings.showwarning
+
+        def collect(message, category, filename, lineno, file=None, line=None):
+            if issubclass(category, InputWarning):
+                if str(message) not in notes:
+                    notes.append(str(message))
+            else:
+                shown(message, category, filename, lineno, file, line)
+
+        warnings.showwarning = collect
+        warnings.simplefilter("always", InputWarning)
+        yield notes

@@ -109,6 +109,29 @@ def test_import_poses_lands_as_placed_and_undoes_in_one_step(window, demo, tmp_p
     assert not session.project.poses
 
 
+def test_a_pose_file_read_with_a_note_says_so_in_one_dialog(window, demo, tmp_path, dialogs):
+    """An input repaired on reading (here a JointTrack header in lower case) is imported, and
+    the app says what was done to which file: the command line's stderr line, as a dialog."""
+    window.open_project(demo)
+    session = window.session
+    put_truth(session)
+    from fluorogui.workflow.exports import export_jts
+
+    path = export_jts(session, tmp_path, 0, include_unreviewed=True)[0]
+    path.write_text(path.read_text().replace("JT_EULER_312", "jt_euler_312", 1))
+    component = "femoral" if "fem" in path.name else "tibial"
+    session.project.poses.clear()
+    assert window.knee.import_poses_file(str(path), component=component, view=0) == len(session.frames)
+    assert len(dialogs["warning"]) == 1
+    title, text = dialogs["warning"][0][1:3]
+    assert title == "Imported poses with notes"
+    assert f"{path}: the header 'jt_euler_312' is not in capitals" in text
+    # a file read as it stands: no dialog
+    export_jts(session, tmp_path, 0, include_unreviewed=True)
+    assert window.knee.import_poses_file(str(path), component=component, view=0) == len(session.frames)
+    assert len(dialogs["warning"]) == 1
+
+
 def test_pose_changes_refresh_the_dock_once_the_burst_is_over(window, demo, qtbot):
     window.open_project(demo)
     session = window.session

@@ -401,6 +401,24 @@ def test_implausible_json_calibration_and_keys_twice(tmp_path):
     assert_error(tmp_path / "twice.json", "calibration file: the key 'version' appears twice in one object")
 
 
+def test_input_warnings_are_collected_once_each_for_the_app(tmp_path):
+    """The desktop app shows the notes of what it just read in one dialog: each note once, in
+    order; any other warning goes on as before."""
+    import warnings
+
+    from fluorogui.io.errors import collected_input_warnings, warn_input
+
+    path = write(tmp_path, "Jt_IntCalib\n1200\n0\n0\n0.4\n")
+    with pytest.warns(UserWarning, match="not an input note"):
+        with collected_input_warnings() as notes:
+            load_view(path)
+            load_view(path)
+            warn_input("b.txt", "second")
+            warnings.warn(UserWarning("not an input note"), stacklevel=2)
+    assert notes == [f"{path}: the header 'Jt_IntCalib' is not in capitals as JointTrack writes it; read as "
+                     "JT_INTCALIB", "b.txt: second"]
+
+
 def test_lower_case_jointtrack_headers_are_read_with_a_warning(tmp_path):
     from fluorogui.io.errors import InputWarning
 

@@ -19,7 +19,7 @@ from PySide6.QtCore import QObject, QStandardPaths, Qt
 from PySide6.QtGui import QKeySequence
 from PySide6.QtWidgets import QApplication, QFileDialog, QMenu, QMessageBox
 
-from fluorogui.io.errors import InputError
+from fluorogui.io.errors import InputError, collected_input_warnings
 from fluorogui.io.meshes.read import MESH_SUFFIXES
 from fluorogui.io.project.lock import ProjectLocked
 from fluorogui.logs import data_dir, log_exception
@@ -120,26 +120,34 @@ class SessionFiles(QObject):
                 return False
             path = name
         read_only = False
-        try:
+        with collected_input_warnings() as notes:  # read, but not as it stood: said after opening
             try:
-                self.controller.open(path)
-            except ProjectLocked as exc:
-                if not quiet_read_only and not self._ask_read_only(exc):
-                    return False
-                read_only = True
-                self.controller.open(path, read_only=True)
-        except InputError as exc:
-            self.window.warn("Cannot open project", str(exc))
-            return False
-        except Exception as exc:  # noqa: BLE001 - a check the loader lacks: one dialog, traceback logged
-            logged = log_exception(f"opening {path}")
-            self.window.warn("Cannot open project", f"{path}: could not be opened ({type(exc).__name__})"
-                       + (f"; details in {logged}" if logged else ""))
-            return False
+                try:
+                    self.controller.open(path)
+                except ProjectLocked as exc:
+                    if not quiet_read_only and not self._ask_read_only(exc):
+                        return False
+                    read_only = True
+                    self.controller.open(path, read_only=True)
+            except InputError as exc:
+                self.window.warn("Cannot open project", str(exc))
+                return False
+            except Exception as exc:  # noqa: BLE001 - a check the loader lacks: one dialog, traceback logged
+                logged = log_exception(f"opening {path}")
+                self.window.warn("Cannot open project", f"{path}: could not be opened ({type(exc).__name__})"
+                           + (f"; details in {logged}" if logged else ""))
+                return False
         self._add_recent(Path(path).resolve())
         self.settings.setValue("last_dir", str(Path(path).resolve().parent))
         self.window.statusBar().showMessage(f"Opened {path}" + (" read-only" if read_only else ""), 5000)
+        self.tell_input_notes("Opened with notes", notes)
         return True
+
+    def tell_input_notes(self, title: str, notes: list[str]) -> None:
+        """The inputs just read that were repaired or accepted with a note (``InputWarning``),
+        in one dialog; nothing when there were none."""
+        if notes:
+            self.window.warn(title, "Read, with these notes:\n" + "\n".join(notes))
 
     def _ask_read_only(self, exc: ProjectLocked) -> bool:
         """Tell the user who holds a project; True if they want it read-only anyway."""
@@ -252,11 +260,14 @@ class SessionFiles(QObject):
             dialog.fill_from_folder(folder)
         if paths:
             dialog.fill(**paths)
-        if dialog.exec() != ImportDialog.DialogCode.Accepted or dialog.project is None:
+        with collected_input_warnings() as notes:
+            accepted = dialog.exec() == ImportDialog.DialogCode.Accepted and dialog.project is not None
+        if not accepted:
             return False
         self.controller.set_project(dialog.project, None)
         self.controller.session.history.reset_clean()  # never saved: closing asks
         self.window.statusBar().showMessage("Imported. Save the session to keep it (Ctrl+S)", 8000)
+        self.tell_input_notes("Imported with notes", notes)
         return True
 
     # -- autosave and recovery -------------------------------------------------------------

@@ -14,7 +14,7 @@ from fluorogui.core.knee.kinematics import KinematicsError
 from fluorogui.gui.actions.files import app_data_dir
 from fluorogui.gui.dialogs.anatomical_frame import AnatomicalFrameDialog
 from fluorogui.gui.dialogs.export_dialog import TIMED_KINDS, ExportDialog
-from fluorogui.io.errors import InputError
+from fluorogui.io.errors import InputError, collected_input_warnings
 from fluorogui.workflow import exports
 
 IMPORT_FILTER = "Poses (*.csv *.tra *.jts);;All files (*)"
@@ -190,12 +190,14 @@ class KneeActions(QObject):
                     return 0
                 view = names.index(choice)
         try:
-            count = exports.import_poses(session, path, component, view or 0)
+            with collected_input_warnings() as notes:
+                count = exports.import_poses(session, path, component, view or 0)
         except (InputError, KinematicsError, ValueError) as exc:
             self.window.warn("Import poses failed", str(exc))
             return 0
         self.window.statusBar().showMessage(f"Imported {count} poses from {Path(path).name}; they are marked "
                                             "'placed' until reviewed or matched", 8000)
+        self.window.files.tell_input_notes("Imported poses with notes", notes)
         return count
 
     def edit_anatomical_frames(self, component: str | None = None) -> None:
