@@ -2,6 +2,7 @@
 
     python benchmarks/bench_uncertainty.py [--realisations 100] [--noise 0.1] [--corr 3]
     python benchmarks/bench_uncertainty.py --xray MESH [--flexion 30 60] [--rim] [--background none]
+    python benchmarks/bench_uncertainty.py --xray-real femoral|tibial [--frames 0 40 80 120]
 
 For each scene (a bent ellipsoid, outlines made without the matcher's code by
 ``fluorogui.reference.hull_outlines``) the matcher is run on many noise realisations; the
@@ -15,6 +16,16 @@ views, the mesh at each ``--flexion``): Canny outline, with ``--rim`` the rim re
 as ``validate idealized --rim`` makes it, then the match from a perturbed start. Beside
 the spread it gives the mean error and the RMS error, which hold the bias the noise does
 not explain (the reported SD covers only the spread).
+
+``--xray-real COMPONENT``: the real data's own geometry (``../shared/data/biplane-tka``:
+its calibrated views, its mesh, at the reference poses of ``--frames`` from
+``tests/data``) on images of the independent X-ray model, where the truth is known: the
+matcher's whole path (Canny outline, match from a perturbed start) and the independent
+region-overlap fit (``fluorogui.reference.region_fit``) from the same start (``--rim``:
+the matcher with the rim refinement, as tracking runs it), each one's
+error against the truth (centroid in world mm, turn about the model's axes in degrees)
+beside the reported SD. It says how far each of the two methods that disagree on the
+real frames is off where the answer is known.
 """
 from __future__ import annotations
 
@@ -95,6 +106,63 @@ def xray_scene(flexion, args):
     print()
 
 
+def _body_error(pose, truth, centroid) -> np.ndarray:
+    """Centroid shift (world mm) and turn about the model's own axes (deg) from truth to pose."""
+    from scipy.spatial.transform import Rotation
+
+    R0, R1 = rotation_matrix(*truth[3:]), rotation_matrix(*pose[3:])
+    turn = np.degrees(Rotation.from_matrix(R0.T @ R1).as_rotvec())
+    return np.r_[(R1 @ centroid + pose[:3]) - (R0 @ centroid + truth[:3]), turn]
+
+
+def xray_real_scene(args) -> None:
+    import csv
+    import tempfile
+    from pathlib import Path
+
+    from fluorogui import Session
+    from fluorogui.core.matching.loop import segment_and_match
+    from fluorogui.core.projection.pose import transform_points
+    from fluorogui.io.importer import import_folder
+    from fluorogui.io.meshes.read import load_mesh
+    from fluorogui.io.project.document import save_project
+    from fluorogui.reference.region_fit import EdgeMesh, field_of_view, fit_pose
+    from fluorogui.reference.xray import MU_METAL, Body, XrayModel, xray_image
+
+    root = Path(__file__).resolve().parents[1]
+    data = root.parent / "shared" / "data" / "biplane-tka"
+    project = Path(tempfile.mkdtemp(prefix="bench-uncertainty-")) / "real.fluoro"
+    save_project(import_folder(data), project)
+    views = Session.open(project).views
+    names = ("x", "y", "z", "alpha", "beta", "gamma")
+    truths = {int(r["frame"]): np.array([float(r[k]) for k in names])
+              for r in csv.DictReader(open(root / "tests" / "data" / "biplane_reference_poses.csv"))
+              if r["component"] == args.xray_real}
+    vertices, faces = load_mesh(data / "models" / f"{args.xray_real}_component.stl")
+    mesh, edges = prepare_mesh(vertices, faces), EdgeMesh.from_arrays(vertices, faces)
+    rng = np.random.default_rng(args.seed)
+    ours, region, reported = [], [], []
+    print(f"X-ray model images of the real {args.xray_real} component in the real views at the reference poses; "
+          "error against the truth (centroid world x y z mm, turn about the model's x y z deg)")
+    for frame in args.frames:
+        truth = truths[frame]
+        world = transform_points(truth, mesh.vertices)
+        images = [xray_image(v, [Body(world, mesh.faces, MU_METAL)], XrayModel(), rng) for v in views]
+        start = truth + rng.normal(0, 0.5, 6)
+        result = segment_and_match(images, views, mesh, start)
+        fit = fit_pose(views, images, edges, start, fields=[field_of_view(im) for im in images])
+        ours.append(_body_error(result.pose, truth, mesh.centroid))
+        region.append(_body_error(fit.pose, truth, mesh.centroid))
+        reported.append(result.sd_body)
+        print(f"  frame {frame:3d}  matcher " + " ".join(f"{v:+.3f}" for v in ours[-1])
+              + "  region fit " + " ".join(f"{v:+.3f}" for v in region[-1])
+              + "  reported SD " + " ".join(f"{v:.3f}" for v in result.sd_body))
+    for label, e in (("matcher", np.array(ours)), ("region fit", np.array(region))):
+        print(f"  {label:<11} mean " + " ".join(f"{v:+.3f}" for v in e.mean(0))
+              + "  RMS " + " ".join(f"{v:.3f}" for v in np.sqrt(np.mean(e ** 2, axis=0))))
+    print("  median reported SD " + " ".join(f"{v:.3f}" for v in np.median(reported, axis=0)))
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--realisations", type=int, default=100)
@@ -105,7 +173,13 @@ def main() -> None:
     p.add_argument("--flexion", type=float, nargs="+", default=[30.0, 60.0], help="with --xray")
     p.add_argument("--rim", action="store_true", help="with --xray: the rim refinement")
     p.add_argument("--background", choices=["knee", "none"], default="knee", help="with --xray")
+    p.add_argument("--xray-real", choices=["femoral", "tibial"],
+                   help="the real data's views, mesh and reference poses on X-ray model images")
+    p.add_argument("--frames", type=int, nargs="+", default=[0, 40, 80, 120], help="with --xray-real")
     args = p.parse_args()
+    if args.xray_real:
+        xray_real_scene(args)
+        return
     if args.xray:
         for flexion in args.flexion:
             xray_scene(flexion, args)
