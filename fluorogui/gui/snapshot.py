@@ -5,7 +5,7 @@ are made by ``docs/screenshots/make_screenshots.py``)::
 
     python -m fluorogui.gui.snapshot OUT.png [--project FILE | --import-folder DIR]
         [--size 1280x800] [--frame N] [--find] [--match | --match-both] [--track-both]
-        [--show-frame N] [--component NAME] [--theme light|dark] [--dock matcher|pose|session]
+        [--show-frame N] [--component NAME] [--theme light|dark] [--dock matcher|pose|session] [--edges]
 
 Frames are frame numbers. The steps run in this order: find, match, track (from
 ``--frame`` through the following frames), then ``--show-frame`` picks the frame on
@@ -39,6 +39,7 @@ def main(argv=None) -> int:
     parser.add_argument("--component")
     parser.add_argument("--theme", default="system")
     parser.add_argument("--dock", choices=["matcher", "pose", "session"], help="the tab raised on the right")
+    parser.add_argument("--edges", action="store_true", help="show the Canny edges (View > Show edges)")
     parser.add_argument("--settings", type=Path, help="QSettings ini file (default: a temporary one)")
     args = parser.parse_args(argv)
 
@@ -120,6 +121,8 @@ def main(argv=None) -> int:
         window.controller.set_frame(args.show_frame)
     if args.dock:
         getattr(window, f"{args.dock}_dock").raise_()
+    if args.edges:
+        window.display.toggle_edges(True)
     session = window.controller.session
     timings["frame_states"] = {str(f): s.name for f, s in zip(session.frames, session.frame_states())}
     timings["summary"] = window.matcher.summary.text()

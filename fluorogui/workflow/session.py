@@ -584,8 +584,9 @@ class Session(EditsMixin, WorkMixin, KneeMixin):
         FrameState
             ``NEEDS_REVIEW`` if any component needs review; ``REVIEWED`` if every
             component is matched and accepted; ``MATCHED`` if every one is matched;
-            ``OUTLINED`` if any component has an outline in the frame; else ``EMPTY``
-            (also when a pose is only placed).
+            ``OUTLINED`` if any component has an outline or a pose in the frame (placed
+            by hand, by *find* or from a file: the timeline's "outlined or placed");
+            else ``EMPTY``.
         """
         names = self.components()
         if not names:
@@ -595,7 +596,8 @@ class Session(EditsMixin, WorkMixin, KneeMixin):
             return FrameState.NEEDS_REVIEW
         if all(r is not None and r.is_matched for r in records):
             return FrameState.REVIEWED if all(r.reviewed for r in records) else FrameState.MATCHED
-        if any((frame, v, c) in self.project.records for v in range(self.n_views) for c in names):
+        if any(r is not None for r in records) or any(
+                (frame, v, c) in self.project.records for v in range(self.n_views) for c in names):
             return FrameState.OUTLINED
         return FrameState.EMPTY
 

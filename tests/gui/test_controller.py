@@ -128,6 +128,17 @@ def test_a_panel_edit_is_one_reviewed_step_with_the_panels_own_state(controller)
     assert erased == [1] and s.outline_points(key) is not None
 
 
+def test_a_placed_pose_shows_its_frame_as_outlined_or_placed(controller):
+    # what the timeline's legend says: amber for "outlined or placed" (a pose found or
+    # moved there by hand before any match); grey again once the placing is undone
+    s = controller.session
+    assert s.frame_state(5) == FrameState.EMPTY
+    s.set_pose("femoral", 5, np.ones(6))
+    assert s.frame_state(5) == FrameState.OUTLINED and s.frame_state(10) == FrameState.EMPTY
+    s.history.undo()
+    assert s.frame_state(5) == FrameState.EMPTY
+
+
 def test_frame_states_never_show_a_flagged_pose_as_matched(controller):
     s = controller.session
     record = MatchRecord(0.2, [0.1, 0.1], 30, 0.1, True, "fast")
