@@ -51,6 +51,8 @@ from fluorogui.core.projection.pose import pose_error  # noqa: E402
 DATA = ROOT.parent / "shared" / "data"
 REFERENCE = ROOT / "tests" / "data" / "biplane_reference_poses.csv"
 COMPONENTS = ("femoral", "tibial")
+#: a region fit whose overlap is under this in a view found nothing there (``--region-fit``)
+LOST_IOU = 0.5
 
 
 def _errors(pose, truth) -> tuple[float, float, np.ndarray]:
@@ -348,7 +350,7 @@ def _against_region_fit(session: Session, rows) -> dict:
     from fluorogui.io.meshes.read import load_mesh
     from fluorogui.reference.region_fit import EdgeMesh, field_of_view, fit_pose
 
-    out = {}
+    out, lost = {}, {}
     for c in COMPONENTS:
         mesh = EdgeMesh.from_arrays(*load_mesh(DATA / "biplane-tka" / "models" / f"{c}_component.stl"))
         centroid = session.mesh(c).centroid
@@ -359,15 +361,20 @@ def _against_region_fit(session: Session, rows) -> dict:
             images = session.images(r.frame)
             fit = fit_pose(session.views, images, mesh, np.asarray(r.pose, float),
                            fields=[field_of_view(im) for im in images])
+            if min(fit.iou) < LOST_IOU:  # its window held none of the component in a view
+                lost[c] = lost.get(c, 0) + 1
+                continue
             R0, R1 = rotation_matrix(*r.pose[3:]), rotation_matrix(*fit.pose[3:])
             shift = (R1 @ centroid + fit.pose[:3]) - (R0 @ centroid + r.pose[:3])
             diffs.append(np.r_[shift, np.degrees(Rotation.from_matrix(R0.T @ R1).as_rotvec())])
             sds.append(r.match.sd_body)
         d = np.array(diffs)
         spread = d.std(axis=0, ddof=1)
-        out[c] = {"frames": len(d), "mean_difference": d.mean(axis=0).tolist(), "sd_difference": spread.tolist(),
+        out[c] = {"frames": len(d), "lost": lost.get(c, 0), "mean_difference": d.mean(axis=0).tolist(),
+                  "sd_difference": spread.tolist(),
                   "sd_over_sd_difference": (np.median(np.array(sds, dtype=float), axis=0) / spread).tolist()}
-        print(f"  against the independent region fit, {c:8s} ({len(d)} frames), centroid x y z mm, turn about "
+        print(f"  against the independent region fit, {c:8s} ({len(d)} frames, {lost.get(c, 0)} where it found "
+              "nothing in a view left out), centroid x y z mm, turn about "
               "the model's x y z deg: mean difference " + " ".join(f"{v:+.3f}" for v in out[c]["mean_difference"])
               + "; SD over frames " + " ".join(f"{v:.3f}" for v in spread) + "; reported SD / that SD "
               + " ".join(f"{v:.2f}" for v in out[c]["sd_over_sd_difference"]))
