@@ -344,9 +344,7 @@ def _against_region_fit(session: Session, rows) -> dict:
     x, y, z deg), and the median reported SD over that SD. The mean is the two methods'
     systematic disagreement (where each puts the edge); the SD, what changes from frame to
     frame, both methods' noise together: a second reference for the SDs beside the spread."""
-    from scipy.spatial.transform import Rotation
-
-    from fluorogui.core.projection.pose import rotation_matrix
+    from fluorogui.core.projection.pose import body_difference
     from fluorogui.io.meshes.read import load_mesh
     from fluorogui.reference.region_fit import EdgeMesh, field_of_view, fit_pose
 
@@ -364,9 +362,7 @@ def _against_region_fit(session: Session, rows) -> dict:
             if min(fit.iou) < LOST_IOU:  # its window held none of the component in a view
                 lost[c] = lost.get(c, 0) + 1
                 continue
-            R0, R1 = rotation_matrix(*r.pose[3:]), rotation_matrix(*fit.pose[3:])
-            shift = (R1 @ centroid + fit.pose[:3]) - (R0 @ centroid + r.pose[:3])
-            diffs.append(np.r_[shift, np.degrees(Rotation.from_matrix(R0.T @ R1).as_rotvec())])
+            diffs.append(body_difference(fit.pose, r.pose, centroid))
             sds.append(r.match.sd_body)
         d = np.array(diffs)
         spread = d.std(axis=0, ddof=1)

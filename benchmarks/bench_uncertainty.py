@@ -20,12 +20,13 @@ not explain (the reported SD covers only the spread).
 ``--xray-real COMPONENT``: the real data's own geometry (``../shared/data/biplane-tka``:
 its calibrated views, its mesh, at the reference poses of ``--frames`` from
 ``tests/data``) on images of the independent X-ray model, where the truth is known: the
-matcher's whole path (Canny outline, match from a perturbed start) and the independent
-region-overlap fit (``fluorogui.reference.region_fit``) from the same start (``--rim``:
-the matcher with the rim refinement, as tracking runs it), each one's
+matcher's whole loop as tracking runs it (``segment_and_match``: Canny outline, rim
+refinement, match) and the independent region-overlap fit
+(``fluorogui.reference.region_fit``), both from the same perturbed start, each one's
 error against the truth (centroid in world mm, turn about the model's axes in degrees)
-beside the reported SD. It says how far each of the two methods that disagree on the
-real frames is off where the answer is known.
+beside the reported SD; region fits that found nothing in a view are counted apart. It
+says how far each of the two methods that disagree on the real frames is off where the
+answer is known.
 """
 from __future__ import annotations
 
@@ -108,15 +109,6 @@ def xray_scene(flexion, args):
     print()
 
 
-def _body_error(pose, truth, centroid) -> np.ndarray:
-    """Centroid shift (world mm) and turn about the model's own axes (deg) from truth to pose."""
-    from scipy.spatial.transform import Rotation
-
-    R0, R1 = rotation_matrix(*truth[3:]), rotation_matrix(*pose[3:])
-    turn = np.degrees(Rotation.from_matrix(R0.T @ R1).as_rotvec())
-    return np.r_[(R1 @ centroid + pose[:3]) - (R0 @ centroid + truth[:3]), turn]
-
-
 def xray_real_scene(args) -> None:
     import csv
     import tempfile
@@ -124,7 +116,7 @@ def xray_real_scene(args) -> None:
 
     from fluorogui import Session
     from fluorogui.core.matching.loop import segment_and_match
-    from fluorogui.core.projection.pose import transform_points
+    from fluorogui.core.projection.pose import body_difference, transform_points
     from fluorogui.io.importer import import_folder
     from fluorogui.io.meshes.read import load_mesh
     from fluorogui.io.project.document import save_project
@@ -140,6 +132,10 @@ def xray_real_scene(args) -> None:
     truths = {int(r["frame"]): np.array([float(r[k]) for k in names])
               for r in csv.DictReader(open(root / "tests" / "data" / "biplane_reference_poses.csv"))
               if r["component"] == args.xray_real}
+    missing = [f for f in args.frames if f not in truths]
+    if missing:
+        raise SystemExit(f"--frames: no {args.xray_real} reference pose for frame(s) "
+                         + ", ".join(map(str, missing)) + f"; there are {sorted(truths)}")
     vertices, faces = load_mesh(data / "models" / f"{args.xray_real}_component.stl")
     mesh, edges = prepare_mesh(vertices, faces), EdgeMesh.from_arrays(vertices, faces)
     rng = np.random.default_rng(args.seed)
@@ -153,14 +149,15 @@ def xray_real_scene(args) -> None:
         start = truth + rng.normal(0, 0.5, 6)
         result = segment_and_match(images, views, mesh, start)
         fit = fit_pose(views, images, edges, start, fields=[field_of_view(im) for im in images])
-        ours.append(_body_error(result.pose, truth, mesh.centroid))
+        ours.append(body_difference(result.pose, truth, mesh.centroid))
         # a view where the region fit's window holds none of the component (overlap under
         # LOST_IOU) leaves it without evidence there: counted apart
         lost = min(fit.iou) < LOST_IOU
-        (region_lost if lost else region).append(_body_error(fit.pose, truth, mesh.centroid))
+        region_error = body_difference(fit.pose, truth, mesh.centroid)
+        (region_lost if lost else region).append(region_error)
         reported.append(result.sd_body)
         print(f"  frame {frame:3d}  matcher " + " ".join(f"{v:+.3f}" for v in ours[-1])
-              + "  region fit " + " ".join(f"{v:+.3f}" for v in _body_error(fit.pose, truth, mesh.centroid))
+              + "  region fit " + " ".join(f"{v:+.3f}" for v in region_error)
               + " (overlap " + " ".join(f"{v:.3f}" for v in fit.iou) + (", lost" if lost else "") + ")"
               + "  reported SD " + " ".join(f"{v:.3f}" for v in result.sd_body))
     rows = [("matcher", ours), ("region fit", region), ("region lost", region_lost)]

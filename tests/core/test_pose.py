@@ -82,3 +82,17 @@ def test_pose_error_is_the_body_fixed_rotation_even_at_gimbal_lock():
     assert np.allclose(err, [0.1, 0, 0, 0, 0.01, 0], atol=1e-6)
     # plain Euler differences blow up near gamma = 90 deg
     assert np.abs(pose_difference(est, truth)[3:]).max() > 0.05
+
+
+def test_body_difference_is_the_centroid_shift_and_the_turn_about_the_model_axes():
+    from fluorogui.core.projection.pose import body_difference, rotvec_matrix
+
+    reference = np.array([1.0, 2.0, 3.0, 20.0, 30.0, 40.0])
+    centroid = np.array([10.0, 0.0, 0.0])
+    R0 = rotation_matrix(*reference[3:])
+    R1 = R0 @ rotvec_matrix(np.radians([0.0, 0.0, 2.0]))  # 2 deg about the model's own z
+    # keep the centroid where it was, then move it 0.5 mm along world x
+    t = R0 @ centroid + reference[:3] - R1 @ centroid + [0.5, 0.0, 0.0]
+    pose = np.r_[t, angles_from_matrix(R1)]
+    np.testing.assert_allclose(body_difference(pose, reference, centroid), [0.5, 0, 0, 0, 0, 2.0], atol=1e-9)
+    np.testing.assert_allclose(body_difference(reference, reference, centroid), np.zeros(6), atol=1e-12)

@@ -105,6 +105,19 @@ def pose_error(estimate, truth) -> np.ndarray:
     return np.r_[estimate[:3] - truth[:3], angles_from_matrix(delta)]
 
 
+def body_difference(pose, reference, centroid) -> np.ndarray:
+    """The body's own motion from ``reference`` to ``pose``: its ``centroid`` (model frame)
+    shift in world mm, then its turn about its own model axes in degrees (the rotation
+    vector of ``R_reference^T R_pose``), the frame ``MatchResult.sd_body`` is given in."""
+    from scipy.spatial.transform import Rotation
+
+    pose, reference = np.asarray(pose, dtype=float), np.asarray(reference, dtype=float)
+    R0, R1 = rotation_matrix(*reference[3:]), rotation_matrix(*pose[3:])
+    centroid = np.asarray(centroid, dtype=float)
+    turn = np.degrees(Rotation.from_matrix(R0.T @ R1).as_rotvec())
+    return np.r_[(R1 @ centroid + pose[:3]) - (R0 @ centroid + reference[:3]), turn]
+
+
 def motion_between(pose_a, pose_b, point) -> tuple[float, float]:
     """How far a body moves between two poses: the distance (mm) travelled by ``point``
     (model frame, e.g. the mesh centroid) and the rotation angle (deg) between them."""
