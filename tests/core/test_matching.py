@@ -43,10 +43,11 @@ def test_fast_recovers_the_pose_from_perturbed_starts(mesh_fn):
 def test_paper_method_improves_on_the_start_and_reports_its_record():
     """The paper's method (BFGS with finite differences on the mean distance of the point
     cloud's grid outline) on exact outlines from a start 3 / 2 / 2 mm and degrees off.
-    Measured: it never meets its own stopping rule here. In 300 calls it ends at the call
-    limit; given 800 it stops after 712 ("precision loss": the grid outline's distance is not
-    smooth at the 0.1 mm / deg difference step) at the same best pose; with the default 15000
-    points, or from 1 mm / 1 deg off, it stops the same way."""
+    Measured: it never meets its own stopping rule here. With SciPy 1.16 it ended at the call
+    limit in 300 calls, and given 800 stopped after 712 ("precision loss": the grid outline's
+    distance is not smooth at the 0.1 mm / deg difference step) at the same best pose; with
+    SciPy 1.17.1 its line search gives up the same way after 299 calls, whether 300 or 800 are
+    allowed. Either way it is not converged and says why."""
     problem = _problem()
     start = TRUTH + np.array([3.0, -2.0, 2.0, 3.0, -2.0, 2.0])
     calls = []
@@ -59,7 +60,8 @@ def test_paper_method_improves_on_the_start_and_reports_its_record():
     assert calls[0][0] == 1 and calls[-1][0] == res.calls
     assert res.objective_mm < calls[0][1]
     # not converged, and it says why
-    assert not res.converged and res.message == "call limit reached" and res.calls == 300
+    assert not res.converged and (res.message == "call limit reached"
+                                 or res.message.startswith("BFGS stopped: ")), res.message
     # what it achieves: the objective 5.30 -> 0.95 mm (0.45 / 0.50 per view); translation
     # 0.34 / 0.14 / 0.12 mm; angles 0.87 / 1.19 / 1.03 deg (from 3 / 2 / 2). Its path through
     # the non-smooth objective moves with the exact outlines' sampling: before the
