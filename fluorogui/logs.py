@@ -96,6 +96,28 @@ def setup_logging(verbose: bool = False) -> Path | None:
     return path
 
 
+FATAL_LOG_NAME = "fatal.log"
+_fatal_file = None  # kept open: faulthandler writes to it when the process dies
+
+
+def record_fatal_errors() -> Path | None:
+    """Have a fatal error (an abort or a segmentation fault in a C extension, which no
+    Python handler sees) write every thread's Python stack to ``fatal.log`` beside the log
+    file; returns its path, or None when it cannot be written."""
+    import faulthandler
+
+    global _fatal_file
+    path = log_dir() / FATAL_LOG_NAME
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if _fatal_file is None:
+            _fatal_file = open(path, "a", encoding="utf-8")  # open for the process's life
+        faulthandler.enable(file=_fatal_file, all_threads=True)
+    except OSError:
+        return None
+    return path
+
+
 def log_exception(message: str) -> Path | None:
     """Log the exception being handled with its traceback; return the log path if any."""
     logging.getLogger("fluorogui").exception(message)

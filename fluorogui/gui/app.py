@@ -4,6 +4,7 @@ guided tour on its first run)."""
 from __future__ import annotations
 
 import json
+import logging
 import os
 import sys
 import time
@@ -14,6 +15,7 @@ from PySide6.QtWidgets import QApplication
 
 from fluorogui import __version__
 from fluorogui.gui import theme
+from fluorogui.gui.binding import reference_leak
 from fluorogui.gui.main_window import MainWindow
 
 __all__ = ["MainWindow", "run_app", "make_application"]
@@ -58,10 +60,14 @@ def run_app(path: str | Path | None = None) -> int:
     Without a file, an autosaved session left by a crash is offered first; otherwise the
     demo session opens so a new user can try the whole loop at once."""
     t0 = time.perf_counter()
-    from fluorogui.logs import setup_logging
+    from fluorogui.logs import record_fatal_errors, setup_logging
 
     setup_logging()
+    record_fatal_errors()
     app = make_application()
+    binding_defect = reference_leak()
+    if binding_defect:
+        logging.getLogger("fluorogui").error(binding_defect)
     window = MainWindow()
     smoke = bool(os.environ.get(SMOKE_ENV))
     if not smoke:
@@ -88,6 +94,9 @@ def run_app(path: str | Path | None = None) -> int:
             from fluorogui.gui.dialogs.tour import start_tour
 
             start_tour(window)
+        if binding_defect and not smoke:
+            window.warn("This installation's Qt may crash fluorogui", binding_defect + ". Your work is journalled "
+                        "as you go, and offered back after a crash.")
 
     QTimer.singleShot(0, first_session)
     return app.exec()
