@@ -187,3 +187,33 @@ def add_match_options(p) -> None:
                    help="outline points per view (paper default 60)")
     p.add_argument("--method", choices=["fast", "paper"], default="fast")
     p.add_argument("--starts", type=int_in(*STARTS_RANGE), default=1, help="independent starts; the best match is kept")
+
+
+def add_quality_option(p, what: str) -> None:
+    """``--quality NAME=VALUE`` (repeatable): a quality threshold (``QualityThresholds``) to
+    judge by; ``what`` says where the others come from."""
+    p.add_argument("--quality", action="append", metavar="NAME=VALUE", default=[],
+                   help=f"judge with this quality threshold, e.g. max_sd_mm=0.5 (repeatable; the others: {what}); "
+                        "names: see docs/methods/quality")
+
+
+def quality_thresholds(pairs, base):
+    """``base`` (a ``QualityThresholds``) with the ``--quality NAME=VALUE`` pairs set; a
+    usage error names an unknown threshold or a value out of range."""
+    from dataclasses import fields, replace
+
+    names = [f.name for f in fields(base)]
+    changes = {}
+    for pair in pairs or []:
+        name, sep, text = pair.partition("=")
+        name = name.strip()
+        if not sep or name not in names:
+            raise UsageError(f"fluorogui: --quality {pair!r}: give NAME=VALUE, NAME one of {', '.join(names)}")
+        try:
+            changes[name] = finite_float(text.strip())
+        except argparse.ArgumentTypeError as exc:
+            raise UsageError(f"fluorogui: --quality {name}: {exc}") from None
+    try:
+        return replace(base, **changes)
+    except ValueError as exc:
+        raise UsageError(f"fluorogui: --quality: {exc}") from None

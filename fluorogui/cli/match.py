@@ -11,7 +11,14 @@ from pathlib import Path
 import numpy as np
 
 from fluorogui.cli import inputs
-from fluorogui.cli.common import UsageError, add_match_options, add_rim_options, finite_float
+from fluorogui.cli.common import (
+    UsageError,
+    add_match_options,
+    add_quality_option,
+    add_rim_options,
+    finite_float,
+    quality_thresholds,
+)
 
 
 def add_parser(sub):
@@ -33,6 +40,7 @@ def add_parser(sub):
     m.add_argument("--other-pose", nargs=6, type=finite_float, metavar=("X", "Y", "Z", "ALPHA", "BETA", "GAMMA"))
     add_match_options(m)
     add_rim_options(m)
+    add_quality_option(m, "the defaults")
     m.add_argument("--json", action="store_true", help="print one JSON object")
     return m
 
@@ -63,6 +71,7 @@ def run(args) -> int:
     settings = WorkflowSettings()
     settings.match = inputs.match_settings(args)
     settings.loop.rim = args.rim
+    settings.quality = quality_thresholds(args.quality, settings.quality)
     try:
         settings.match.validate()
     except ValueError as exc:

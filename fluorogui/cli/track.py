@@ -15,12 +15,14 @@ import time
 from fluorogui.cli.common import (
     COMPONENT_CHOICES,
     UsageError,
+    add_quality_option,
     components_arg,
     emit_json,
     int_in,
     locked_session,
     parse_frames,
     progress_bar,
+    quality_thresholds,
     report_flagged,
 )
 from fluorogui.core.status import Status
@@ -35,6 +37,7 @@ def add_parser(sub):
     t.add_argument("--workers", type=int_in(1, 256), default=1,
                    help="track N consecutive runs of frames in parallel processes (each after the first starts "
                         "with find implants); results then arrive out of frame order")
+    add_quality_option(t, "the project's; what is given is kept in the project")
     t.add_argument("--json", action="store_true", help="one JSON object per frame and component as it finishes")
     return t
 
@@ -44,6 +47,10 @@ def run(args) -> int:
         if not session.components():
             raise UsageError(f"fluorogui: track: {args.project} has no implant models")
         frames = parse_frames(args.frames, session.frames)
+        if args.quality:  # the project's thresholds from now on: its statuses are judged by them
+            settings = session.settings
+            settings.quality = quality_thresholds(args.quality, settings.quality)
+            session.set_settings(settings)
         bar = progress_bar(len(frames), "track")
         counts: dict[str, int] = {}
         t0 = time.perf_counter()

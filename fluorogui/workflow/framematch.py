@@ -50,9 +50,11 @@ _RANK = {Status.MATCHED: 0, Status.NEEDS_REVIEW: 1, Status.FAILED: 2}
 NEAR_FIRST_GAP = 2
 #: checks whose failure no other start can mend, once every other check passed: the component
 #: is partly beyond the field of view (``quality._partly_visible``), so its pose is loose or too
-#: little of it is seen from any start. Recovery stops there (frame 260's femur of the real
-#: sequence tried 6 starts for 1.7-2.2 s, each flagged the same)
-IMAGE_BOUND_CHECKS = frozenset({"visible"})
+#: little of it is seen from any start; or the outlines leave the fitted pose more uncertain than
+#: the project allows (``uncertainty``: the SDs belong to the outlines, not to the start). Recovery
+#: stops there (frame 260's femur of the real sequence tried 6 starts for 1.7-2.2 s, each flagged
+#: the same)
+IMAGE_BOUND_CHECKS = frozenset({"visible", "uncertainty"})
 
 #: a component's rim judgement (``core.outlines.rim``: per view, is the edge a soft rim, and its
 #: attenuation and blur) is the same for a whole sequence; unless its first matched frame
@@ -190,7 +192,7 @@ class FrameMatcher:
         try:
             rims = self._rims_for(images, job.component)
             out = segment_and_match(images, self.views, job.mesh, start, s.match, loop, job.given, hidden,
-                                    step, cancel, rims)
+                                    step, cancel, rims, s.quality)
         except SegmentationError as exc:
             return FrameResult(0, job.component, None, Status.FAILED, messages.segmentation_failed(job.component, exc),
                                seconds=time.perf_counter() - t0, failed=["segmentation"])
@@ -204,14 +206,18 @@ class FrameMatcher:
                          self._fields(images), result.outlines_px, result.sd)
         limits = replace(s.quality, max_jump_mm=s.quality.max_jump_mm * max(1, job.gap),
                          max_jump_deg=s.quality.max_jump_deg * max(1, job.gap))
-        problems = failed_checks(quality, limits, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))])
+        problems = failed_checks(quality, limits, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))],
+                                 result.message)
         status = Status.NEEDS_REVIEW if problems else Status.MATCHED
         reason = "; ".join(text for _, text in problems)
+        failed = [name for name, _ in problems]
+        if "converged" in failed and result.optimiser_converged and result.failed:
+            failed = [*result.failed, *(name for name in failed if name != "converged")]  # which of its own checks
         if status == Status.MATCHED:
             self._frame_state(images)["rims"][job.component] = list(rims)
         return FrameResult(0, job.component, result.pose, status, reason, result, quality, out.image_outlines,
                            time.perf_counter() - t0, rim_models=rims, outline_weights=out.outline_weights,
-                           failed=[name for name, _ in problems])
+                           failed=failed)
 
     # -- one component, with recovery ------------------------------------------------------------
     def match_component(self, frame: int, images, job: ComponentInput, occluded=None,

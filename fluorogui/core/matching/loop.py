@@ -34,6 +34,7 @@ import numpy as np
 
 from fluorogui.core.matching.matcher import judge_match, match
 from fluorogui.core.matching.problem import MatchProblem, MatchResult, MatchSettings
+from fluorogui.core.matching.quality import QualityThresholds
 from fluorogui.core.outlines.edges import component_outline
 from fluorogui.core.outlines.rim import RimModel, edge_model, is_soft, refine_outlines, rim_models_together
 from fluorogui.core.outlines.spline import OutlineError, OutlineSpline
@@ -219,7 +220,8 @@ def splines_from_images(images, views, mesh, pose, occluded=None, search_px: int
 def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchSettings | None = None,
                       loop: LoopSettings | None = None, splines: Sequence[OutlineSpline | None] | None = None,
                       occluded: Sequence | None = None, progress=None, cancel=None,
-                      rim_models: list[RimModel | None] | None = None) -> MatchResult:
+                      rim_models: list[RimModel | None] | None = None,
+                      thresholds: QualityThresholds | None = None) -> MatchResult:
     """Match one component in one frame from ``start`` (mm, degrees), segmenting its outlines.
 
     The one segment -> match -> re-segment loop of the app, the command line, tracking and
@@ -246,6 +248,9 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
     rim_models : list, optional
         Per view, the rim model fitted in an earlier frame of the sequence (None entries
         are filled in here, for the next frame).
+    thresholds : QualityThresholds, optional
+        The limits the result is judged by (``judge_match``): the project's; the defaults
+        when omitted.
 
     Returns
     -------
@@ -379,7 +384,7 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
             # pick the same edges (the search band is several pixels wide)
             break
     t_judge = time.perf_counter()
-    judge_match(problem, result, pass_settings)
+    judge_match(problem, result, pass_settings, thresholds)
     total_seconds += time.perf_counter() - t_judge
     result.calls, result.seconds, result.history = total_calls, total_seconds, history
     result.settings = dict(result.settings, loop=loop.to_dict(), passes=passes,

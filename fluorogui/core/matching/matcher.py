@@ -20,14 +20,14 @@ import numpy as np
 from fluorogui.core.matching.fast import match_fast
 from fluorogui.core.matching.paper import match_paper
 from fluorogui.core.matching.problem import MatchProblem, MatchResult, MatchSettings, ProgressCallback
-from fluorogui.core.matching.quality import check_match
+from fluorogui.core.matching.quality import QualityThresholds, match_checks
 from fluorogui.core.matching.uncertainty import covariances, pose_sd
 from fluorogui.core.projection.pose import as_pose
 
 
 def match(problem: MatchProblem, start, settings: MatchSettings | None = None,
           progress: ProgressCallback | None = None, cancel: Callable[[], bool] | None = None,
-          judge: bool = True) -> MatchResult:
+          judge: bool = True, thresholds: QualityThresholds | None = None) -> MatchResult:
     """The pose of one component from its outlines in one or two views (Eq. 4-6).
 
     Runs the method ``settings.method`` from ``start`` (and ``settings.starts - 1``
@@ -50,6 +50,8 @@ def match(problem: MatchProblem, start, settings: MatchSettings | None = None,
     judge : bool, optional
         False leaves out the checks and the uncertainty (``judge_match`` adds them later),
         for a caller that may discard the result, e.g. a pass the loop will redo.
+    thresholds : QualityThresholds, optional
+        The limits the checks apply (the project's); the defaults when omitted.
 
     Returns
     -------
@@ -109,21 +111,25 @@ def match(problem: MatchProblem, start, settings: MatchSettings | None = None,
     best.calls = total_calls
     best.optimiser_converged = best.converged
     if judge:
-        judge_match(problem, best, settings)
+        judge_match(problem, best, settings, thresholds)
     best.seconds = time.perf_counter() - t0
     return best
 
 
-def judge_match(problem: MatchProblem, result: MatchResult, settings: MatchSettings | None = None) -> None:
-    """The result's uncertainty and its own evidence (``core.matching.quality.check_match``): a
-    result that fails a check is not converged, and says why in ``message``."""
+def judge_match(problem: MatchProblem, result: MatchResult, settings: MatchSettings | None = None,
+                thresholds: QualityThresholds | None = None) -> None:
+    """The result's uncertainty and its own evidence (``core.matching.quality.match_checks``,
+    against ``thresholds``: the project's or the command line's, the defaults when None): a
+    result that fails a check is not converged, says why in ``message`` and names the checks
+    in ``failed``."""
     settings = settings or MatchSettings()
     try:
         pose_cov, body_cov = covariances(problem, result.pose, settings, evaluation=result._evaluation)
         result.sd, result.sd_body = pose_sd(pose_cov), pose_sd(body_cov)
     except ValueError:  # the model behind a source at this pose
         result.sd = result.sd_body = [float("inf")] * 6
-    problems = check_match(problem, result)
+    problems = match_checks(problem, result, thresholds)
+    result.failed = [name for name, _ in problems]
     if problems:
         result.converged = False
-        result.message = "; ".join(([result.message] if result.message else []) + problems)
+        result.message = "; ".join(([result.message] if result.message else []) + [text for _, text in problems])

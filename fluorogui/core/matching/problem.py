@@ -88,6 +88,8 @@ class MatchResult:
     sd_body: list[float] | None = None
     #: did the optimiser itself stop by its criterion (``converged`` also needs the checks)
     optimiser_converged: bool = False
+    #: the checks of its own evidence it failed (``quality.MATCH_CHECKS`` names; ``judge_match``)
+    failed: list[str] = field(default_factory=list)
     #: fast method: (pose, evaluation) at the result, reused by the covariance
     _evaluation: tuple | None = field(default=None, repr=False, compare=False)
     #: from images (``matching.loop.segment_and_match``): the outline splines the result

@@ -37,6 +37,9 @@ from fluorogui.core.projection.pose import motion_between, rotation_matrix
 from fluorogui.core.projection.silhouette import mesh_silhouette
 from fluorogui.core.status import Status
 
+#: the thresholds that are shares of an outline (0 to 1)
+SHARE_THRESHOLDS = frozenset({"min_edge_support", "min_outline_support", "max_outside_field", "min_visible_share"})
+
 
 @dataclass
 class QualityThresholds:
@@ -63,6 +66,14 @@ class QualityThresholds:
     max_sd_mm: float = 2.0  # a pose whose outlines leave a translation this uncertain (1 SD) fails
     max_sd_deg: float = 2.0  # ... or a rotation
     single_view_depth_factor: float = 10.0  # one view: the translation along the beam may be this much looser
+
+    def __post_init__(self):
+        for name in self.__dataclass_fields__:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value < 0:
+                raise ValueError(f"quality threshold {name} must be a finite number of 0 or more, not {value!r}")
+            if name in SHARE_THRESHOLDS and value > 1:
+                raise ValueError(f"quality threshold {name} is a share: 0 to 1, not {value!r}")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -172,8 +183,19 @@ def assess(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMe
                    None if sd is None else [float(v) for v in sd])
 
 
+#: the checks ``match_checks`` applies to a match's own evidence, by name
+MATCH_CHECKS = ("residual", "model_on_outline", "outline_on_model", "uncertainty")
+
+
 def check_match(problem, result, thresholds: QualityThresholds | None = None) -> list[str]:
-    """What a match's own evidence says against it, in plain words (empty: nothing).
+    """What a match's own evidence says against it, in plain words (empty: nothing): the
+    texts of ``match_checks``."""
+    return [text for _, text in match_checks(problem, result, thresholds)]
+
+
+def match_checks(problem, result, thresholds: QualityThresholds | None = None) -> list[tuple[str, str]]:
+    """The checks (``MATCH_CHECKS``) a match's own evidence fails, each with its reason in
+    plain words (empty: none).
 
     ``problem`` is the ``MatchProblem`` it was matched on, ``result`` its ``MatchResult``
     (with ``outlines_px``, the model outline at the result, and ``sd``). Checks, per view:
@@ -181,40 +203,47 @@ def check_match(problem, result, thresholds: QualityThresholds | None = None) ->
     sequence-relative limits are ``judge``'s); the share of the model outline lying on
     the image outline and of the image outline lying on the model (both ways, so neither
     can slide onto part of the other); and the uncertainty the outlines leave (the
-    Gauss-Newton matrix's conditioning, as standard deviations of the pose)."""
+    Gauss-Newton matrix's conditioning, as standard deviations of the pose, against
+    ``max_sd_mm`` / ``max_sd_deg``, each named where it is exceeded)."""
     t = thresholds or QualityThresholds()
     problems = []
     names = [v.name or f"view {k + 1}" for k, v in enumerate(problem.views)]
     for name, value in zip(names, result.per_view_mean_mm):
         if not np.isfinite(value) or value > t.max_view_mm:
-            problems.append(f"outline distance {value:.2f} mm in {name} (limit {t.max_view_mm:.2f} mm)")
+            problems.append(("residual", f"outline distance {value:.2f} mm in {name} (limit {t.max_view_mm:.2f} mm)"))
     model_outlines = result.outlines_px or []
     for k, (name, spline, model) in enumerate(zip(names, problem.splines, model_outlines)):
         mask = problem.occluder(k)
         model = np.asarray(model, dtype=float).reshape(-1, 2)
         pts = model[visible_points(mask, model)]
         if len(pts) < 3:
-            problems.append(f"the model outline is not visible in {name}")
+            problems.append(("model_on_outline", f"the model outline is not visible in {name}"))
             continue
         dist, _, _, t_near = spline.closest(pts)
         measured = ~spline.in_gap(t_near) if len(spline.gaps) else np.ones(len(pts), dtype=bool)
         on_image = float(np.mean(dist[measured] <= t.tol_px)) if measured.any() else 0.0
         if on_image < t.min_edge_support:
-            problems.append(f"only {100 * on_image:.0f} % of the model outline lies on the image outline in {name}")
+            problems.append(("model_on_outline",
+                             f"only {100 * on_image:.0f} % of the model outline lies on the image outline in {name}"))
         image = spline.sample(max(64, int(spline.length_px)), skip_gaps=True)
         on_model = outline_support(image, model, mask, t.tol_px)
         if on_model < t.min_outline_support:
-            problems.append(f"only {100 * on_model:.0f} % of the image outline lies on the model in {name}")
+            problems.append(("outline_on_model",
+                             f"only {100 * on_model:.0f} % of the image outline lies on the model in {name}"))
     if result.sd is not None:
         sd = np.asarray(result.sd, dtype=float)
         labels = ("x", "y", "z", "alpha", "beta", "gamma")
         limits = np.array([t.max_sd_mm] * 3 + [t.max_sd_deg] * 3)
+        limit_names = ["max_sd_mm"] * 3 + ["max_sd_deg"] * 3
         if len(problem.views) == 1:  # single plane: depth along the beam is weak by nature (stated, not failed)
-            limits[int(np.argmax(np.abs(problem.views[0].normal)))] *= t.single_view_depth_factor
-        loose = [f"{labels[j]} {sd[j]:.2g} {'mm' if j < 3 else 'deg'}" for j in range(6)
-                 if not np.isfinite(sd[j]) or sd[j] > limits[j]]
+            depth = int(np.argmax(np.abs(problem.views[0].normal)))
+            limits[depth] *= t.single_view_depth_factor
+            limit_names[depth] = "max_sd_mm x single_view_depth_factor"
+        loose = [j for j in range(6) if not np.isfinite(sd[j]) or sd[j] > limits[j]]
         if loose:
-            problems.append("the outlines do not pin the pose down (SD " + ", ".join(loose) + ")")
+            problems.append(("uncertainty", "the outlines do not pin the pose down (SD " + ", ".join(
+                f"{labels[j]} {sd[j]:.2g} {'mm' if j < 3 else 'deg'} over {limit_names[j]} {limits[j]:.2g}"
+                for j in loose) + ")"))
     return problems
 
 
@@ -231,15 +260,17 @@ CHECKS = ("converged", "residual", "edge_support", "outline_support", "visible",
 
 
 def failed_checks(quality: Quality, thresholds: QualityThresholds | None = None,
-                  typical_view_mm: float | None = None, view_names: Sequence[str] | None = None
-                  ) -> list[tuple[str, str]]:
+                  typical_view_mm: float | None = None, view_names: Sequence[str] | None = None,
+                  why_not_converged: str = "") -> list[tuple[str, str]]:
     """The checks (``CHECKS``) a pose fails, each with its reason in plain words (empty:
-    none); what ``judge`` reports, and what a measurement of each check's precision counts."""
+    none); what ``judge`` reports, and what a measurement of each check's precision counts.
+    ``why_not_converged``: the match's own message (``MatchResult.message``: what
+    ``check_match`` found, or how the optimiser stopped), said instead of "did not converge"."""
     t = thresholds or QualityThresholds()
     names = list(view_names or [f"view {k + 1}" for k in range(len(quality.per_view_mean_mm))])
     problems = []
     if not quality.converged:
-        problems.append(("converged", "the match did not converge"))
+        problems.append(("converged", why_not_converged or "the match did not converge"))
     limit = min(t.max_view_mm, t.floor_view_mm)
     if typical_view_mm is not None and np.isfinite(typical_view_mm):
         limit = min(t.max_view_mm, max(t.typical_factor * typical_view_mm, typical_view_mm + t.typical_margin_mm))
