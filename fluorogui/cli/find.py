@@ -1,6 +1,8 @@
 """``fluorogui find``: *find implants* in frames of a project (no start pose needed), over
-``Session.find``. Holds the project's lock and saves after every frame. Exit status: 0
-when every component was placed, 3 when some were not, 2 for bad input."""
+``Session.find``. Holds the project's lock and saves after every frame. A component
+matched or accepted in a frame keeps its pose (said on stderr; ``"kept": true`` in its
+JSON object) unless ``--replace``. Exit status: 0 when every component searched for was
+placed, 3 when some were not, 2 for bad input."""
 from __future__ import annotations
 
 import time
@@ -21,6 +23,9 @@ def add_parser(sub):
     f.add_argument("project", metavar="PROJECT")
     f.add_argument("--frames", required=True, metavar="SPEC", help="A:B (both included), N, or a list: 0,20:40")
     f.add_argument("--component", choices=COMPONENT_CHOICES, default="both")
+    f.add_argument("--replace", action="store_true",
+                   help="also search for components already matched or accepted in a frame, and replace their poses "
+                        "(by default they are kept, and said so on stderr)")
     f.add_argument("--json", action="store_true", help="one JSON object per frame and component")
     return f
 
@@ -33,8 +38,20 @@ def run(args) -> int:
         flagged = 0
         for frame in frames:
             t0 = time.perf_counter()
-            placements = session.find(frame, components)
+            matched = session.matched_in(frame, components)
+            placements = session.find(frame, components, replace=args.replace)
             session.save()
+            for name in matched:
+                if args.replace:
+                    if name in placements and placements[name].found:
+                        warn(f"frame {frame}, {name}: replaced its matched pose (--replace)")
+                    continue
+                warn(f"frame {frame}, {name}: kept its matched pose; --replace searches for it again")
+                if args.json:
+                    pose = session.pose(name, frame)
+                    emit_json({"frame": frame, "component": name, "found": False, "kept": True,
+                               "pose": [round(float(v), 6) for v in pose], "iou": [],
+                               "reason": "kept its matched pose (--replace searches for it again)", "seconds": 0.0})
             for p in placements.values():
                 if args.json:
                     emit_json({"frame": frame, "component": p.component, "found": p.found,

@@ -350,6 +350,13 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(message, 10000)
         QMessageBox.warning(self, title, message)
 
+    def ask(self, title: str, question: str) -> bool:
+        """A yes / no question (No is the default): True for Yes."""
+        answer = QMessageBox.question(self, title, question,
+                                      QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No,
+                                      QMessageBox.StandardButton.No)
+        return answer == QMessageBox.StandardButton.Yes
+
     # -- what the app, the crash handler and scripts call ------------------------------------
     def open_project(self, path=None, ask: bool = True, quiet_read_only: bool = False) -> bool:
         return self.files.open_project(path, ask, quiet_read_only)

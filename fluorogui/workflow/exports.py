@@ -404,10 +404,19 @@ def _check_row_count(path: Path, rows: int, frames: list[int]) -> None:
         raise InputError(path, f"has {rows} rows but the session has {len(frames)} frames")
 
 
-def import_poses(session, path, component: str | None = None, view: int = 0) -> int:
+def import_poses(session, path, component: str | None = None, view: int = 0, replace: bool = False,
+                 kept: list | None = None) -> int:
     """Read poses from another tool into the session (status ``placed``, reason naming the
-    file, so they are reviewed before use) as one undoable step; returns how many."""
+    file, so they are reviewed before use) as one undoable step; returns how many. Poses
+    matched or accepted in the session are kept (their (frame, component) appended to
+    ``kept``) unless ``replace``."""
     poses = read_poses_file(session, path, component, view)
+    if not replace:
+        for frame, c in sorted(poses):
+            if c in session.matched_in(frame, c):
+                del poses[(frame, c)]
+                if kept is not None:
+                    kept.append((frame, c))
     name = Path(path).name
     session.history.begin_macro(f"Import poses from {name}")
     try:

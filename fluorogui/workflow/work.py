@@ -66,6 +66,8 @@ class FindJob:
     def run(self, progress: Callable[[float, str], None] | None = None,
             cancel: Callable[[], bool] | None = None) -> dict[str, Placement]:
         """The placements by component; raises ``Cancelled`` when ``cancel()`` turns true."""
+        if not self.meshes:
+            return {}
         images = read_frame_images(self.frame, self.image_paths, len(self.views), views=self.views)
         return find_in_frame(self.frame, images, self.views, self.meshes, progress=progress, cancel=cancel)
 
@@ -233,26 +235,45 @@ class WorkMixin:
         return results
 
     # -- find --------------------------------------------------------------------------------------
-    def find_job(self, frame: int, components=None) -> FindJob:
+    def matched_in(self, frame: int, components=None) -> list[str]:
+        """The components whose pose in ``frame`` is matched or accepted: what *find
+        implants* and imported poses keep unless told to replace them.
+
+        Parameters
+        ----------
+        frame : int
+        components : str or sequence of str, optional
+            As for :meth:`match`; all by default.
+        """
+        return [c for c in self._components(components)
+                if (record := self.pose_record(c, frame)) is not None and record.is_matched]
+
+    def find_job(self, frame: int, components=None, replace: bool = False) -> FindJob:
         """A job that finds components in ``frame`` with no start, to run anywhere.
 
         ``job.run()`` returns the placements (see :meth:`find`) without touching the
-        session; :meth:`store_placements` puts the confident ones in.
+        session; :meth:`store_placements` puts the confident ones in. Components whose pose
+        is matched or accepted there (:meth:`matched_in`) are left out unless ``replace``.
         """
         frame = self._check_frame(frame)
-        meshes = {c: self.mesh(c) for c in self._components(components)}
+        kept = [] if replace else self.matched_in(frame, components)
+        meshes = {c: self.mesh(c) for c in self._components(components) if c not in kept}
         return FindJob(self.views, frame, self.image_paths(frame), meshes)
 
-    def store_placements(self, placements: dict[str, Placement]) -> None:
+    def store_placements(self, placements: dict[str, Placement], replace: bool = False) -> None:
         """Put the confidently found components at their poses (status ``placed``), as one
-        undoable step; placements that are not ``found`` are left out.
+        undoable step; placements that are not ``found`` are left out, and so are those of
+        components matched or accepted in their frame meanwhile, unless ``replace``.
 
         Parameters
         ----------
         placements : dict of str to Placement
             What :meth:`find` or a find job returned.
+        replace : bool, optional
+            Replace matched and accepted poses too.
         """
-        found = [p for p in placements.values() if p.found and p.pose is not None]
+        found = [p for p in placements.values() if p.found and p.pose is not None
+                 and (replace or p.component not in self.matched_in(p.frame, p.component))]
         if not found:
             return
         self.history.begin_macro("Find implants")
@@ -262,11 +283,14 @@ class WorkMixin:
         finally:
             self.history.end_macro()
 
-    def find(self, frame: int, components=None, progress=None, cancel=None) -> dict[str, Placement]:
+    def find(self, frame: int, components=None, progress=None, cancel=None,
+             replace: bool = False) -> dict[str, Placement]:
         """Find the components in a frame with no start pose (*find implants*).
 
         Only confident placements are stored (status ``placed``, one undoable step); the
-        others say why in their ``reason``. Needs two views.
+        others say why in their ``reason``. A component whose pose in the frame is matched
+        or accepted keeps it and is not searched for (:meth:`matched_in` lists them)
+        unless ``replace``. Needs two views.
 
         Parameters
         ----------
@@ -277,11 +301,13 @@ class WorkMixin:
             ``progress(fraction, text)`` as the search goes.
         cancel : callable, optional
             Polled during the search.
+        replace : bool, optional
+            Search for matched and accepted components too, and replace their poses.
 
         Returns
         -------
         dict of str to Placement
-            Every component's placement, found or not.
+            The placement of every component searched for, found or not.
 
         Raises
         ------
@@ -294,8 +320,8 @@ class WorkMixin:
         --------
         fluorogui.core.search.find.find_components : The search itself.
         """
-        placements = self.find_job(frame, components).run(progress, cancel)
-        self.store_placements(placements)
+        placements = self.find_job(frame, components, replace).run(progress, cancel)
+        self.store_placements(placements, replace)
         return placements
 
     # -- track -------------------------------------------------------------------------------------

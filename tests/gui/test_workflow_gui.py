@@ -287,3 +287,31 @@ def test_a_match_whose_outline_was_moved_for_the_rim_says_so(window, demo):
     summary = window.matcher.summary.text()
     assert "femoral matched in 1.0 s, objective 0.031 mm (outline moved for the metal's soft rim in view 2)" in summary
     assert "tibial matched in 1.0 s, objective 0.029 mm." in summary and summary.count("soft rim") == 1
+
+
+def _as_matched(session, frame):
+    from fluorogui.core.records import PoseRecord
+
+    for name in session.components():
+        session.set_record(name, frame, PoseRecord(session.pose(name, frame), status="matched"), "Matched")
+
+
+def test_find_implants_asks_before_replacing_matched_poses(window, demo, qtbot, dialogs, fake_find):
+    """Nothing replaces a matched pose without saying so (issue 44, item 4)."""
+    from PySide6.QtWidgets import QMessageBox
+
+    window.open_project(demo)
+    s = window.controller.session
+    fake_find["truth"] = {n: truth(s, 0, n) for n in s.components()}
+    _as_matched(s, 0)
+    before = s.pose("femoral", 0)
+    dialogs["answers"].append(QMessageBox.StandardButton.No)
+    assert not window.find_implants()  # both matched, kept: nothing to search
+    assert "Find them again and replace their poses?" in dialogs["question"][-1][2]
+    assert "Kept the matched poses of frame 0" in window.statusBar().currentMessage()
+    np.testing.assert_array_equal(s.pose("femoral", 0), before)
+    dialogs["answers"].append(QMessageBox.StandardButton.Yes)
+    with qtbot.waitSignal(window.runner.finished, timeout=60000):
+        assert window.find_implants()
+    assert s.pose_record("femoral", 0).status == "placed"  # replaced, as confirmed
+    np.testing.assert_allclose(s.pose("femoral", 0), truth(s, 0, "femoral"))

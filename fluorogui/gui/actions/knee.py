@@ -12,6 +12,7 @@ from PySide6.QtWidgets import QDialog, QFileDialog, QInputDialog
 
 from fluorogui.core.knee.kinematics import KinematicsError
 from fluorogui.gui.actions.files import app_data_dir
+from fluorogui.gui.actions.tasks import frame_list
 from fluorogui.gui.dialogs.anatomical_frame import AnatomicalFrameDialog
 from fluorogui.gui.dialogs.export_dialog import TIMED_KINDS, ExportDialog
 from fluorogui.io.errors import InputError, collected_input_warnings
@@ -189,14 +190,22 @@ class KneeActions(QObject):
                 if not ok:
                     return 0
                 view = names.index(choice)
+        kept: list = []
         try:
             with collected_input_warnings() as notes:
-                count = exports.import_poses(session, path, component, view or 0)
+                count = exports.import_poses(session, path, component, view or 0, kept=kept)
+                if kept and self.window.ask(
+                        "Import poses", f"{len(kept)} pose{'s' if len(kept) > 1 else ''} in {Path(path).name} "
+                        f"would replace matched or accepted ones (frame {frame_list(f for f, _ in kept)}). "
+                        "Replace them too?"):
+                    count = exports.import_poses(session, path, component, view or 0, replace=True)
+                    kept = []
         except (InputError, KinematicsError, ValueError) as exc:
             self.window.warn("Import poses failed", str(exc))
             return 0
-        self.window.statusBar().showMessage(f"Imported {count} poses from {Path(path).name}; they are marked "
-                                            "'placed' until reviewed or matched", 8000)
+        self.window.statusBar().showMessage(
+            f"Imported {count} poses from {Path(path).name}; they are marked 'placed' until reviewed or matched"
+            + (f"; kept {len(kept)} matched or accepted" if kept else ""), 8000)
         self.window.files.tell_input_notes("Imported poses with notes", notes)
         return count
 

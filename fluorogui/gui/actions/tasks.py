@@ -87,6 +87,9 @@ class MatchControl(QObject):
         self._live_components: list[str] = []
         self._task_kind = ""
         self._track: TrackSummary | None = None
+        self._find_kept: list[str] = []  # matched components a find left alone
+        self._find_replace = False  # ... or replaced, as the user confirmed
+        self.last_track: TrackSummary | None = None  # the summary of the last tracking run that ended
         self._track_history: list[float] = []
         self._eta: Eta | None = None
         self._follow_frame: int | None = None
@@ -208,11 +211,21 @@ class MatchControl(QObject):
         if not self._ready("Cannot search", views=2):
             return False
         c, s = self.controller, self.controller.session
+        matched = s.matched_in(c.frame)
+        replace = bool(matched) and self.window.ask(
+            "Find implants", f"The {' and '.join(matched)} pose{'s are' if len(matched) > 1 else ' is'} matched or "
+            f"accepted in frame {c.frame}. Find {'them' if len(matched) > 1 else 'it'} again and replace "
+            f"{'their poses' if len(matched) > 1 else 'its pose'}?")
+        if matched and not replace and len(matched) == len(s.components()):
+            self.window.statusBar().showMessage(f"Kept the matched poses of frame {c.frame}", 8000)
+            return False
         try:
-            job = s.find_job(c.frame, "both")
+            job = s.find_job(c.frame, "both", replace=replace)
         except (InputError, KeyError, ValueError) as exc:
             self.window.missing.job_error("Cannot search", exc)
             return False
+        self._find_kept = [] if replace else matched
+        self._find_replace = replace
         self._live_components = []
         self._task_kind = "find"
         self._eta = Eta(1.0)
@@ -286,9 +299,10 @@ class MatchControl(QObject):
         elif self._task_kind == "track":
             self._end_tracking()
         elif self._task_kind == "find":  # the placements by component
-            s.store_placements(result)
+            s.store_placements(result, replace=self._find_replace)
             found = [p for p in result.values() if p.found]
-            text = "; ".join(p.describe() for p in result.values())
+            text = "; ".join([p.describe() for p in result.values()]
+                             + [f"kept the matched {name} pose" for name in self._find_kept])
             frame = next(iter(result.values())).frame if result else self.controller.frame
             text = f"Find implants in frame {frame}: {text}." + (
                 " Press Ctrl+F5 to match both." if found else " Place the models by hand (Place model, C).")
@@ -326,6 +340,8 @@ class MatchControl(QObject):
 
     def _end_tracking(self, ending: str = "") -> None:
         track, self._track = self._track, None
+        if track is not None:
+            self.last_track = track
         self._follow_timer.stop()
         if self._follow_frame is not None:
             self._follow()
