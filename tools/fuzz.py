@@ -66,7 +66,8 @@ def run_cli(count: int, folder: Path, seed: int) -> dict:
             "internal_errors": counts["internal_error"], "escaped": counts["escaped"],
             "bad_accepted": counts["bad_accepted"], "unnamed": counts["unnamed"],
             "many_lines": counts["many_lines"], "regressions": len(named), "regressions_failed": len(failed),
-            "peak_mb": memory["peak_mb"], "examples": examples + failed}
+            "peak_mb": memory["peak_mb"], "slowest_s": max((r.get("seconds", 0.0) for r in results), default=0.0),
+            "examples": examples + failed}
 
 
 def run_projects(count: int, folder: Path, seed: int) -> dict:
