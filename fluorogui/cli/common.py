@@ -1,5 +1,5 @@
 """What the sub-commands share: the one usage error and its parser, option types with
-ranges, native library chatter sent to the log file, frame specs, opening a project under
+ranges and counts, native library chatter sent to the log file, frame specs, opening a project under
 its lock, per-frame output (JSON lines on stdout, flagged frames on stderr) and a progress
 bar that appears only on a terminal. The inputs they load are in ``cli.inputs``."""
 from __future__ import annotations
@@ -27,8 +27,33 @@ class UsageError(Exception):
     """A command-line mistake: one line on stderr, exit 2."""
 
 
+class Numbers(argparse.Action):
+    """An option taking exactly as many values as its ``metavar`` names (a pose: X Y Z ALPHA
+    BETA GAMMA). Given more or fewer, the message says how many it takes, where a fixed
+    ``nargs`` would leave the rest to argparse's "unrecognized arguments: 1"."""
+
+    def __init__(self, option_strings, dest, metavar, **kwargs):
+        super().__init__(option_strings, dest, nargs="+", metavar=tuple(metavar), **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        if len(values) != len(self.metavar):
+            raise argparse.ArgumentError(self, f"takes exactly {len(self.metavar)} numbers "
+                                               f"({' '.join(self.metavar)}), got {len(values)}")
+        setattr(namespace, self.dest, values)
+
+
+class _Formatter(argparse.HelpFormatter):
+    def _format_args(self, action, default_metavar):
+        if isinstance(action, Numbers):  # its names, once: "X Y Z ALPHA BETA GAMMA"
+            return " ".join(action.metavar)
+        return super()._format_args(action, default_metavar)
+
+
 class Parser(argparse.ArgumentParser):
     """An argument parser whose mistakes are one ``UsageError`` line, not usage + message."""
+
+    def __init__(self, *args, formatter_class=_Formatter, **kwargs):
+        super().__init__(*args, formatter_class=formatter_class, **kwargs)
 
     def error(self, message):
         raise UsageError(f"{self.prog}: {message}")

@@ -36,12 +36,14 @@ def with_corrections(views, paths):
 
 
 def load_images(paths, views):
+    """The images to match, one per view (``io.corrections.read_view_image``: damaged,
+    blank or wrongly sized ones refused, naming the file)."""
     from fluorogui.io.corrections import read_view_image
 
     if len(paths or []) != len(views):
         raise UsageError(f"fluorogui: give one --image per --camera ({len(views)}), got {len(paths or [])}; "
                           "FILE@N picks frame N of a multi-frame DICOM or video")
-    return [read_view_image(p, v) for p, v in zip(paths, views)]
+    return [read_view_image(p, v, for_matching=True) for p, v in zip(paths, views)]
 
 
 def load_model(path):
@@ -51,13 +53,41 @@ def load_model(path):
     return prepared_model(path, *read_model(path))
 
 
+#: a start pose's angles beyond this (degrees) are a mistake, not a turn
+MAX_ANGLE_DEG = 360.0
+
+
 def start_pose(values, what="--start"):
+    """Six finite numbers whose angles lie within ±``MAX_ANGLE_DEG``; else a UsageError
+    naming ``what``."""
     from fluorogui.core.projection.pose import as_pose
 
     try:
-        return as_pose(values)
+        pose = as_pose(values)
     except ValueError as exc:
         raise UsageError(f"fluorogui: {what}: {exc}") from None
+    for name, angle in zip(("ALPHA", "BETA", "GAMMA"), pose[3:]):
+        if abs(angle) > MAX_ANGLE_DEG:
+            raise UsageError(f"fluorogui: {what}: {name} = {angle:.4g}° is beyond ±{MAX_ANGLE_DEG:g}°; "
+                             "give the angles in degrees")
+    return pose
+
+
+def read_outline(path, view):
+    """An outline file's points (``io.outlines.read_outline_csv``), refused naming the file
+    when they lie far outside the view's image (``io.outlines.check_outline_in_image``) or
+    do not make a closed outline."""
+    from fluorogui.core.outlines.spline import OutlineError, OutlineSpline
+    from fluorogui.io.errors import InputError
+    from fluorogui.io.outlines import check_outline_in_image, read_outline_csv
+
+    points = read_outline_csv(path)
+    check_outline_in_image(points, view.image_size, path, view.name)
+    try:
+        OutlineSpline.fit(points)
+    except (OutlineError, ValueError) as exc:
+        raise InputError(path, str(exc)) from None
+    return points
 
 
 def outline_splines(outline_paths, images, image_paths, views, mesh, pose):
@@ -66,14 +96,13 @@ def outline_splines(outline_paths, images, image_paths, views, mesh, pose):
     from fluorogui.core.outlines.edges import component_outline
     from fluorogui.core.outlines.spline import OutlineError, OutlineSpline
     from fluorogui.io.errors import InputError
-    from fluorogui.io.outlines import read_outline_csv
 
     if outline_paths and len(outline_paths) != len(views):
         raise UsageError(f"fluorogui: give one --outline per view or none (got {len(outline_paths)})")
     splines = []
     for k, view in enumerate(views):
         if outline_paths:
-            source, points = outline_paths[k], read_outline_csv(outline_paths[k])
+            source, points = outline_paths[k], read_outline(outline_paths[k], view)
         else:
             source = image_paths[k]
             try:

@@ -12,6 +12,7 @@ import numpy as np
 
 from fluorogui.cli import inputs
 from fluorogui.cli.common import (
+    Numbers,
     UsageError,
     add_match_options,
     add_quality_option,
@@ -28,8 +29,9 @@ def add_parser(sub):
     m.add_argument("--image", action="append", required=True, metavar="IMG",
                    help="image file per camera; FILE@N is frame N (0-based) of a multi-frame DICOM or video")
     m.add_argument("--model", required=True, metavar="MESH", help="component mesh in mm (STL/PLY/OBJ/VTK)")
-    m.add_argument("--start", nargs=6, type=finite_float, required=True,
-                   metavar=("X", "Y", "Z", "ALPHA", "BETA", "GAMMA"))
+    m.add_argument("--start", action=Numbers, type=finite_float, required=True,
+                   metavar=("X", "Y", "Z", "ALPHA", "BETA", "GAMMA"),
+                   help="the start pose: mm and degrees (angles within ±360)")
     m.add_argument("--outline", action="append", metavar="CSV", help="ordered outline points u,v (twice)")
     m.add_argument("--correction", action="append", metavar="CORR.json",
                    help="distortion correction per camera (fluorogui calibrate distortion)")
@@ -37,7 +39,8 @@ def add_parser(sub):
                    help="the component's name in messages (default: femoral / tibial from the mesh file's name)")
     m.add_argument("--other", metavar="MESH", help="the knee's other component, at --other-pose: where its "
                    "projection overlaps this one it is masked out, as the app and tracking do")
-    m.add_argument("--other-pose", nargs=6, type=finite_float, metavar=("X", "Y", "Z", "ALPHA", "BETA", "GAMMA"))
+    m.add_argument("--other-pose", action=Numbers, type=finite_float,
+                   metavar=("X", "Y", "Z", "ALPHA", "BETA", "GAMMA"))
     add_match_options(m)
     add_rim_options(m)
     add_quality_option(m, "the defaults")
@@ -53,10 +56,7 @@ def component_name(path, taken: str = "") -> str:
 
 
 def run(args) -> int:
-    from fluorogui.core.outlines.spline import OutlineError, OutlineSpline
     from fluorogui.core.status import Status
-    from fluorogui.io.errors import InputError
-    from fluorogui.io.outlines import read_outline_csv
     from fluorogui.workflow.session import Session
     from fluorogui.workflow.settings import WorkflowSettings
 
@@ -76,6 +76,7 @@ def run(args) -> int:
         settings.match.validate()
     except ValueError as exc:
         raise UsageError(f"fluorogui: {exc}") from None
+    inputs.load_images(args.image, views)  # a damaged or blank image refused before any work
     component = args.component or component_name(args.model)
     models = {component: args.model}
     if args.other:
@@ -90,12 +91,7 @@ def run(args) -> int:
         session.mesh(other)
         session.set_pose(other, 0, inputs.start_pose(args.other_pose, "--other-pose"))
     for k, path in enumerate(args.outline or []):
-        points = read_outline_csv(path)
-        try:
-            OutlineSpline.fit(points)
-        except (OutlineError, ValueError) as exc:
-            raise InputError(path, str(exc)) from None
-        session.set_outline((0, k, component), points, "Outline file", reviewed=True)
+        session.set_outline((0, k, component), inputs.read_outline(path, views[k]), "Outline file", reviewed=True)
     result = session.match(0, component)[0]
     if len(views) == 1:
         from fluorogui.workflow.messages import SINGLE_PLANE_NOTE

@@ -13,6 +13,7 @@ from fluorogui.cli.common import (
     POINTS_RANGE,
     SEED_RANGE,
     STARTS_RANGE,
+    Numbers,
     UsageError,
     add_rim_options,
     finite_float,
@@ -72,7 +73,7 @@ def add_parser(sub):
     vr.add_argument("--camera", action="append", required=True, metavar="CAM")
     vr.add_argument("--image", action="append", metavar="IMG")
     vr.add_argument("--model", required=True, metavar="MESH")
-    vr.add_argument("--pose", nargs=6, type=finite_float, metavar=("X", "Y", "Z", "ALPHA", "BETA", "GAMMA"))
+    vr.add_argument("--pose", action=Numbers, type=finite_float, metavar=("X", "Y", "Z", "ALPHA", "BETA", "GAMMA"))
     vr.add_argument("--outline", action="append", metavar="CSV")
     vr.add_argument("--reference", metavar="CSV", help="poses per frame: frame,component,x,y,z,alpha,beta,gamma")
     vr.add_argument("--pairs", metavar="CSV", help="with --reference: frame,cam1,cam2 image pairs")
@@ -384,9 +385,7 @@ def cmd_validate_repeatability(args) -> int:
     for method in args.method:
         table = []
         for label, image_paths, pose in cases:
-            images = load_images(image_paths, views)
-            outlines = args.outline if not args.reference else None
-            splines = outline_splines(outlines, images, image_paths, views, mesh, pose)
+            splines = _case_splines(args, label, image_paths, views, mesh, pose)
             settings = match_settings(args, method, multistart=False)
             case = repeatability_case(MatchProblem(mesh, views, splines), pose, settings, args.starts, args.seed,
                                       label=label)
@@ -404,6 +403,20 @@ def cmd_validate_repeatability(args) -> int:
     if args.json:
         print(json.dumps(payload))
     return 0
+
+
+def _case_splines(args, label, image_paths, views, mesh, pose):
+    """A case's outline splines: from --outline files, or segmented in its images. A problem
+    with an image listed in --pairs names the pairs file too."""
+    from fluorogui.io.errors import InputError
+
+    try:
+        images = load_images(image_paths, views)
+        return outline_splines(args.outline if not args.reference else None, images, image_paths, views, mesh, pose)
+    except InputError as exc:
+        if not args.reference or exc.path not in map(str, image_paths):
+            raise
+        raise InputError(exc.path, f"{exc.problem} (listed in {args.pairs} for {label})") from None
 
 
 def _reference_cases(args):

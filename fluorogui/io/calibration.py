@@ -19,7 +19,9 @@ Formats, detected by content (never by extension):
 Every view read is checked against what a fluoroscope can plausibly be (``io.plausible``:
 image size, field of view, pixel pitch, source distance, principal point, source position),
 so that an absurd number is refused here, naming the file and its field, and not later as
-a mismatch with an image. Numbers must be plain decimals (``1_000`` is refused). A
+a mismatch with an image. Numbers must be plain decimals of the digits 0-9 (``1_000`` and
+Arabic-Indic ``١٠٢٤``, which Python's ``float`` would read, are refused), a MayaCam 2.0
+section may appear only once, and MayaCam 1.0's rotation angles must lie within ±360°. A
 JointTrack header in lower case is read, with an ``InputWarning`` saying so.
 
 Every format is written too (``save_view``), as exactly as it is read. MayaCam 2.0's
@@ -53,7 +55,9 @@ JOINTTRACK_DEFAULT_IMAGE_SIZE = (1024, 1024)
 MAYACAM2_SECTIONS = ("image size", "camera matrix", "rotation", "translation")
 _SECTION_TITLE = re.compile(r"^[A-Za-z][A-Za-z _-]*$")
 _NON_FINITE_WORDS = {"nan", "inf", "-inf", "infinity", "-infinity"}
-_PLAIN_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
+_PLAIN_NUMBER = re.compile(r"^[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?$")  # ASCII digits only
+#: MayaCam 1.0's rotation angles (degrees) beyond this are no turn a calibration writes
+MAX_ANGLE_DEG = 360.0
 # each format's name for the quantities ``plausible.view_problem`` judges
 _MAYACAM2_FIELDS = {plausible.SIZE: "section 'image size'", plausible.FOCAL: "section 'camera matrix' (fx, fy)",
                     plausible.PITCH: "section 'camera matrix' (fx, fy)",
@@ -307,6 +311,8 @@ def _parse_mayacam2(path: Path, lines: list[str], name: str) -> View:
     for line in lines:
         if _SECTION_TITLE.match(line) and line.lower() not in _NON_FINITE_WORDS:
             current = line.lower()  # unknown sections are read and ignored
+            if current in sections:
+                raise InputError(path, f"the section '{current}' appears twice; a MayaCam 2.0 file has each once")
             sections[current] = []
         elif current is None:
             raise InputError(path, f"unexpected line {line!r} before the first MayaCam section")
@@ -355,6 +361,10 @@ def _parse_mayacam1(path: Path, lines: list[str], name: str) -> View:
     rows = [_numbers(path, _split_row(line), f"line {i + 1}") for i, line in enumerate(lines)]
     position = np.array(rows[0])
     roll, pitch, yaw = rows[1]  # rotations about the camera's x, y, z
+    if max(abs(roll), abs(pitch), abs(yaw)) > MAX_ANGLE_DEG:
+        angle = max(rows[1], key=abs)
+        raise InputError(path, f"line 2 (rotation angles): {angle:.4g}° is beyond ±{MAX_ANGLE_DEG:g}°; "
+                               "give the camera's rotations in degrees")
     u0_matlab, v0_matlab, z = rows[3]
     if any(s < 0 or s != int(s) for s in rows[4][1:]):
         raise InputError(path, "line 5 needs the image width and height as whole numbers")

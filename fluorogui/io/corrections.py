@@ -98,15 +98,18 @@ def correct_view_image(image: np.ndarray, view: View | None) -> np.ndarray:
     return image if model is None else model.correct_image(image)
 
 
-def read_view_image(path, view: View | None) -> np.ndarray:
+def read_view_image(path, view: View | None, for_matching: bool = False) -> np.ndarray:
     """The one reading of an image of a view (the app, tracking and the command line): the
     file read (``io.images.read_image``; ``FILE@N`` for a frame), checked against the
-    view's image size and corrected for its distortion. Raises InputError naming the file."""
+    view's image size and corrected for its distortion. Raises InputError naming the file.
+    ``for_matching`` also refuses a blank image (``io.images.check_not_blank``), which the
+    app still shows."""
     from fluorogui.io.calibration import check_image_size
-    from fluorogui.io.images import read_image
+    from fluorogui.io.images import check_not_blank, read_image
 
     image = read_image(path)
-    if view is None:
-        return image
-    check_image_size(view, image.shape, path)
-    return correct_view_image(image, view)
+    if view is not None:
+        check_image_size(view, image.shape, path)
+    if for_matching:
+        check_not_blank(image, path)
+    return image if view is None else correct_view_image(image, view)

@@ -12,10 +12,20 @@ Integer images are scaled by their type's full range (8-bit / 255, 16-bit / 6553
 sequence keeps one intensity scale from frame to frame. DICOM pixel data get their rescale
 slope / intercept and are scaled by the stored bit range; MONOCHROME1 is inverted so bone
 and metal look the same as in the other formats. Colour images become luminance.
+
+A damaged JPEG is refused, not decoded into a picture with a grey band: libjpeg fills what
+a cut-off or corrupt scan lacks and only prints a warning (``Premature end of JPEG file``,
+``Corrupt JPEG data: ...``) on the process's stderr, which the reader captures while it
+decodes (POSIX). An image read for matching must show something: ``check_not_blank``
+refuses one value everywhere (an all-0 or all-255 frame), never a dark or flat real one.
 """
 from __future__ import annotations
 
+import os
 import re
+import tempfile
+import threading
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -332,12 +342,70 @@ def _read_cv2(path: Path) -> np.ndarray:
     if data[:8].tobytes() == b"\x89PNG\r\n\x1a\n" and data.size >= 24:
         _check_claimed_pixels(path, int.from_bytes(data[16:20].tobytes(), "big") *
                               int.from_bytes(data[20:24].tobytes(), "big"))  # IHDR, before decoding
-    pixels = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    jpeg = path.suffix.lower() in (".jpg", ".jpeg")
+    with _native_messages(jpeg) as messages:
+        pixels = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
     if pixels is None:
         raise InputError(path, f"corrupt or unreadable {path.suffix.lstrip('.').upper()} image")
     if _looks_truncated(path, data):
         raise InputError(path, f"truncated {path.suffix.lstrip('.').upper()} image")
+    damage = next((line.strip() for line in messages if _is_jpeg_damage(line)), None)
+    if damage:
+        raise InputError(path, f"damaged JPEG image: the decoder reports {damage[:80]!r} (a truncated or "
+                               "corrupt file: part of the picture is missing)")
     return pixels
+
+
+#: libjpeg's "N extraneous bytes before marker": a few are some encoders' padding; more are
+#: scan data the decoder did not use (overwritten bytes it decoded as other codes)
+MAX_EXTRANEOUS_BYTES = 16
+_EXTRANEOUS = re.compile(r"(\d+) extraneous bytes")
+
+
+def _is_jpeg_damage(line: str) -> bool:
+    """A libjpeg warning that data of the picture is missing or wrong (not a harmless one:
+    a bad ICC profile, a few extraneous bytes before a marker)."""
+    line = line.strip()
+    if line.startswith("Corrupt JPEG data:"):
+        extraneous = _EXTRANEOUS.search(line)
+        if extraneous:
+            return int(extraneous.group(1)) > MAX_EXTRANEOUS_BYTES
+        return "ICC" not in line
+    return line.startswith(("Premature end of JPEG file", "Inconsistent progression sequence"))
+
+
+_NATIVE_STDERR = threading.Lock()
+
+
+@contextmanager
+def _native_messages(enabled: bool = True):
+    """The lines C code writes to the process's stderr (fd 2) while the block runs, in a list
+    filled on the way out; the text goes on to where fd 2 pointed. One block at a time (fd 2
+    is the process's); an empty list where fd 2 cannot be captured."""
+    lines: list[str] = []
+    if not enabled or os.name != "posix":
+        yield lines
+        return
+    with _NATIVE_STDERR, tempfile.TemporaryFile() as sink:
+        saved = -1
+        try:
+            saved = os.dup(2)
+            os.dup2(sink.fileno(), 2)
+        except OSError:  # no stderr to capture: decode without
+            if saved >= 0:
+                os.close(saved)
+            yield lines
+            return
+        try:
+            yield lines
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            sink.seek(0)
+            text = sink.read()
+            if text:
+                os.write(2, text)
+                lines += text.decode("utf-8", "replace").splitlines()
 
 
 MAX_IMAGE_VALUES = 200_000_000  # pixels x channels a header may claim (a fluoroscope frame: ~10^6)
@@ -358,6 +426,23 @@ def _looks_truncated(path: Path, data: np.ndarray) -> bool:
     if suffix == ".png":
         return b"IEND" not in tail
     return False
+
+
+def check_not_blank(image: np.ndarray, path) -> None:
+    """Refuse an image read for matching that holds one value everywhere (InputError naming
+    ``path``): an all-black or all-white frame shows no component. A dark or low-contrast
+    frame is not blank: one pixel different is enough."""
+    image = np.asarray(image)
+    if image.size == 0 or float(image.min()) != float(image.max()):
+        return
+    value = float(image.flat[0])
+    try:
+        bits = image_info(path).bits
+    except InputError:
+        bits = 0
+    top = 2 ** bits - 1 if bits in (8, 16) else 0
+    shown = f"{round(value * top)}" + (f" of {top}" if value > 0 else "") if top else f"{value:.4g} of 1"
+    raise InputError(path, f"the image is blank (every pixel {shown}): it shows nothing to match")
 
 
 def has_dicom_preamble(path: Path) -> bool:

@@ -2,7 +2,8 @@
 
 ``import_session`` checks everything it can without reading whole sequences, so a bad
 file is reported before any work starts: every calibration loads, the first image of
-each view has the size its calibration expects (``check_image_size``), every model
+each view has the size its calibration expects (``check_image_size``) and is not blank
+(refused when it is the view's only image, a warning in a sequence), every model
 loads and has the size of a knee-implant component in millimetres, and the two views
 have the same number of images (or a pairs CSV says which images go together). Every
 problem is an ``InputError`` naming the file (or folder) at fault.
@@ -49,13 +50,14 @@ import numpy as np
 
 from fluorogui.core.records import ImageSequence, ModelEntry, Project
 from fluorogui.io.calibration import check_image_size, load_view
-from fluorogui.io.errors import InputError, describe_os_error
+from fluorogui.io.errors import InputError, describe_os_error, warn_input
 from fluorogui.io.files import read_text_file
 from fluorogui.io.images import (
     DICOM_SUFFIXES,
     IMAGE_SUFFIXES,
     VIDEO_SUFFIXES,
     ImageInfo,
+    check_not_blank,
     frame_count,
     frame_reference,
     has_dicom_preamble,
@@ -117,7 +119,9 @@ def import_session(
         frames = list(range(max(counts)))
 
     for view, sequence in zip(views, paths):
-        check_image_size(view, read_image(sequence[0]).shape, sequence[0])
+        first = read_image(sequence[0])
+        check_image_size(view, first.shape, sequence[0])
+        _check_shows_something(first, sequence)
 
     entries = []
     for component, path in models.items():
@@ -209,6 +213,18 @@ def check_implant_model(path) -> tuple[np.ndarray, np.ndarray]:
     return vertices, faces
 
 
+def _check_shows_something(first: np.ndarray, sequence: list[Path]) -> None:
+    """A blank first image (``check_not_blank``) is refused when it is the view's only one;
+    in a sequence it is a warning (a recording may begin before the beam), and tracking
+    refuses each blank frame it is given, naming it."""
+    try:
+        check_not_blank(first, sequence[0])
+    except InputError as exc:
+        if len(sequence) == 1:
+            raise
+        warn_input(exc.path, f"{exc.problem}; its frame cannot be matched (the others are checked when they are)")
+
+
 def resolve_image_source(source: ImageSource) -> list[Path]:
     """The frames of one view's source (folder, list of files, one image, one multi-frame file
     or one video); a frame of a multi-frame file or video is the reference ``FILE@N``."""
@@ -298,7 +314,10 @@ def read_pairs_csv(path, n_views: int = 2) -> tuple[list[int], list[list[Path]]]
             image = image if image.is_absolute() else Path(os.path.normpath(path.parent / image))
             if not image.is_file():
                 raise InputError(image, f"listed on line {n} of {path.name} but not found")
-            paths[k].append(_checked_image_file(image))
+            try:
+                paths[k].append(_checked_image_file(image))
+            except InputError as exc:
+                raise InputError(exc.path, f"{exc.problem} (listed on line {n} of {path.name})") from None
     return frames, paths
 
 

@@ -28,7 +28,7 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from fluorogui.core.cancel import check_cancel
+from fluorogui.core.cancel import OutOfTime, check_cancel, with_deadline
 from fluorogui.core.matching.loop import SegmentationError, segment_and_match
 from fluorogui.core.matching.quality import assess, failed_checks
 from fluorogui.core.outlines.field import field_of_view
@@ -229,23 +229,31 @@ class FrameMatcher:
         tried = 0
         light = replace(self.settings.loop, max_passes=min(3, self.settings.loop.max_passes))
         jump = job.gap > NEAR_FIRST_GAP
-        for label, start in self._starts(images, job, cancel):
-            check_cancel(cancel)
-            # only the first start runs the whole loop: recovery starts (every later one, and
-            # every start at a jump, where the prediction extrapolates beyond what was seen)
-            # get a shorter one, most lead nowhere
-            whole = tried == 0 and not label and not jump
-            candidate = self.attempt(images, job, start, occluded, cancel, None if whole else light)
-            tried += 1
-            if best is None or better_result(candidate, best):
-                best = candidate
-                best.recovered = label
-            if best.status == Status.MATCHED:
-                break
-            if best.failed and set(best.failed) <= IMAGE_BOUND_CHECKS:
-                break  # the pose fits; what fails is what the images show, the same from every start
-            if job.given is not None and all(g is not None for g in job.given) and best.status == Status.FAILED:
-                break  # reviewed outlines that cannot be matched: other starts will not help
+        limit = self.settings.tracking.max_seconds
+        # recovery (its searches and every start after the first) stops at the time limit,
+        # raising OutOfTime; the first start and the probe run to their end
+        bounded = with_deadline(cancel, t0 + limit if limit > 0 else None)
+        try:
+            for label, start in self._starts(images, job, bounded):
+                check_cancel(bounded if tried else cancel)
+                # only the first start runs the whole loop: recovery starts (every later one, and
+                # every start at a jump, where the prediction extrapolates beyond what was seen)
+                # get a shorter one, most lead nowhere
+                whole = tried == 0 and not label and not jump
+                tried += 1  # (a start stopped at the time limit was tried too)
+                candidate = self.attempt(images, job, start, occluded, bounded if tried > 1 else cancel,
+                                         None if whole else light)
+                if best is None or better_result(candidate, best):
+                    best = candidate
+                    best.recovered = label
+                if best.status == Status.MATCHED:
+                    break
+                if best.failed and set(best.failed) <= IMAGE_BOUND_CHECKS:
+                    break  # the pose fits; what fails is what the images show, the same from every start
+                if job.given is not None and all(g is not None for g in job.given) and best.status == Status.FAILED:
+                    break  # reviewed outlines that cannot be matched: other starts will not help
+        except OutOfTime:
+            best = _out_of_time(job, best, time.perf_counter() - t0, limit)
         if best.status == Status.MATCHED and job.probe and self.settings.tracking.probe:
             best, tried = self._probe(images, job, best, occluded, cancel, tried)
         if best.status == Status.MATCHED:  # one vote per frame, from its best result only
@@ -431,6 +439,17 @@ class RimJudgement:
             clear_step = len(self.votes[k]) == 1 and model.mu >= MAYBE_SOFT_BELOW_MU
             if clear_step or len(self.votes[k]) >= RIM_JUDGE_FRAMES:
                 self.settled[k] = sorted(self.votes[k], key=lambda m: m.mu)[len(self.votes[k]) // 2]
+
+
+def _out_of_time(job: ComponentInput, best: FrameResult | None, seconds: float, limit: float) -> FrameResult:
+    """The best result when recovery ran out of time (``TrackingSettings.max_seconds``): none
+    matched (recovery ends at the first that does), so it stays flagged, its reason saying so."""
+    note = messages.out_of_time(seconds, limit)
+    if best is None:  # a search before the first start took the time
+        return FrameResult(0, job.component, None, Status.FAILED, note, seconds=seconds, failed=["time"])
+    best.reason = f"{note}; {best.reason}" if best.reason else note
+    best.failed = [*best.failed, "time"]
+    return best
 
 
 def better_result(a: FrameResult, b: FrameResult) -> bool:

@@ -39,6 +39,11 @@ def match_failed(component: str, error: Exception) -> str:
     return f"the {component} component could not be matched: {plain(str(error))}"
 
 
+def out_of_time(seconds: float, limit: float) -> str:
+    return (f"stopped after {seconds:.0f} s: recovery may take {limit:g} s (the tracking setting max_seconds); "
+            "check the start pose, or give outlines")
+
+
 def image_missing(view: int, problem: str) -> str:
     return f"view {view + 1}: {problem}"
 

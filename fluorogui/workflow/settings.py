@@ -35,6 +35,13 @@ class TrackingSettings:
         ... this far either way about the least constrained axis ...
     probe_ratio : float
         ... and call the pose ambiguous when one fits within this factor.
+    max_seconds : float
+        When a component's first start in a frame fails its checks, recovery tries other
+        starts until this long after the match began: then it stops (a running start at its
+        next check) and the best result so far, flagged ``needs_review`` (or ``failed``),
+        says so in its reason; 0: no limit. The first start and the probe always run to
+        their end. A recovered real frame takes under a second; a start far off took
+        minutes (every recovery start fitting the rim models again).
     """
 
     occlusion: bool = True  # mask the other component's projection out of segmentation and matching
@@ -46,6 +53,7 @@ class TrackingSettings:
     probe: bool = True  # without motion to go by, look for a second orientation that fits as well:
     probe_deg: float = 20.0  # ... this far either way about the least constrained axis ...
     probe_ratio: float = 1.5  # ... for another orientation fitting within this factor: ambiguous
+    max_seconds: float = 20.0  # recovery stops this long after a component's match began, flagged (0: none)
 
     @classmethod
     def from_dict(cls, d: dict | None) -> "TrackingSettings":

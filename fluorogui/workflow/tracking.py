@@ -266,15 +266,16 @@ class TrackJob:
 def read_frame_images(frame: int, paths: Sequence[Path | None], n_views: int,
                       counts: Sequence[int] = (), views: Sequence | None = None) -> list[np.ndarray]:
     """The images of a frame, one per view (corrected for each view's distortion when
-    ``views`` are given); raises InputError naming the view (and how many images its camera
-    has) when one is missing, or the file when it cannot be read."""
+    ``views`` are given), to be matched; raises InputError naming the view (and how many
+    images its camera has) when one is missing, or the file when it cannot be read or is
+    blank (``io.images.check_not_blank``)."""
     paths = list(paths) + [None] * (n_views - len(paths))
     for view, path in enumerate(paths):
         if path is None:
             count = f" (this camera has {counts[view]} images)" if view < len(counts) else ""
             raise InputError(f"view {view + 1}", f"no image for frame {frame}{count}")
-    return each_view(lambda k: read_view_image(paths[k], views[k] if views is not None and k < len(views) else None),
-                     range(len(paths)))
+    return each_view(lambda k: read_view_image(paths[k], views[k] if views is not None and k < len(views) else None,
+                                               for_matching=True), range(len(paths)))
 
 
 def _recent_axis(m: MotionModel, frame: int) -> np.ndarray | None:

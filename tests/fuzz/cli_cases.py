@@ -3,12 +3,17 @@
 Each case is ``(argv, expect, names)``: ``expect`` "bad" means the run must be refused (exit
 2) with one line containing one of ``names`` (the option or the file); "any" (a mutated file
 that may still be valid) means any clean outcome (exit 0, 2 or 3, one line on refusal);
-"warned" means a clean run (exit 0) whose stderr warns, naming the file.
+"warned" means a clean run (exit 0) whose stderr warns, naming the file; "bounded" a match
+that ends matched or flagged (exit 0 or 3). Every case must end within ``BOUNDED_SECONDS``.
 
-``regression_cases`` are the issue "messages that name the wrong input": calibrations with
+``regression_cases`` are the issues' "messages that name the wrong input": calibrations with
 absurd values (refused when read, naming the calibration file, not as a mismatch with the
 image), start poses at, behind or far from a source (refused as ``--start``), a lower-case
-JointTrack header (read, with a warning)."""
+JointTrack header (read, with a warning); and issue 44's: blank and damaged images, an
+outline far off its image, a calibration with a repeated section, Arabic-Indic digits or a
+1e308° angle, a one-triangle mesh, ``--start`` with seven numbers or 10^6° angles, and images
+listed in a pairs CSV named with it. Given the real data, also the matches that took
+minutes (the paper method on automatic outlines, a start 54 mm off), which must be bounded."""
 from __future__ import annotations
 
 import os
@@ -22,6 +27,7 @@ from loader_worker import mutate
 CORPUS = Path(__file__).resolve().parent / "corpus"
 BAD_INTS = ["-5", "-1", "99999999999999999999", "abc", "1.5", "", "nan", "1e3"]  # bad for every option
 BAD_FLOATS = ["nan", "inf", "-inf", "1e999", "abc", "", "1e8"]
+BOUNDED_SECONDS = 30.0  # a match that takes longer is a hang
 
 
 def make_scene(folder: Path) -> dict:
@@ -46,9 +52,9 @@ def make_scene(folder: Path) -> dict:
                                                                       folder / f"outline{k}.csv")
     pv.Sphere(radius=20.0, theta_resolution=12, phi_resolution=12).save(folder / "ball.stl")
     scene["mesh"] = folder / "ball.stl"
-    write_image(folder / "small.png", np.zeros((32, 32)), bits=8)
-    (folder / "jt").mkdir(exist_ok=True)
-    write_image(folder / "jt" / "square.png", np.zeros((1024, 1024)), bits=8)  # JointTrack's assumed size
+    write_image(folder / "small.png", np.linspace(0, 1, 32 * 32).reshape(32, 32), bits=8)
+    (folder / "jt").mkdir(exist_ok=True)  # JointTrack's assumed size:
+    write_image(folder / "jt" / "square.png", np.linspace(0, 1, 1024 * 1024).reshape(1024, 1024), bits=8)
     (folder / "pairs.csv").write_text("frame,cam1,cam2\n0,img0.png,img1.png\n")
     (folder / "ref.csv").write_text("frame,component,x,y,z,alpha,beta,gamma\n0,femoral,0,0,0,0,0,0\n")
     scene["pairs"], scene["reference"] = folder / "pairs.csv", folder / "ref.csv"
@@ -137,8 +143,10 @@ def generate(scene: dict, folder: Path, count: int, seed: int = 0) -> list[tuple
     return cases
 
 
-def regression_cases(scene: dict, folder: Path) -> list[tuple[str, list[str], str, list[str]]]:
-    """(name, argv, expect, names) of every case of the issue, built on ``scene``."""
+def regression_cases(scene: dict, folder: Path,
+                     real: Path | None = None) -> list[tuple[str, list[str], str, list[str]]]:
+    """(name, argv, expect, names) of every case of the issues, built on ``scene`` (and the
+    real data in ``real``, when given and present)."""
     from fluorogui.io.calibration import load_view, save_view_mayacam2
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -171,11 +179,83 @@ def regression_cases(scene: dict, folder: Path) -> list[tuple[str, list[str], st
     argv = ["import", "--camera", str(lower), "--images1", str(scene["folder"] / "jt"), "--model",
             f"femoral={scene['mesh']}", "--out", str(folder / "lower.fluoro"), "--force"]
     cases.append(("jointtrack_lower_case_header", argv, "warned", [str(lower)]))
+    cases += _issue44_cases(scene, folder, good, mayacam)
+    if real is not None and (real / "biplane-tka" / "pairs.csv").is_file():
+        cases += bounded_cases(real / "biplane-tka")
     return cases
 
 
+def _issue44_cases(scene: dict, folder: Path, mayacam2: str, mayacam) -> list:
+    """Issue 44's bad inputs, each refused naming the input at fault."""
+    import cv2
+    import tifffile
+
+    from fluorogui.io.calibration import load_view, save_view_mayacam1
+
+    cases = []
+    for name, value in (("image_all_0_tiff", 0), ("image_all_255_tiff", 255)):
+        tifffile.imwrite(folder / f"{name}.tif", np.full((48, 64), value, np.uint8))
+        cases.append((name, match_argv(scene, img0=folder / f"{name}.tif"), "bad", [str(folder / f"{name}.tif")]))
+    jpeg = cv2.imencode(".jpg", np.linspace(0, 255, 64 * 48).reshape(48, 64).astype(np.uint8))[1].tobytes()
+    (folder / "cut.jpg").write_bytes(jpeg[: len(jpeg) * 2 // 3] + b"\xff\xd9")  # cut, its end marker kept
+    cases.append(("jpeg_truncated", match_argv(scene, img1=folder / "cut.jpg"), "bad", [str(folder / "cut.jpg")]))
+    t = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    far = folder / "far_outline.csv"
+    far.write_text("u,v\n" + "".join(f"{5032 + 15 * np.cos(a):.3f},{24 + 15 * np.sin(a):.3f}\n" for a in t))
+    cases.append(("outline_5000_px_off", match_argv(scene, outline0=far), "bad", [str(far)]))
+    twice = mayacam("twice.txt", mayacam2 + "\nimage size\n640,480\n")
+    arabic = folder / "arabic.txt"  # the image size in Arabic-Indic digits, which float() reads
+    arabic.write_text(mayacam2.replace("64,48", "\u0666\u0664,\u0664\u0668", 1), encoding="utf-8")
+    save_view_mayacam1(load_view(scene["cam0"]), folder / "mayacam1.txt")
+    lines = (folder / "mayacam1.txt").read_text().splitlines()
+    lines[1] = "1e308," + lines[1].split(",", 1)[1]
+    turned = mayacam("angle_1e308.txt", "\n".join(lines) + "\n")
+    for name, path in (("calibration_image_size_twice", twice), ("calibration_arabic_indic_digits", arabic),
+                       ("mayacam1_angle_1e308", turned)):
+        cases.append((name, match_argv(scene, cam0=path), "bad", [str(path)]))
+    triangle = folder / "triangle.stl"
+    triangle.write_text("solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 10 0 0\nvertex 0 10 0\n"
+                        "endloop\nendfacet\nendsolid t\n")
+    cases.append(("mesh_one_triangle_10_mm", match_argv(scene, mesh=triangle), "bad", [str(triangle)]))
+    argv = match_argv(scene)
+    at = argv.index("--start") + 7
+    cases.append(("start_seven_numbers", argv[:at] + ["1"] + argv[at:], "bad", ["--start"]))
+    argv = match_argv(scene)
+    at = argv.index("--start") + 4
+    argv[at:at + 3] = ["1e6", "1e6", "1e6"]
+    cases.append(("start_angles_1e6", argv, "bad", ["--start"]))
+    blank = folder / "blank.tif"
+    tifffile.imwrite(blank, np.zeros((48, 64), np.uint8))
+    for name, image in (("pairs_lists_a_blank_image", blank), ("pairs_lists_a_csv", scene["outline0"])):
+        pairs = folder / f"{name}.csv"
+        pairs.write_text(f"frame,cam1,cam2\n0,{image},{scene['img1']}\n")
+        cases.append((name, repeat_argv(scene, pairs=pairs), "bad", [str(pairs), pairs.name]))
+    return cases
+
+
+def bounded_cases(data: Path) -> list[tuple[str, list[str], str, list[str]]]:
+    """Matches on the real biplane data that took minutes (issue 44): the paper method on
+    automatic outlines, and a femoral start 54 mm off its reference pose (frame 0). Each
+    must end within ``BOUNDED_SECONDS``, matched or flagged."""
+    import csv
+
+    reference = Path(__file__).resolve().parents[1] / "data" / "biplane_reference_poses.csv"
+    with open(reference, newline="") as handle:
+        row = next(r for r in csv.DictReader(handle) if r["frame"] == "0" and r["component"] == "femoral")
+    pose = [float(row[k]) for k in ("x", "y", "z", "alpha", "beta", "gamma")]
+    base = ["match", "--camera", str(data / "calibration" / "cam1_mayacam2.txt"), "--camera",
+            str(data / "calibration" / "cam2_mayacam2.txt"), "--image", str(data / "cam1" / "000000.tif"),
+            "--image", str(data / "cam2" / "000522.tif"), "--model", str(data / "models" / "femoral_component.stl"),
+            "--json"]
+    off = [pose[0] + 54.0, *pose[1:]]
+    return [("paper_method_automatic_outlines", base + ["--start", *map(str, pose), "--method", "paper"], "bounded",
+             []),
+            ("start_54_mm_off", base + ["--start", *map(str, off)], "bounded", [])]
+
+
 def judge(case: tuple[list[str], str, list[str]], result: dict) -> str:
-    """One of: ok, crash, hang, internal_error, escaped, bad_accepted, unnamed, many_lines."""
+    """One of: ok, crash, hang (no answer, or one after more than ``BOUNDED_SECONDS``),
+    internal_error, escaped, bad_accepted, unnamed, many_lines."""
     argv, expect, names = case
     code, stderr = result["code"], result["stderr"]
     if isinstance(code, str):
@@ -184,6 +264,10 @@ def judge(case: tuple[list[str], str, list[str]], result: dict) -> str:
         return "escaped"
     if code == 1:
         return "internal_error"
+    if result.get("seconds", 0.0) > BOUNDED_SECONDS:
+        return "hang"
+    if expect == "bounded":
+        return "ok" if code in (0, 3) else "bad_refused"
     lines = stderr.strip().splitlines()
     if expect == "warned":
         warned = any(line.startswith("fluorogui: warning: ") and any(n in line for n in names) for line in lines)

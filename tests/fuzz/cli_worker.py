@@ -1,5 +1,6 @@
 """Run many command lines through ``fluorogui.cli.main`` in one process and report each as
-a JSON line ``{"index", "code", "stderr"}`` (what the terminal would show on stderr).
+a JSON line ``{"index", "code", "stderr", "seconds"}`` (what the terminal would show on
+stderr, and how long the command took).
 
 ``python cli_worker.py CASES.json FIRST``: CASES.json holds a list of argv lists; cases from
 index FIRST on are run. ``run_cli_cases`` is the parent: it restarts the worker after a
@@ -27,6 +28,7 @@ def main(cases_file: str, first: int) -> int:
     for index in range(first, len(cases)):
         sys.stderr = captured = io.StringIO()
         sys.stdout = io.StringIO()
+        started = time.monotonic()
         try:
             code = cli.main(cases[index])
         except SystemExit as exc:  # --help / --version
@@ -35,7 +37,8 @@ def main(cases_file: str, first: int) -> int:
             code = f"escaped {type(exc).__name__}"
         finally:
             sys.stderr, sys.stdout = real_stderr, sys.__stdout__
-        print(json.dumps({"index": index, "code": code, "stderr": captured.getvalue()}), flush=True)
+        print(json.dumps({"index": index, "code": code, "stderr": captured.getvalue(),
+                          "seconds": round(time.monotonic() - started, 2)}), flush=True)
     return 0
 
 

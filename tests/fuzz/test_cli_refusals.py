@@ -32,7 +32,7 @@ def files(tmp_path_factory):
     out = {"dir": d}
     for k, view in enumerate(views):
         save_view_json(view, d / f"cam{k}.json")
-        write_image(d / f"img{k}.png", np.full((48, 64), 0.5), bits=8)
+        write_image(d / f"img{k}.png", np.linspace(0, 1, 48 * 64).reshape(48, 64), bits=8)  # not blank
     import pyvista as pv
 
     pv.Sphere(radius=20.0).save(d / "ball.stl")
@@ -195,13 +195,40 @@ EXPECTED = {  # case -> the one line on stderr, after "fluorogui: error: <calibr
 }
 
 
+# issue 44: the whole line, {cases} and {scene} standing for the folders; "..." at the end: its start
+ISSUE_44 = {
+    "image_all_0_tiff": "fluorogui: error: {cases}/image_all_0_tiff.tif: the image is blank (every pixel 0): it "
+                        "shows nothing to match",
+    "image_all_255_tiff": "fluorogui: error: {cases}/image_all_255_tiff.tif: the image is blank (every pixel 255 of "
+                          "255): it shows nothing to match",
+    "jpeg_truncated": "fluorogui: error: {cases}/cut.jpg: damaged JPEG image: the decoder reports ...",
+    "outline_5000_px_off": "fluorogui: error: {cases}/far_outline.csv: outline point 1 (5047, 24) px lies outside the "
+                           "64x48 px image of view 1 (by more than 10% of its size): an outline of another image?",
+    "calibration_image_size_twice": "fluorogui: error: {cases}/twice.txt: the section 'image size' appears twice; a "
+                                    "MayaCam 2.0 file has each once",
+    "calibration_arabic_indic_digits": "fluorogui: error: {cases}/arabic.txt: non-numeric value '\u0666\u0664' in "
+                                       "section 'image size' (a plain decimal number is expected)",
+    "mayacam1_angle_1e308": "fluorogui: error: {cases}/angle_1e308.txt: line 2 (rotation angles): 1e+308° is beyond "
+                            "±360°; give the camera's rotations in degrees",
+    "mesh_one_triangle_10_mm": "fluorogui: error: {cases}/triangle.stl: mesh has 1 triangle of non-zero area; a "
+                               "surface enclosing a solid needs at least 4, and an implant model has thousands",
+    "start_seven_numbers": "fluorogui match: argument --start: takes exactly 6 numbers (X Y Z ALPHA BETA GAMMA), got 7",
+    "start_angles_1e6": "fluorogui: --start: ALPHA = 1e+06° is beyond ±360°; give the angles in degrees",
+    "pairs_lists_a_blank_image": "fluorogui: error: {cases}/blank.tif: the image is blank (every pixel 0): it shows "
+                                 "nothing to match (listed in {cases}/pairs_lists_a_blank_image.csv for frame 0)",
+    "pairs_lists_a_csv": "fluorogui: error: {scene}/outline0.csv: unsupported image type '.csv' (use TIFF, PNG, JPEG, "
+                         "BMP or DICOM) (listed on line 2 of pairs_lists_a_csv.csv)",
+}
+
+
 @pytest.fixture(scope="module")
 def regressions(tmp_path_factory):
     from cli_cases import make_scene, regression_cases
 
     folder = tmp_path_factory.mktemp("regressions")
-    return {name: (argv, expect, names) for name, argv, expect, names in
-            regression_cases(make_scene(folder / "scene"), folder / "cases")}
+    cases = {name: (argv, expect, names) for name, argv, expect, names in
+             regression_cases(make_scene(folder / "scene"), folder / "cases")}
+    return cases | {"folder": folder}
 
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))
@@ -218,3 +245,19 @@ def test_messages_name_the_input_at_fault(regressions, capsys, name):
         assert err.startswith(EXPECTED[name]), err
     else:
         assert err == f"fluorogui: error: {names[0]}: {EXPECTED[name]}"
+
+
+@pytest.mark.parametrize("name", sorted(ISSUE_44))
+def test_bad_inputs_of_issue_44_are_refused_by_name(regressions, capsys, name):
+    from cli_cases import judge
+
+    argv, expect, names = regressions[name]
+    code = cli.main(argv)
+    err = capsys.readouterr().err.strip()
+    assert judge((argv, expect, names), {"code": code, "stderr": err}) == "ok", err
+    folder = regressions["folder"]
+    line = ISSUE_44[name].format(cases=folder / "cases", scene=folder / "scene")
+    if line.endswith("..."):
+        assert err.startswith(line[:-3]), err
+    else:
+        assert err == line

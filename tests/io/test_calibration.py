@@ -373,6 +373,11 @@ def test_mayacam2_undistortion_block_read_written_and_kept_in_json(tmp_path):
     ("1345.59296415", "1.5e4", "section 'translation': the X-ray source lies 1.5e+04 mm from the origin"),
     ("1345.59296415", "1_345.5", "non-numeric value '1_345.5' in section 'translation' (a plain decimal number"),
     ("1345.59296415", "0x10", "non-numeric value '0x10' in section 'translation'"),
+    # Arabic-Indic digits: Python's float() reads them as 1345.5 (issue 44)
+    ("1345.59296415", "\u0661\u0663\u0664\u0665.5", "non-numeric value '\u0661\u0663\u0664\u0665.5' in section "
+                                                  "'translation' (a plain decimal number"),
+    ("1024,1024", "1024,1024\n\nimage size\n640,480", "the section 'image size' appears twice; a MayaCam 2.0 file "
+                                                     "has each once"),
 ])
 def test_implausible_mayacam2_is_refused_naming_the_field(tmp_path, old, new, words):
     assert MAYACAM2.count(old) == 1
@@ -385,6 +390,8 @@ def test_implausible_mayacam2_is_refused_naming_the_field(tmp_path, old, new, wo
     ("0,0,1e300\n0,0,0\n0,0,0\n33,25,-1200\n1,64,48\n", "line 1 (camera position): the X-ray source lies 1e+300 mm"),
     ("0,0,1000\n0,0,0\n0,0,0\n33,25,-0.01\n1,64,48\n", "line 4 (focal length Z): focal length fx = 0.01 px"),
     ("0,0,1000\n0,0,0\n0,0,0\n33,25,-1200\n1,1e12,48\n", "line 5 (width, height): image size 1000000000000x48 px"),
+    ("0,0,1000\n0,1e308,0\n0,0,0\n33,25,-1200\n1,64,48\n", "line 2 (rotation angles): 1e+308° is beyond ±360°"),
+    ("0,0,1000\n-361,0,0\n0,0,0\n33,25,-1200\n1,64,48\n", "line 2 (rotation angles): -361° is beyond ±360°"),
 ])
 def test_implausible_jointtrack_and_mayacam1_are_refused_naming_the_field(tmp_path, text, words):
     assert_error(write(tmp_path, text), words)

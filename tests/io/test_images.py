@@ -192,6 +192,44 @@ def test_corrupt_and_truncated(tmp_path):
     assert "DICOM" in error_of(read_image, tmp_path / "junk.dcm")
 
 
+def test_damaged_jpegs_with_their_end_marker_are_refused(tmp_path):
+    """Cut short (its end marker put back) or with scan data overwritten, a JPEG still
+    decodes: libjpeg fills what is missing with grey and only prints a warning (issue 44:
+    such a file was matched as an ordinary image). The warning refuses it; a harmless one
+    (extraneous bytes before a marker) does not."""
+    pixels = (np.random.default_rng(0).random((64, 96)) * 255).astype(np.uint8)
+    whole = cv2.imencode(".jpg", pixels)[1].tobytes()
+    progressive = cv2.imencode(".jpg", pixels, [cv2.IMWRITE_JPEG_PROGRESSIVE, 1])[1].tobytes()
+    garbled = bytearray(whole)
+    garbled[len(garbled) // 2: len(garbled) // 2 + 40] = bytes(range(200, 240))
+    for name, data in (("cut.jpg", whole[: len(whole) // 2] + b"\xff\xd9"), ("garbled.jpg", bytes(garbled)),
+                       ("progressive.jpg", progressive[: len(progressive) // 2] + b"\xff\xd9")):
+        (tmp_path / name).write_bytes(data)
+        message = error_of(read_image, tmp_path / name)
+        assert "damaged JPEG image: the decoder reports 'Corrupt JPEG data:" in message, message
+    (tmp_path / "whole.jpg").write_bytes(whole)
+    (tmp_path / "extra.jpg").write_bytes(whole[:-2] + b"\x00\x00\xff\xd9")  # 2 bytes before the end marker
+    for name in ("whole.jpg", "extra.jpg"):
+        np.testing.assert_array_equal(read_image(tmp_path / name), read_image(tmp_path / "whole.jpg"))
+
+
+def test_blank_images_are_refused_for_matching_but_a_dark_one_is_not(tmp_path):
+    from fluorogui.io.images import check_not_blank
+
+    for name, pixels, words in (("zero.tif", np.zeros((8, 8), np.uint8), "every pixel 0)"),
+                                ("full.png", np.full((8, 8), 65535, np.uint16), "every pixel 65535 of 65535)")):
+        path = tmp_path / name
+        tifffile.imwrite(path, pixels) if name.endswith(".tif") else cv2.imwrite(str(path), pixels)
+        image = read_image(path)  # read (and shown): only matching refuses it
+        with pytest.raises(InputError) as info:
+            check_not_blank(image, path)
+        assert str(info.value) == f"{path}: the image is blank ({words}: it shows nothing to match"
+    dark = np.zeros((8, 8), np.uint8)
+    dark[3, 4] = 1  # one pixel different: dark, not blank
+    tifffile.imwrite(tmp_path / "dark.tif", dark)
+    check_not_blank(read_image(tmp_path / "dark.tif"), tmp_path / "dark.tif")
+
+
 def test_stack_refused(tmp_path):
     tifffile.imwrite(tmp_path / "stack.tif", np.zeros((3, 8, 8), np.uint8), photometric="minisblack")
     assert "stack of 3 frames" in error_of(read_image, tmp_path / "stack.tif")

@@ -181,6 +181,25 @@ def test_missing_and_empty_image_sources(session, tmp_path):
     assert error.path == str(folder / "notes.txt") and "unsupported image type" in error.problem
 
 
+def test_a_blank_only_image_is_refused_and_a_blank_first_frame_warned_about(session):
+    """A view whose only image is blank cannot be matched at all: refused, naming it. A
+    sequence may begin before the beam: its blank first frame is a warning, and tracking
+    refuses each blank frame it is given (issue 44)."""
+    from fluorogui.io.errors import InputWarning
+
+    folder, arguments = session
+    first = sorted((folder / "cam2").iterdir())[0]
+    write_image(first, np.zeros((SIZE, SIZE)))
+    with pytest.warns(InputWarning) as caught:
+        import_session(**arguments)
+    assert [str(w.message) for w in caught] == [f"{first}: the image is blank (every pixel 0): it shows nothing to "
+                                                "match; its frame cannot be matched (the others are checked when "
+                                                "they are)"]
+    error = error_of(import_session, **{**arguments, "image_sources": [arguments["image_sources"][0], first]},
+                     allow_unequal=True)
+    assert error.path == str(first) and error.problem.startswith("the image is blank (every pixel 0)")
+
+
 def test_folder_listing_is_natural_and_skips_other_files(tmp_path):
     for name in ("frame_10.png", "frame_2.png", "frame_1.png", ".hidden.png", "readme.txt"):
         write_image(tmp_path / name, np.zeros((4, 4))) if name.endswith(".png") else (tmp_path / name).write_text("")

@@ -127,3 +127,25 @@ def test_a_triangle_soup_is_refused_and_a_real_model_is_not(tmp_path):
     femur = DATA / "biplane-tka" / "models" / "femoral_component.stl"
     if femur.exists():  # 15 open edges of 109,686
         assert len(prepared_model(femur, *read_model(femur)).open_edges) == 15
+
+
+def test_a_mesh_too_small_to_see_is_refused_naming_it(tmp_path):
+    """One 10 mm triangle encloses nothing and its surface lies at its centre: it was taken
+    for a component 4.4e-15 px across, blamed on the start pose (issue 44)."""
+    from fluorogui.io.meshes.model import prepared_model, read_model
+
+    def refusal(name, vertices, faces):
+        pv.PolyData(np.asarray(vertices, float), np.c_[np.full(len(faces), 3), faces].ravel()).save(tmp_path / name)
+        with pytest.raises(InputError) as info:
+            prepared_model(tmp_path / name, *read_model(tmp_path / name))
+        return str(info.value)
+
+    assert refusal("one.stl", [[0, 0, 0], [10, 0, 0], [0, 10, 0]], [[0, 1, 2]]) == (
+        f"{tmp_path / 'one.stl'}: mesh has 1 triangle of non-zero area; a surface enclosing a solid needs at least 4, "
+        "and an implant model has thousands")
+    # the same triangle four times over, front and back: its surface lies at its centre
+    message = refusal("flat.stl", [[0, 0, 0], [10, 0, 0], [0, 10, 0]], [[0, 1, 2], [0, 2, 1], [0, 1, 2], [0, 2, 1]])
+    assert message.startswith(f"{tmp_path / 'flat.stl'}: mesh is too small to see: its surface lies within ")
+    ball = pv.Sphere(radius=0.6, theta_resolution=8, phi_resolution=8)  # 1.2 mm across: small, still seen
+    ball.save(tmp_path / "bead.stl")
+    assert prepared_model(tmp_path / "bead.stl", *read_model(tmp_path / "bead.stl")).radius > 0.5

@@ -32,6 +32,7 @@ from typing import Sequence
 
 import numpy as np
 
+from fluorogui.core.cancel import check_cancel
 from fluorogui.core.matching.matcher import judge_match, match
 from fluorogui.core.matching.problem import MatchProblem, MatchResult, MatchSettings
 from fluorogui.core.matching.quality import QualityThresholds
@@ -167,7 +168,8 @@ def refine_rims(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.n
 
 
 def soft_edge_views(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.ndarray | None],
-                    occluded=None, models: list[RimModel | None] | None = None) -> tuple[list[int], list]:
+                    occluded=None, models: list[RimModel | None] | None = None,
+                    cancel=None) -> tuple[list[int], list]:
     """The views (with an outline) whose edge is a soft rim (``core.outlines.rim.is_soft``), judged
     at ``pose`` by each image's rim model: the one in ``models`` or, where that is None,
     ``core.outlines.rim.edge_model`` (a quick fit where that finds a step, else the full one the
@@ -175,7 +177,8 @@ def soft_edge_views(images, views, mesh: PreparedMesh, pose, outlines: Sequence[
     fitted again together (``core.outlines.rim.rim_models_together``: one attenuation for the
     component's metal: a noisy view's own varies by several per cent, and over three
     noise draws the views' own moved a 15 % smaller femur 0.004-0.024 deg further from
-    the truth than the shared one). Returns the views and the models."""
+    the truth than the shared one). Returns the views and the models. ``cancel`` is checked
+    before each fit (a second or more each)."""
     models = list(models) if models is not None else [None] * len(views)
     soft, judged_here = [], []
     excludes = [occluded[k] if occluded is not None and k < len(occluded) else None for k in range(len(views))]
@@ -184,12 +187,14 @@ def soft_edge_views(images, views, mesh: PreparedMesh, pose, outlines: Sequence[
             continue
         model = models[k]
         if model is None:
+            check_cancel(cancel)
             model = models[k] = edge_model(images[k], views[k], mesh, pose, points, excludes[k])
             judged_here.append(k)
         if is_soft(model):
             soft.append(k)
     together = [k for k in judged_here if k in soft]
     if len(together) > 1:
+        check_cancel(cancel)
         joint = rim_models_together([images[k] for k in together], [views[k] for k in together], mesh, pose,
                                     [outlines[k] for k in together], [excludes[k] for k in together])
         if all(is_soft(m) for m in joint):  # together they must still be soft rims
@@ -326,6 +331,7 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
     use_rim, refined = loop.rim != "off", False
     for k in range(max(1, loop.max_passes) if missing else 1):
         trial = None  # the first rim pass: the plain outlines, to compare with
+        check_cancel(cancel)
         if missing:
             try:
                 new_outlines = segment_outlines(images, views, mesh, pose, occluded,
@@ -334,11 +340,12 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
                 if use_rim and k > 0:  # the pose is a matched one: its rim profiles are the image's
                     if rim_views is None:
                         rim_views, judged = soft_edge_views(images, views, mesh, pose, new_outlines, occluded,
-                                                            rim_models)
+                                                            rim_models, cancel)
                         rim_models[:] = judged
                     if rim_views and not refined:
                         trial = (new_outlines, fit_splines(new_outlines))
                     if rim_views:
+                        check_cancel(cancel)
                         new_outlines, fitted, weights = refine_rims(images, views, mesh, pose, new_outlines,
                                                                     occluded, rim_models, rim_views)
                         rim_models[:] = fitted
