@@ -5,6 +5,10 @@ their enabled state and texts ("Undo Match femoral") follow the history's listen
 (push, merge, undo, redo, clear, clean), whoever moved it - the user, a script or a test.
 The window's modified flag follows the same events through the controller's
 ``dirty_changed``.
+
+Their keys are the platform's standard ones plus those users bring from elsewhere
+(Ctrl+Shift+Z, which the guides give, and Ctrl+Y for Redo), each bound once: the same
+key bound twice to one action is an ambiguous shortcut, which Qt ignores.
 """
 from __future__ import annotations
 
@@ -14,6 +18,13 @@ from PySide6.QtGui import QAction, QKeySequence
 from fluorogui.workflow.history import CommandStack
 
 
+def standard_keys(standard: QKeySequence.StandardKey, *extra: str) -> list[QKeySequence]:
+    """``extra`` keys first, then the platform's bindings of ``standard``, each once."""
+    keys = [QKeySequence(k) for k in extra] + list(QKeySequence.keyBindings(standard))
+    unique = dict.fromkeys(k.toString(QKeySequence.SequenceFormat.PortableText) for k in keys if not k.isEmpty())
+    return [QKeySequence(k) for k in unique]
+
+
 class UndoActions(QObject):
     """The Undo and Redo actions of one history."""
 
@@ -21,10 +32,10 @@ class UndoActions(QObject):
         super().__init__(parent)
         self.history = history
         self.undo_action = QAction("&Undo", parent)
-        self.undo_action.setShortcut(QKeySequence.StandardKey.Undo)
+        self.undo_action.setShortcuts(standard_keys(QKeySequence.StandardKey.Undo, "Ctrl+Z"))
         self.undo_action.triggered.connect(lambda: self.history.undo())
         self.redo_action = QAction("&Redo", parent)
-        self.redo_action.setShortcuts([QKeySequence("Ctrl+Shift+Z"), QKeySequence.StandardKey.Redo])
+        self.redo_action.setShortcuts(standard_keys(QKeySequence.StandardKey.Redo, "Ctrl+Shift+Z", "Ctrl+Y"))
         self.redo_action.triggered.connect(lambda: self.history.redo())
         history.listeners.append(self._heard)
         self.refresh()

@@ -1,0 +1,96 @@
+"""What a new user met in the desktop app (issue 44): Redo from the keyboard on every
+platform's keys."""
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pytestqt")
+from PySide6.QtGui import QKeySequence  # noqa: E402
+from PySide6.QtTest import QTest  # noqa: E402
+from PySide6.QtWidgets import QApplication  # noqa: E402
+
+#: Redo's keys: the guides' Ctrl+Shift+Z, Ctrl+Y (Windows users' habit) and the platform's own
+REDO_KEYS = ["Ctrl+Shift+Z", "Ctrl+Y"]
+
+REDO_ON_X11 = """
+import json, sys
+from PySide6.QtCore import QSettings, Qt
+from PySide6.QtGui import QKeySequence
+from PySide6.QtTest import QTest
+from PySide6.QtWidgets import QApplication
+from fluorogui.gui.main_window import MainWindow
+from fluorogui.workflow.history import Command
+app = QApplication([])
+window = MainWindow(settings=QSettings(sys.argv[1], QSettings.Format.IniFormat), with_3d=False)
+window.show()
+window.activateWindow()
+for _ in range(300):
+    if QApplication.activeWindow() is window:
+        break
+    QTest.qWait(10)
+history, state = window.controller.session.history, {}
+keys = sys.argv[2:] + [k.toString() for k in QKeySequence.keyBindings(QKeySequence.StandardKey.Redo)]
+redone = {}
+for text in dict.fromkeys(keys):
+    history.push(Command("Edit", "x", 0, 1, lambda key, value: state.__setitem__(key, value)))
+    QTest.keyClick(window.windowHandle(), Qt.Key.Key_Z, Qt.KeyboardModifier.ControlModifier)
+    undone = state["x"] == 0
+    combo = QKeySequence(text)[0]
+    QTest.keyClick(window.windowHandle(), combo.key(), combo.keyboardModifiers())
+    redone[text] = [undone, state["x"] == 1]
+print(json.dumps({"platform": app.platformName(), "redone": redone}))
+history.set_clean()
+window.close()
+"""
+
+
+def _active(window, qtbot):
+    """Show the window and make it the active one (shortcuts reach the active window only);
+    returns its QWindow, where key events are matched against shortcuts."""
+    window.show()
+    window.activateWindow()
+    qtbot.waitActive(window)
+    window.panels[0].setFocus()
+    handle = window.windowHandle()
+    qtbot.waitUntil(lambda: QApplication.focusWindow() is handle)
+    return handle
+
+
+def _press(handle, text: str) -> None:
+    combo = QKeySequence(text)[0]
+    QTest.keyClick(handle, combo.key(), combo.keyboardModifiers())
+
+
+def test_redo_answers_the_guides_keys_and_the_platforms(window, demo, qtbot):
+    window.open_project(demo)
+    handle = _active(window, qtbot)
+    s, name = window.session, window.controller.component
+    start = s.pose(name, 0)
+    keys = dict.fromkeys(REDO_KEYS + [k.toString() for k in QKeySequence.keyBindings(QKeySequence.StandardKey.Redo)])
+    for i, keys_text in enumerate(keys, start=1):
+        moved = start + np.array([i, 0, 0, 0, 0, 0.0])
+        s.set_pose(name, 0, moved, text=f"Move {i}")
+        _press(handle, "Ctrl+Z")
+        np.testing.assert_allclose(s.pose(name, 0), moved - [1, 0, 0, 0, 0, 0.0], err_msg="undo")
+        _press(handle, keys_text)
+        np.testing.assert_allclose(s.pose(name, 0), moved, err_msg=f"redo with {keys_text}")
+    shortcuts = [k.toString() for k in window.edit.redo_action.shortcuts()]
+    assert len(shortcuts) == len(set(shortcuts))  # a key bound twice is ambiguous: Qt ignores it
+
+
+@pytest.mark.skipif(not os.environ.get("DISPLAY"), reason="needs an X display (run under xvfb-run)")
+@pytest.mark.slow
+def test_redo_from_the_keyboard_on_x11(tmp_path):
+    """On X11 the platform's Redo is Ctrl+Shift+Z itself (offscreen gives Windows' keys)."""
+    env = dict(os.environ, QT_QPA_PLATFORM="xcb", FLUOROGUI_DATA_DIR=str(tmp_path / "appdata"))
+    run = subprocess.run([sys.executable, "-c", REDO_ON_X11, str(tmp_path / "settings.ini"), *REDO_KEYS],
+                         env=env, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    result = json.loads(run.stdout.strip().splitlines()[-1])
+    assert result["platform"] == "xcb"
+    assert set(REDO_KEYS) <= set(result["redone"])
+    assert all(undone and redone for undone, redone in result["redone"].values()), result["redone"]
