@@ -1,5 +1,5 @@
 """What a new user met in the desktop app (issue 44): Redo from the keyboard on every
-platform's keys."""
+platform's keys, and the status bar after an undo."""
 import json
 import os
 import subprocess
@@ -94,3 +94,23 @@ def test_redo_from_the_keyboard_on_x11(tmp_path):
     assert result["platform"] == "xcb"
     assert set(REDO_KEYS) <= set(result["redone"])
     assert all(undone and redone for undone, redone in result["redone"].values()), result["redone"]
+
+
+@pytest.mark.slow
+def test_after_undoing_a_match_the_status_bar_says_so(window, demo, qtbot):
+    window.open_project(demo)
+    handle = _active(window, qtbot)
+    name = window.controller.component
+    with qtbot.waitSignal(window.runner.finished, timeout=120000):
+        assert window.run_match()
+    status = window.statusBar()
+    assert f"{name} matched" in status.currentMessage() and "Ctrl+Return accepts" in status.currentMessage()
+    assert window.matcher.summary.isVisibleTo(window)
+    _press(handle, "Ctrl+Z")
+    assert window.session.pose_record(name, 0).status.value == "placed"
+    assert status.currentMessage() == f"Undone: Match {name} in frame 0 (Ctrl+Shift+Z redoes it)"
+    assert not window.matcher.summary.isVisibleTo(window)  # the task's account is put away
+    assert "placed, not matched" in window.matcher.status.text()  # what holds now
+    _press(handle, "Ctrl+Shift+Z")
+    assert window.session.pose_record(name, 0).status.value == "matched"
+    assert status.currentMessage() == f"Redone: Match {name} in frame 0 (Ctrl+Z undoes it)"

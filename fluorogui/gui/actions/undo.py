@@ -12,7 +12,7 @@ key bound twice to one action is an ambiguous shortcut, which Qt ignores.
 """
 from __future__ import annotations
 
-from PySide6.QtCore import QObject
+from PySide6.QtCore import QObject, Signal
 from PySide6.QtGui import QAction, QKeySequence
 
 from fluorogui.workflow.history import CommandStack
@@ -27,6 +27,9 @@ def standard_keys(standard: QKeySequence.StandardKey, *extra: str) -> list[QKeyS
 
 class UndoActions(QObject):
     """The Undo and Redo actions of one history."""
+
+    #: a step was undone or redone, by anyone: ("undo" or "redo", the step's text)
+    stepped = Signal(str, str)
 
     def __init__(self, history: CommandStack, parent: QObject) -> None:
         super().__init__(parent)
@@ -45,8 +48,10 @@ class UndoActions(QObject):
         if self._heard in self.history.listeners:
             self.history.listeners.remove(self._heard)
 
-    def _heard(self, _event: str, _entry) -> None:
+    def _heard(self, event: str, entry) -> None:
         self.refresh()
+        if event in ("undo", "redo"):
+            self.stepped.emit(event, str(getattr(entry, "text", "") or ""))
 
     def refresh(self) -> None:
         """Enabled state and texts from the history as it is now."""
