@@ -1,5 +1,5 @@
 """What a new user met in the desktop app (issue 44): Redo from the keyboard on every
-platform's keys, and the status bar after an undo."""
+platform's keys, the status bar after an undo, and a new session shown whole."""
 import json
 import os
 import subprocess
@@ -9,9 +9,13 @@ import numpy as np
 import pytest
 
 pytest.importorskip("pytestqt")
+from PySide6.QtCore import Qt  # noqa: E402
 from PySide6.QtGui import QKeySequence  # noqa: E402
 from PySide6.QtTest import QTest  # noqa: E402
 from PySide6.QtWidgets import QApplication  # noqa: E402
+
+from fluorogui.gui.panels.image_items import Tool  # noqa: E402
+from fluorogui.io.importer import import_folder  # noqa: E402
 
 #: Redo's keys: the guides' Ctrl+Shift+Z, Ctrl+Y (Windows users' habit) and the platform's own
 REDO_KEYS = ["Ctrl+Shift+Z", "Ctrl+Y"]
@@ -114,3 +118,27 @@ def test_after_undoing_a_match_the_status_bar_says_so(window, demo, qtbot):
     _press(handle, "Ctrl+Shift+Z")
     assert window.session.pose_record(name, 0).status.value == "matched"
     assert status.currentMessage() == f"Redone: Match {name} in frame 0 (Ctrl+Z undoes it)"
+
+
+def test_a_new_session_shows_its_images_whole(window, demo, qtbot):
+    window.open_project(demo)
+    window.resize(1100, 700)
+    window.show()
+    qtbot.waitExposed(window)
+    panel = window.panels[0]
+    panel.fit()
+    fitted = panel.scale_factor()
+    panel.zoom_at(4.0, panel.mapFromScene(100.0, 100.0))  # zoomed in on a corner of the demo
+    assert panel.scale_factor() == pytest.approx(4 * fitted)
+    window.edit.set_tool(Tool.ERASE)  # and some edges erased there
+    start, end = panel.mapFromScene(100.0, 100.0), panel.mapFromScene(110.0, 104.0)
+    qtbot.mousePress(panel.viewport(), Qt.MouseButton.LeftButton, pos=start)
+    qtbot.mouseMove(panel.viewport(), end)
+    qtbot.mouseRelease(panel.viewport(), Qt.MouseButton.LeftButton, pos=end)
+    assert panel.erased_mask() is not None and panel.erased_mask().any()
+    window.controller.set_project(import_folder(demo.parent), None)  # File → New session's last step
+    assert panel.image() is not None and panel.image().shape == (512, 512)  # the same size as the demo's
+    assert panel.scale_factor() == pytest.approx(fitted)  # shown whole
+    centre = panel.mapFromScene(255.5, 255.5)
+    assert abs(centre.x() - panel.viewport().width() / 2) <= 2 and abs(centre.y() - panel.viewport().height() / 2) <= 2
+    assert panel.erased_mask() is None  # the demo's erased edges are not this session's

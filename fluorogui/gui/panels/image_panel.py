@@ -218,6 +218,12 @@ class ImagePanel(PanelInteraction, EdgeLayer, QGraphicsView):
         if old_shape != arr.shape:
             self.fit()
 
+    def forget_images(self) -> None:
+        """Another session: drop the image, the edges erased in any image and the zoom, so
+        the next image is shown whole (an image of the same size used to keep the zoom)."""
+        self._erased.clear()
+        self.set_image(None)
+
     def image(self) -> np.ndarray | None:
         return self._image
 
