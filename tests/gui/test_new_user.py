@@ -1,5 +1,6 @@
 """What a new user met in the desktop app (issue 44): Redo from the keyboard on every
-platform's keys, the status bar after an undo, and a new session shown whole."""
+platform's keys, the status bar after an undo, a new session shown whole, and the Matcher
+dock's buttons staying put through a task."""
 import json
 import os
 import subprocess
@@ -142,3 +143,28 @@ def test_a_new_session_shows_its_images_whole(window, demo, qtbot):
     centre = panel.mapFromScene(255.5, 255.5)
     assert abs(centre.x() - panel.viewport().width() / 2) <= 2 and abs(centre.y() - panel.viewport().height() / 2) <= 2
     assert panel.erased_mask() is None  # the demo's erased edges are not this session's
+
+
+def _buttons_at(window):
+    m = window.matcher
+    return [b.mapTo(window, b.rect().topLeft()) for b in (m.run_button, m.place_button, m.track_button)]
+
+
+def test_the_matcher_buttons_stay_put_through_a_find(window, demo, qtbot):
+    window.open_project(demo)
+    window.resize(1100, 460)  # short: the Matcher dock scrolls, as on a 1280×720 screen with the 3D scene
+    _active(window, qtbot)
+    scroll = window.matcher_dock.widget().verticalScrollBar()
+    assert scroll.maximum() > 0 and scroll.value() == 0
+    before = _buttons_at(window)
+    with qtbot.waitSignal(window.runner.finished, timeout=120000):
+        qtbot.mouseClick(window.matcher.place_button, Qt.MouseButton.LeftButton)
+        assert window.runner.is_running() and _buttons_at(window) == before
+        assert window.matcher.cancel_button.hasFocus()  # not the next in the tab chain: Space cancels
+    assert "Find implants in frame 0" in window.matcher.summary.text()
+    assert scroll.value() == 0 and _buttons_at(window) == before
+    assert window.matcher.place_button.hasFocus()  # back where it was
+    with qtbot.waitSignal(window.runner.cancelled, timeout=120000):  # and when the find is cancelled
+        qtbot.mouseClick(window.matcher.place_button, Qt.MouseButton.LeftButton)
+        qtbot.mouseClick(window.matcher.cancel_button, Qt.MouseButton.LeftButton)
+    assert scroll.value() == 0 and _buttons_at(window) == before
