@@ -1,6 +1,7 @@
 """What a new user met in the desktop app (issue 44): Redo from the keyboard on every
-platform's keys, the status bar after an undo, a new session shown whole, and the Matcher
-dock's buttons staying put through a task."""
+platform's keys, the status bar after an undo, a new session shown whole, the Matcher
+dock's buttons staying put through a task, and the outline tools saying what to do first
+where there is no outline."""
 import json
 import os
 import subprocess
@@ -181,3 +182,25 @@ def test_the_matcher_buttons_stay_put_through_a_find(window, demo, qtbot):
         qtbot.mouseClick(window.matcher.place_button, Qt.MouseButton.LeftButton)
         qtbot.mouseClick(window.matcher.cancel_button, Qt.MouseButton.LeftButton)
     assert scroll.value() == 0 and _buttons_at(window) == before
+
+
+@pytest.mark.parametrize("tool", [Tool.MOVE, Tool.DELETE, Tool.LASSO, Tool.CLOSE_GAP])
+def test_an_outline_tool_with_no_outline_says_what_to_do_first(window, demo, qtbot, tool):
+    window.open_project(demo)  # the demo's models are placed; no outline yet
+    window.show()
+    qtbot.waitExposed(window)
+    c, s = window.controller, window.session
+    panel = window.panels[1]
+    model = panel.model_outline(c.component)  # the line the user sees over the implant
+    assert s.outline_points(c.outline_key(1)) is None and model is not None
+    window.edit.set_tool(tool)
+    qtbot.mouseClick(panel.viewport(), Qt.MouseButton.LeftButton, pos=panel.mapFromScene(*model[0]))
+    message = window.statusBar().currentMessage()
+    assert message.startswith(f"{window.edit.tool_actions[tool].text()}: there is no {c.component} outline in view 2")
+    assert "Match (F5)" in message and "Pick contour (P)" in message
+    assert s.outline_points(c.outline_key(1)) is None and not s.history.can_undo()  # nothing changed
+    square = np.array([[100, 100], [200, 100], [200, 200], [100, 200.0]])
+    s.set_outline(c.outline_key(1), square, reviewed=False)  # with an outline the tool edits it
+    window.statusBar().clearMessage()
+    qtbot.mouseClick(panel.viewport(), Qt.MouseButton.LeftButton, pos=panel.mapFromScene(200.0, 200.0))
+    assert "there is no" not in window.statusBar().currentMessage()

@@ -40,6 +40,8 @@ class EditActions(QObject):
         window.addAction(self.undo_action)  # listed with the window's shortcuts (F1)
         window.addAction(self.redo_action)
         self.history.stepped.connect(self._stepped)
+        for panel in window.panels:
+            panel.nothing_to_edit.connect(lambda tool, name, view=panel.view_index: self._no_outline(tool, name, view))
         self.tool_label = QLabel("")  # what the current tool does, always in view
         self.tool_label.setObjectName("toolHint")
         self.tool_group = QActionGroup(window)
@@ -61,6 +63,13 @@ class EditActions(QObject):
         done, other = ("Undone", "Ctrl+Shift+Z redoes it") if event == "undo" else ("Redone", "Ctrl+Z undoes it")
         self.window.statusBar().showMessage(f"{done}: {text or 'the last step'} ({other})", 10000)
         self.window.matcher.show_summary("")
+
+    def _no_outline(self, tool: Tool, component: str, view: int) -> None:
+        """An outline tool used where there is no outline to edit: what to do first."""
+        text = next(t for tl, _i, t, _k, _h in TOOLS if tl == tool)
+        self.window.statusBar().showMessage(
+            f"{text}: there is no {component} outline in view {view + 1} yet. Match (F5) outlines it from "
+            "the image, or Pick contour (P) takes an edge as its outline.", 10000)
 
     def _show_tool_hint(self, tool: Tool) -> None:
         text, key, tip = next((t, k, h) for tl, _i, t, k, h in TOOLS if tl == tool)

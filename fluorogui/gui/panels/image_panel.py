@@ -77,6 +77,8 @@ class ImagePanel(PanelInteraction, EdgeLayer, QGraphicsView):
     point_clicked = Signal(int, float, float)
     outline_edited = Signal(object, str)
     tool_changed = Signal(object)
+    #: an outline tool was used where the active component has no outline: (tool, component)
+    nothing_to_edit = Signal(object, str)
 
     def __init__(self, view_index: int, undo_stack: QUndoStack | None = None, parent=None):
         super().__init__(parent)
