@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from PySide6.QtCore import QSettings, Qt, QTimer, Signal
+from PySide6.QtCore import QByteArray, QDataStream, QSettings, Qt, QTimer, Signal
 from PySide6.QtGui import QAction, QGuiApplication, QKeySequence
 from PySide6.QtWidgets import (
     QDockWidget,
@@ -54,8 +54,26 @@ AUTOSAVE_MS = 3 * 60 * 1000
 FIRST_SIZE = (1600, 1000)
 #: room (px) left for the window manager's title bar and borders, which Qt's size excludes
 FRAME_ALLOWANCE = (16, 40)
+#: the first field of QWidget.saveGeometry's data
+GEOMETRY_MAGIC = 0x1D9D0CB
 NO_SESSION_HINT = ("No session open.\nFile → Open… (Ctrl+O) opens a project,\nFile → New session (Ctrl+N) "
                    "imports images,\nFile → Open the demo session to try it out.")
+
+
+def saved_size(geometry) -> tuple[int, int] | None:
+    """The window size (its normal geometry, without the frame) stored in
+    ``QWidget.saveGeometry``'s data; None when it is not such data."""
+    if not isinstance(geometry, QByteArray) or geometry.size() < 40:
+        return None
+    stream = QDataStream(geometry)
+    stream.setVersion(QDataStream.Version.Qt_4_0)  # the version saveGeometry writes with
+    if stream.readUInt32() != GEOMETRY_MAGIC:
+        return None
+    stream.readUInt16(), stream.readUInt16()  # format version
+    _frame = [stream.readInt32() for _ in range(4)]
+    left, top, right, bottom = (stream.readInt32() for _ in range(4))  # normal geometry, inclusive
+    width, height = right - left + 1, bottom - top + 1
+    return (width, height) if width > 0 and height > 0 else None
 
 
 class MainWindow(QMainWindow):
@@ -289,16 +307,19 @@ class MainWindow(QMainWindow):
         state = self.settings.value("window/state")
         if geometry is not None:
             self.restoreGeometry(geometry)
-        self.fit_to_screen(first=geometry is None)
+        self.fit_to_screen(first=geometry is None, saved=saved_size(geometry))
         if state is not None:
             self.restoreState(state)
         elif self.scene_widget is not None:
             QTimer.singleShot(0, self._share_right_column)
 
-    def fit_to_screen(self, first: bool = False) -> None:
+    def fit_to_screen(self, first: bool = False, saved: tuple[int, int] | None = None) -> None:
         """Keep the window on the screen's available area (less the taskbar): on the first
         start ``FIRST_SIZE`` or as much as the screen has (a 1280×720 or 1366×768 laptop),
-        centred; a geometry saved on a larger monitor is shrunk to fit."""
+        centred; a geometry saved on a larger monitor is shrunk to fit. ``saved``: the size
+        of the restored geometry as it was saved; larger than this screen, the window takes
+        all the screen has (Qt's restoreGeometry makes it two thirds of the screen, too
+        narrow for the toolbar)."""
         screen = self.screen() or QGuiApplication.primaryScreen()
         if screen is None:
             if first:
@@ -312,6 +333,8 @@ class MainWindow(QMainWindow):
             if self.isMaximized() or self.isFullScreen():
                 return
             width, height = min(self.width(), most_w), min(self.height(), most_h)
+            if saved is not None and (saved[0] > most_w or saved[1] > most_h):
+                width, height = min(saved[0], most_w), min(saved[1], most_h)
             if (width, height) == (self.width(), self.height()) and area.contains(self.frameGeometry()):
                 return
         self.resize(width, height)

@@ -62,6 +62,7 @@ class SessionView(QObject):
         for view, panel in enumerate(self.panels):
             # a single-plane session: one panel across the width (no session: both, with the hint)
             panel.setVisible(view < s.n_views or s.n_views == 0)
+            panel.forget_images()  # nothing of the last session's view: its zoom, its erased edges
         missing = []
         if self.scene_widget is not None:
             scene = self.scene_widget.scene

@@ -6,6 +6,7 @@ import sys
 import pytest
 
 pytest.importorskip("pytestqt")
+from PySide6.QtCore import QPoint, QRect  # noqa: E402
 from PySide6.QtWidgets import QApplication  # noqa: E402
 
 from fluorogui.gui.app import open_start_path  # noqa: E402
@@ -25,6 +26,42 @@ def test_tour_shows_once_and_steps_through(window):
     again = start_tour(window, force=True)  # Help → Guided tour
     assert again is not None
     again.close()
+
+
+def _global_rect(widget):
+    return QRect(widget.mapToGlobal(QPoint(0, 0)), widget.size())
+
+
+def test_the_tour_box_fits_its_text_and_leaves_what_it_describes_in_view(window, demo, qtbot):
+    window.open_project(demo)
+    window.setGeometry(0, 0, 800, 760)  # the test screen is 800×800
+    window.show()
+    qtbot.waitExposed(window)
+    m = window.matcher
+    described = {"Place": [m.place_button], "Match": [m.run_button, m.run_both_button, m.plot],
+                 "Accept and track": [m.accept_button, m.track_button, m.track_both_button, window.timeline]}
+    tour = start_tour(window, force=True)
+    qtbot.waitExposed(tour)
+    seen = set()
+    for step in range(len(STEPS)):
+        tour.show_step(step)
+        title = STEPS[step][0]
+        text = tour.text
+        assert text.heightForWidth(text.width()) <= text.height(), title  # every line of the text in the box
+        assert tour.title.sizeHint().width() <= tour.title.width()
+        box = tour.frameGeometry()
+        assert window.screen().availableGeometry().contains(box)
+        for widget in described.get(title, []):
+            assert not box.intersects(_global_rect(widget)), (title, widget)
+        if title == "The two views":  # on 800 px the box cannot miss both views: it leaves the implants in view
+            for panel in window.panels:
+                view = _global_rect(panel)
+                assert not box.contains(view.center())
+                covered = box.intersected(view)
+                assert covered.width() * covered.height() < 0.25 * view.width() * view.height()
+        seen.add(title)
+    assert set(described) | {"The two views"} <= seen
+    tour.close()
 
 
 def _stop_logging():

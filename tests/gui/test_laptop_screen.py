@@ -43,6 +43,30 @@ print(json.dumps({"area": [area.width(), area.height()], "first": first, "status
 window.close()
 """
 
+LAST_SIZE = """
+import json, sys
+from PySide6.QtCore import QSettings
+from PySide6.QtWidgets import QApplication, QToolBar, QToolButton
+from fluorogui.gui.main_window import MainWindow
+app = QApplication([])
+window = MainWindow(settings=QSettings(sys.argv[1], QSettings.Format.IniFormat), with_3d=False)
+window.show()
+if sys.argv[2] == "save":
+    window.resize(1800, 1000)  # a wide monitor
+    app.processEvents()
+    window.close()  # saves the geometry
+    sys.exit(0)
+app.processEvents()
+area = window.screen().availableGeometry()
+frame = window.frameGeometry()
+toolbar = window.findChild(QToolBar, "mainToolbar")
+more = toolbar.findChild(QToolButton, "qt_toolbar_ext_button")  # the toolbar's overflow button
+print(json.dumps({"area": [area.x(), area.y(), area.width(), area.height()],
+                  "frame": [frame.x(), frame.y(), frame.width(), frame.height()],
+                  "overflow": more is not None and more.isVisible()}))
+window.close()
+"""
+
 LONG_REASON = ("outline distance 2.31 mm in view 1 (limit 0.90 mm, typical 0.30 mm); only 41 % of the model "
                "outline lies on image edges in view 1; moved 6.2 mm / 4.1° from the predicted pose")
 
@@ -65,6 +89,31 @@ def test_the_first_window_fits_the_screen(width, height, tmp_path):
     assert result["status_bottom"] < height  # the status bar (and the timeline above it) on screen
     assert w >= min(1280, width) - 16 and h >= min(800, height) - 40  # and uses the room there is
     assert result["shrunk"][0] <= width and result["shrunk"][1] <= height
+
+
+def _screen_env(tmp_path, width, height):
+    screens = tmp_path / f"screens-{width}.json"
+    screens.write_text(json.dumps({"screens": [{"name": "s", "x": 0, "y": 0, "width": width, "height": height,
+                                                "logicalDpi": 96, "logicalBaseDpi": 96, "dpr": 1}]}))
+    return dict(os.environ, QT_QPA_PLATFORM=f"offscreen:configfile={screens}",
+                FLUOROGUI_DATA_DIR=str(tmp_path / "appdata"))
+
+
+@pytest.mark.slow
+def test_a_window_saved_on_a_wide_monitor_reopens_filling_a_laptop(tmp_path):
+    """Qt restores a geometry larger than the screen at two thirds of the screen (861×480
+    on 1280×720), too narrow for the toolbar; the window takes what the screen has."""
+    ini = str(tmp_path / "settings.ini")
+    for (width, height), step in (((1920, 1080), "save"), ((1280, 720), "restore")):
+        run = subprocess.run([sys.executable, "-c", LAST_SIZE, ini, step], env=_screen_env(tmp_path, width, height),
+                             capture_output=True, text=True, timeout=300)
+        assert run.returncode == 0, run.stderr
+    result = json.loads(run.stdout.strip().splitlines()[-1])
+    x, y, w, h = result["frame"]
+    assert result["area"] == [0, 0, 1280, 720]
+    assert x >= 0 and y >= 0 and x + w <= 1280 and y + h <= 720, result  # on the screen
+    assert w >= 1280 - 16 and h >= 720 - 40, result  # and all of it (less the title bar's room)
+    assert not result["overflow"]  # every toolbar button in view
 
 
 def test_a_long_review_reason_is_one_line_with_details_on_demand(qtbot):

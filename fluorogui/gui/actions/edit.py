@@ -1,6 +1,7 @@
-"""The Edit menu of the main window: Undo / Redo (bound to the session's history), the
-image panels' editing tools with the status-bar hint of the current one, and clearing the
-active component's outlines (one undoable step)."""
+"""The Edit menu of the main window: Undo / Redo (bound to the session's history) with
+the status bar saying what was undone, the image panels' editing tools with the
+status-bar hint of the current one, and clearing the active component's outlines (one
+undoable step)."""
 from __future__ import annotations
 
 from PySide6.QtCore import QObject, Signal
@@ -38,6 +39,9 @@ class EditActions(QObject):
         self.undo_action, self.redo_action = self.history.undo_action, self.history.redo_action
         window.addAction(self.undo_action)  # listed with the window's shortcuts (F1)
         window.addAction(self.redo_action)
+        self.history.stepped.connect(self._stepped)
+        for panel in window.panels:
+            panel.nothing_to_edit.connect(lambda tool, name, view=panel.view_index: self._no_outline(tool, name, view))
         self.tool_label = QLabel("")  # what the current tool does, always in view
         self.tool_label.setObjectName("toolHint")
         self.tool_group = QActionGroup(window)
@@ -51,6 +55,21 @@ class EditActions(QObject):
         self.tool_actions[Tool.NAVIGATE].setChecked(True)
         self._show_tool_hint(Tool.NAVIGATE)
         self.clear_outline_action = window.add_action("Clear outline of the active component", self.clear_outlines)
+
+    def _stepped(self, event: str, text: str) -> None:
+        """After an undo or redo the status bar says what changed: a task's message there
+        ("femoral matched … Ctrl+Return accepts") may no longer hold, nor the matcher's
+        account of the last task, which is put away (its pose lines show the state now)."""
+        done, other = ("Undone", "Ctrl+Shift+Z redoes it") if event == "undo" else ("Redone", "Ctrl+Z undoes it")
+        self.window.statusBar().showMessage(f"{done}: {text or 'the last step'} ({other})", 10000)
+        self.window.matcher.show_summary("")
+
+    def _no_outline(self, tool: Tool, component: str, view: int) -> None:
+        """An outline tool used where there is no outline to edit: what to do first."""
+        text = next(t for tl, _i, t, _k, _h in TOOLS if tl == tool)
+        self.window.statusBar().showMessage(
+            f"{text}: there is no {component} outline in view {view + 1} yet. Match (F5) outlines it from "
+            "the image, or Pick contour (P) takes an edge as its outline.", 10000)
 
     def _show_tool_hint(self, tool: Tool) -> None:
         text, key, tip = next((t, k, h) for tl, _i, t, k, h in TOOLS if tl == tool)

@@ -5,26 +5,40 @@ their enabled state and texts ("Undo Match femoral") follow the history's listen
 (push, merge, undo, redo, clear, clean), whoever moved it - the user, a script or a test.
 The window's modified flag follows the same events through the controller's
 ``dirty_changed``.
+
+Their keys are the platform's standard ones plus those users bring from elsewhere
+(Ctrl+Shift+Z, which the guides give, and Ctrl+Y for Redo), each bound once: the same
+key bound twice to one action is an ambiguous shortcut, which Qt ignores.
 """
 from __future__ import annotations
 
-from PySide6.QtCore import QObject
+from PySide6.QtCore import QObject, Signal
 from PySide6.QtGui import QAction, QKeySequence
 
 from fluorogui.workflow.history import CommandStack
 
 
+def standard_keys(standard: QKeySequence.StandardKey, *extra: str) -> list[QKeySequence]:
+    """``extra`` keys first, then the platform's bindings of ``standard``, each once."""
+    keys = [QKeySequence(k) for k in extra] + list(QKeySequence.keyBindings(standard))
+    unique = dict.fromkeys(k.toString(QKeySequence.SequenceFormat.PortableText) for k in keys if not k.isEmpty())
+    return [QKeySequence(k) for k in unique]
+
+
 class UndoActions(QObject):
     """The Undo and Redo actions of one history."""
+
+    #: a step was undone or redone, by anyone: ("undo" or "redo", the step's text)
+    stepped = Signal(str, str)
 
     def __init__(self, history: CommandStack, parent: QObject) -> None:
         super().__init__(parent)
         self.history = history
         self.undo_action = QAction("&Undo", parent)
-        self.undo_action.setShortcut(QKeySequence.StandardKey.Undo)
+        self.undo_action.setShortcuts(standard_keys(QKeySequence.StandardKey.Undo, "Ctrl+Z"))
         self.undo_action.triggered.connect(lambda: self.history.undo())
         self.redo_action = QAction("&Redo", parent)
-        self.redo_action.setShortcuts([QKeySequence("Ctrl+Shift+Z"), QKeySequence.StandardKey.Redo])
+        self.redo_action.setShortcuts(standard_keys(QKeySequence.StandardKey.Redo, "Ctrl+Shift+Z", "Ctrl+Y"))
         self.redo_action.triggered.connect(lambda: self.history.redo())
         history.listeners.append(self._heard)
         self.refresh()
@@ -34,8 +48,10 @@ class UndoActions(QObject):
         if self._heard in self.history.listeners:
             self.history.listeners.remove(self._heard)
 
-    def _heard(self, _event: str, _entry) -> None:
+    def _heard(self, event: str, entry) -> None:
         self.refresh()
+        if event in ("undo", "redo"):
+            self.stepped.emit(event, str(getattr(entry, "text", "") or ""))
 
     def refresh(self) -> None:
         """Enabled state and texts from the history as it is now."""

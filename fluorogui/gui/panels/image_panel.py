@@ -77,6 +77,8 @@ class ImagePanel(PanelInteraction, EdgeLayer, QGraphicsView):
     point_clicked = Signal(int, float, float)
     outline_edited = Signal(object, str)
     tool_changed = Signal(object)
+    #: an outline tool was used where the active component has no outline: (tool, component)
+    nothing_to_edit = Signal(object, str)
 
     def __init__(self, view_index: int, undo_stack: QUndoStack | None = None, parent=None):
         super().__init__(parent)
@@ -217,6 +219,12 @@ class ImagePanel(PanelInteraction, EdgeLayer, QGraphicsView):
         self._refresh_edges()
         if old_shape != arr.shape:
             self.fit()
+
+    def forget_images(self) -> None:
+        """Another session: drop the image, the edges erased in any image and the zoom, so
+        the next image is shown whole (an image of the same size used to keep the zoom)."""
+        self._erased.clear()
+        self.set_image(None)
 
     def image(self) -> np.ndarray | None:
         return self._image

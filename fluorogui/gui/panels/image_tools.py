@@ -14,6 +14,9 @@ from PySide6.QtGui import QPainterPath
 from fluorogui.core.outlines import editing as oe
 from fluorogui.gui.panels.image_items import EditCommand, Tool, guarded, polygon
 
+#: the tools that edit points of an existing outline
+NEEDS_OUTLINE = (Tool.MOVE, Tool.DELETE, Tool.LASSO, Tool.CLOSE_GAP)
+
 
 class PanelInteraction:
     """Mouse, wheel and keyboard handling of ``ImagePanel`` (a mixin)."""
@@ -222,6 +225,9 @@ class PanelInteraction:
         if self._active is None:
             return
         pts = self._active_points()
+        if tool in NEEDS_OUTLINE and (pts is None or len(pts) == 0):
+            self.nothing_to_edit.emit(tool, self._active)  # say so rather than do nothing
+            return
         if tool == Tool.PICK_CONTOUR:
             self._pick(p, join=bool(modifiers & Qt.KeyboardModifier.ShiftModifier))
         elif tool == Tool.MOVE:

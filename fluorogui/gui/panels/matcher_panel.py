@@ -200,6 +200,7 @@ class MatcherPanel(QWidget):
                                           "(Ctrl+Shift+F5)")
         self.accept_button = QPushButton("Accept")
         self._accepted: bool | None = None  # None: nothing to accept yet
+        self._focus_back: QWidget | None = None  # the control that had the focus when a task started
         for button, signal in ((self.place_button, self.place_requested), (self.run_button, self.run_requested),
                                (self.run_both_button, self.run_both_requested),
                                (self.cancel_button, self.cancel_requested), (self.track_button, self.track_requested),
@@ -317,11 +318,26 @@ class MatcherPanel(QWidget):
 
     # -- running ---------------------------------------------------------------------------------
     def set_running(self, running: bool) -> None:
-        for w in (self.run_button, self.run_both_button, self.track_button, self.track_both_button,
-                  self.place_button, self.method, self.outline_points):
+        """Controls off and Cancel on while a task runs, and back. The focus goes to Cancel
+        and back itself: a disabled control hands it to the next in the tab chain, and the
+        dock's scroll area scrolls to show that one, moving every button."""
+        controls = (self.run_button, self.run_both_button, self.track_button, self.track_both_button,
+                    self.place_button, self.method, self.outline_points)
+        focus = self.window().focusWidget()
+        if running:
+            self.cancel_button.setEnabled(True)
+            if focus in (*controls, self.density, self.accept_button):
+                self._focus_back = focus
+                self.cancel_button.setFocus(Qt.FocusReason.OtherFocusReason)
+        for w in controls:
             w.setEnabled(not running)
         self._show_density()
         self.accept_button.setEnabled(not running and self._accepted is not None)
+        if not running:
+            back, self._focus_back = self._focus_back, None
+            if focus is self.cancel_button:
+                (back if back is not None and back.isEnabled() else self.run_button).setFocus(
+                    Qt.FocusReason.OtherFocusReason)
         self.cancel_button.setEnabled(running)
         if running:
             self.plot.clear()
