@@ -432,7 +432,7 @@ class MainWindow(QMainWindow):
             self.runner.cancel()
             self.runner.wait(5000)
         self._save_layout()
-        self.files.recovery_path().unlink(missing_ok=True)
+        self.files.recovery.discard()
         self.controller.close()
         self.edit.history.detach()
         if self.scene_widget is not None:

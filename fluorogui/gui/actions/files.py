@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import os
-import time
 from pathlib import Path
 
 from PySide6.QtCore import QObject, QStandardPaths, Qt
@@ -23,6 +22,7 @@ from fluorogui.io.errors import InputError, collected_input_warnings
 from fluorogui.io.meshes.read import MESH_SUFFIXES
 from fluorogui.io.project.lock import ProjectLocked
 from fluorogui.logs import data_dir, log_exception
+from fluorogui.workflow.recovery import RecoveryJournal
 
 PROJECT_FILTER = "fluorogui projects (*.fluoro);;All files (*)"
 MAX_RECENT = 8
@@ -58,6 +58,11 @@ class SessionFiles(QObject):
         self.quit_action = add("&Quit", window.close, QKeySequence.StandardKey.Quit)
         self.recent_menu = QMenu("Open &recent", window)
         self.runner.running_changed.connect(self._running_changed)
+        # every change of the session's history (an edit, a tracked frame, a find) is kept in
+        # the recovery file's journal as it happens: a crash loses at most the change in flight
+        self.recovery = RecoveryJournal(self.controller.session, self.recovery_path(),
+                                        origin=lambda: str(self.controller.path or ""),
+                                        failed=self._recovery_failed)
         self.refresh_recent()
 
     def _running_changed(self, running: bool) -> None:
@@ -244,7 +249,7 @@ class SessionFiles(QObject):
             self.window.warn("Cannot save project", str(exc))
             return False
         self._add_recent(path.resolve())
-        self.recovery_path().unlink(missing_ok=True)
+        self.recovery.discard()
         self.window.refresh_title()
         self.window.statusBar().showMessage(f"Saved {path}", 5000)
         return True
@@ -275,22 +280,20 @@ class SessionFiles(QObject):
         return app_data_dir() / "recovery" / "autosave.fluoro"
 
     def autosave(self) -> bool:
-        """Write the session to the recovery file if it has unsaved changes."""
+        """Write the whole session to the recovery file if it has unsaved changes (between
+        such writes the recovery journal keeps every change)."""
         if not self.controller.dirty or not self.controller.project.views:
             return False
-        from fluorogui.io.project.document import save_project
-
-        path = self.recovery_path()
-        path.parent.mkdir(parents=True, exist_ok=True)
         try:
-            save_project(self.controller.project, path)
-            origin = str(self.controller.path) if self.controller.path else ""
-            path.with_suffix(".json").write_text(json.dumps({"origin": origin, "time": time.time()}))
+            self.recovery.write_whole()
         except (InputError, OSError) as exc:
-            self.window.statusBar().showMessage(f"Autosave failed: {exc}", 10000)
+            self._recovery_failed(exc)
             return False
         self.window.statusBar().showMessage("Autosaved for recovery", 3000)
         return True
+
+    def _recovery_failed(self, exc: Exception) -> None:
+        self.window.statusBar().showMessage(f"Autosave failed: {exc}", 10000)
 
     def offer_recovery(self) -> bool:
         """After a crash: offer the autosaved session. True if it was recovered."""
@@ -309,7 +312,7 @@ class SessionFiles(QObject):
             + (f" of {Path(origin).name}" if origin else "") + "?",
             QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, QMessageBox.StandardButton.Yes)
         if answer != QMessageBox.StandardButton.Yes:
-            path.unlink(missing_ok=True)
+            self.recovery.discard()
             return False
         try:
             self.controller.open(path, read_only=True)  # the recovery file is this app's own
