@@ -7,6 +7,7 @@ an internal error, its traceback in the log file), never a traceback. Never impo
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 
@@ -61,6 +62,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("fluorogui: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # the reader of stdout stopped (``| head``): stop quietly, as cat does
+        try:  # the exit's flush of what is left has nowhere to go
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        return 141
     except Exception as exc:  # noqa: BLE001 - the CLI never shows a traceback
         from fluorogui.core.projection.geometry import GeometryError
         from fluorogui.core.projection.mesh import MeshError

@@ -36,3 +36,16 @@ def test_console_script_runs_the_entry():
     proc = subprocess.run([str(script), "--version"], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == f"fluorogui {__version__}"
+
+
+def test_a_reader_that_stops_reading_ends_the_command_quietly(monkeypatch, capsys):
+    """``fluorogui track P --json | head -1`` said "internal error: BrokenPipeError"; it now
+    stops quietly with the shell's code for a broken pipe (128 + SIGPIPE)."""
+    from fluorogui.cli import main, track
+
+    def reader_gone(args):
+        raise BrokenPipeError(32, "Broken pipe")  # what print() raises once ``head`` has exited
+
+    monkeypatch.setattr(track, "run", reader_gone)
+    assert main(["track", "any.fluoro"]) == 141
+    assert capsys.readouterr().err == ""
