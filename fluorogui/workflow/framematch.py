@@ -192,7 +192,7 @@ class FrameMatcher:
         try:
             rims = self._rims_for(images, job.component)
             out = segment_and_match(images, self.views, job.mesh, start, s.match, loop, job.given, hidden,
-                                    step, cancel, rims, s.quality)
+                                    step, cancel, rims, thresholds=s.quality)
         except SegmentationError as exc:
             return FrameResult(0, job.component, None, Status.FAILED, messages.segmentation_failed(job.component, exc),
                                seconds=time.perf_counter() - t0, failed=["segmentation"])
