@@ -4,7 +4,8 @@ The ``Session`` (``fluorogui.workflow``) owns the project, its caches, every und
 edit and the work; the command line and scripts use it exactly as the app does. This
 adapter only adds what a desktop app needs on top:
 
-* Qt signals for the session's events (``pose_changed``, ``outline_changed`` ...); frames
+* Qt signals for the session's events (``workflow.events.SessionEvent``: ``pose_changed``,
+  ``outline_changed`` ...); frames
   are always frame numbers (the ``frame`` column of pairs.csv), never list positions;
 * the GUI's own state: the frame on screen and the component being edited;
 * ``dirty_changed`` for the window's modified flag, following ``session.history``'s
@@ -23,6 +24,7 @@ from PySide6.QtCore import QObject, Signal
 from fluorogui.core.records import Project
 from fluorogui.io.errors import InputError
 from fluorogui.io.project.lock import ProjectLock, ProjectLocked
+from fluorogui.workflow.events import SessionEvent
 from fluorogui.workflow.history import Command
 from fluorogui.workflow.session import COMPONENT_ORDER, FrameState, Session
 
@@ -58,21 +60,22 @@ class SessionController(QObject):
         self.lock: ProjectLock | None = None
         self.read_only = False  # another program holds the file: save only to another one
         self._dirty = self.session.dirty
+        # each session event as the signal that says it (PROJECT: set_project emits its own)
+        self._handlers = {
+            SessionEvent.POSE: lambda key: self.pose_changed.emit(int(key[0]), str(key[1])),
+            SessionEvent.OUTLINE: lambda key: self.outline_changed.emit(tuple(key), str(key[2])),
+            SessionEvent.KNEE: lambda what: self.knee_changed.emit(str(what)),
+            SessionEvent.MODEL: lambda component: self.model_changed.emit(str(component)),
+            SessionEvent.SAVED: lambda _path: self.path_changed.emit(self.session.path),
+        }
         self.session.history.listeners.append(self._history_changed)
         self.session.listeners.append(self._session_event)
 
     # -- what the session says ---------------------------------------------------------------
-    def _session_event(self, event: str, what) -> None:
-        if event == "pose":
-            self.pose_changed.emit(int(what[0]), str(what[1]))
-        elif event == "outline":
-            self.outline_changed.emit(tuple(what), str(what[2]))
-        elif event == "knee":
-            self.knee_changed.emit(str(what))
-        elif event == "model":
-            self.model_changed.emit(str(what))
-        elif event == "saved":
-            self.path_changed.emit(self.session.path)
+    def _session_event(self, event: SessionEvent, what) -> None:
+        handler = self._handlers.get(event)
+        if handler is not None:
+            handler(what)
 
     def _history_changed(self, _event: str, _entry) -> None:
         dirty = self.session.dirty

@@ -10,6 +10,7 @@ from fluorogui.core.outlines.spline import OutlineError, OutlineSpline
 from fluorogui.core.projection.geometry import triangulate
 from fluorogui.core.projection.pose import as_pose, rotation_matrix
 from fluorogui.core.records import OutlineRecord, PoseRecord
+from fluorogui.workflow.events import SessionEvent
 from fluorogui.workflow.history import Command
 
 
@@ -126,7 +127,7 @@ class EditsMixin:
         else:
             self.project.poses[key] = PoseRecord(record.pose.copy(), record.match, reviewed=record.reviewed,
                                                  status=record.status, reason=record.reason)
-        self._notify("pose", key)
+        self._notify(SessionEvent.POSE, key)
 
     # -- outlines ------------------------------------------------------------------------------
     def outline_record(self, key) -> OutlineRecord | None:
@@ -186,7 +187,7 @@ class EditsMixin:
             self.project.records.pop(key, None)
         else:
             self.project.records[key] = record
-        self._notify("outline", key)
+        self._notify(SessionEvent.OUTLINE, key)
 
     def spline(self, key) -> OutlineSpline | None:
         """The spline of an outline record (fitted once per record), None if it cannot have one."""

@@ -56,6 +56,7 @@ from fluorogui.io.pose_files import (
     write_jts,
     write_tra,
 )
+from fluorogui.workflow.events import SessionEvent
 from fluorogui.workflow.history import Command
 from fluorogui.workflow.knee import KNEE_COMPONENTS, KneeRow, record_sd
 
@@ -220,7 +221,7 @@ def set_frame_rate(session, fps: float | None, source: str = "user") -> None:
             session.project.settings.pop("time", None)
         else:
             session.project.settings["time"] = dict(value)
-        session._notify("knee", "time")
+        session._notify(SessionEvent.KNEE, "time")
 
     session.history.push(Command("Set frame rate" if fps is not None else "Remove frame rate", "time", before,
                                  after, put))

@@ -11,6 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
+from fluorogui.workflow.events import HistoryEvent
+
 Setter = Callable[[Any, Any], None]  # setter(key, record or None)
 
 
@@ -51,8 +53,8 @@ class Macro:
 
 
 class CommandStack:
-    """Linear undo history. ``listeners`` are called as ``listener(event, entry)`` with
-    event "push", "merge", "undo", "redo", "clear" or "clean" after the change."""
+    """Linear undo history. ``listeners`` are called as ``listener(event, entry)`` with a
+    ``workflow.events.HistoryEvent`` after the change."""
 
     def __init__(self) -> None:
         self._entries: list = []
@@ -96,7 +98,7 @@ class CommandStack:
         if (command.merge_id is not None and top is not None and self._clean != self._index
                 and isinstance(top, Command) and top.merge_id == command.merge_id and top.key == command.key):
             top.after = command.after
-            self._notify("merge", top)
+            self._notify(HistoryEvent.MERGE, top)
             return
         self._record(command)
 
@@ -116,7 +118,7 @@ class CommandStack:
         self._index -= 1
         entry = self._entries[self._index]
         entry.undo()
-        self._notify("undo", entry)
+        self._notify(HistoryEvent.UNDO, entry)
 
     def redo(self) -> None:
         if not self.can_redo():
@@ -124,24 +126,24 @@ class CommandStack:
         entry = self._entries[self._index]
         entry.redo()
         self._index += 1
-        self._notify("redo", entry)
+        self._notify(HistoryEvent.REDO, entry)
 
     def set_clean(self) -> None:
         """Mark the current state as saved."""
         self._clean = self._index
-        self._notify("clean", None)
+        self._notify(HistoryEvent.CLEAN, None)
 
     def reset_clean(self) -> None:
         """No state is saved (e.g. a new project never written): always dirty."""
         self._clean = None
-        self._notify("clean", None)
+        self._notify(HistoryEvent.CLEAN, None)
 
     def clear(self) -> None:
         self._entries.clear()
         self._index = 0
         self._clean = 0
         self._open.clear()
-        self._notify("clear", None)
+        self._notify(HistoryEvent.CLEAR, None)
 
     # -- helpers -------------------------------------------------------------------------------
     def _record(self, entry) -> None:
@@ -150,7 +152,7 @@ class CommandStack:
             self._clean = None  # the saved state can no longer be reached
         self._entries.append(entry)
         self._index += 1
-        self._notify("push", entry)
+        self._notify(HistoryEvent.PUSH, entry)
 
     def _notify(self, event: str, entry) -> None:
         for listener in list(self.listeners):

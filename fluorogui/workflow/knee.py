@@ -29,6 +29,7 @@ from fluorogui.core.knee.kinematics import (
 from fluorogui.core.projection.pose import pose_to_matrix
 from fluorogui.core.records import PoseRecord
 from fluorogui.core.status import Status
+from fluorogui.workflow.events import SessionEvent
 from fluorogui.workflow.history import Command
 
 KNEE_KEY = "kinematics"
@@ -155,7 +156,7 @@ class KneeMixin:
             knee.get("frames", {}).pop(key, None)
         else:
             knee.setdefault("frames", {})[key] = value
-        self._notify("knee", key)
+        self._notify(SessionEvent.KNEE, key)
 
     # -- anatomical frames ----------------------------------------------------------------------
     def anatomical_frame(self, component: str) -> np.ndarray:

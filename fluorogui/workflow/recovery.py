@@ -22,11 +22,12 @@ from typing import Callable
 from fluorogui.io.errors import InputError
 from fluorogui.io.project import journal
 from fluorogui.io.project.document import journal_frames, save_project
+from fluorogui.workflow.events import HistoryEvent, SessionEvent
 
 #: history events that end a change (its records are journalled then, in one line)
-_CHANGE_ENDS = frozenset({"push", "merge", "undo", "redo"})
+_CHANGE_ENDS = frozenset({HistoryEvent.PUSH, HistoryEvent.MERGE, HistoryEvent.UNDO, HistoryEvent.REDO})
 #: session events the journal cannot describe: the whole file is written again
-_WHOLE_FILE = frozenset({"knee", "model"})
+_WHOLE_FILE = frozenset({SessionEvent.KNEE, SessionEvent.MODEL})
 
 
 class RecoveryJournal:
@@ -69,13 +70,13 @@ class RecoveryJournal:
 
     # -- what the session says ----------------------------------------------------------------
     def _session_event(self, event: str, what) -> None:
-        if event in ("project", "saved"):  # a new start: the next change writes the whole file
+        if event in (SessionEvent.PROJECT, SessionEvent.SAVED):  # a new start: the next change writes the whole file
             self._written = False
             self._poses.clear()
             self._records.clear()
-        elif event == "pose":
+        elif event == SessionEvent.POSE:
             self._poses.add(tuple(what))
-        elif event == "outline":
+        elif event == SessionEvent.OUTLINE:
             self._records.add(tuple(what))
         elif event in _WHOLE_FILE:
             self._whole = True

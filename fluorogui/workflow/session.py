@@ -13,9 +13,8 @@ glue's Application or MNE's coreg under its GUI). It owns:
   job that runs in a worker thread or another process and returns results that
   ``store`` puts into the project on the caller's thread.
 
-Listeners (``session.listeners``) hear ``("pose", (frame, component))``,
-``("outline", (frame, view, component))``, ``("knee", "side" | component)``,
-``("project", None)`` and ``("saved", path)``. The knee's side, anatomical frames and
+Listeners (``session.listeners``) hear every change as ``listener(event, what)``, the
+events and what each carries listed in ``workflow.events.SessionEvent``. The knee's side, anatomical frames and
 kinematics come from ``KneeMixin`` (``knee.py``); the undoable edits of poses, outlines
 and review flags from ``EditsMixin`` (``edits.py``).
 """
@@ -39,6 +38,7 @@ from fluorogui.io.meshes.model import prepared_model, read_model
 from fluorogui.io.meshes.read import load_mesh
 from fluorogui.io.project.document import journal_frames, load_project, save_project
 from fluorogui.workflow.edits import EditsMixin, fitted_outline  # noqa: F401 (fitted_outline: its old home)
+from fluorogui.workflow.events import SessionEvent
 from fluorogui.workflow.history import Command, CommandStack
 from fluorogui.workflow.knee import KneeMixin
 from fluorogui.workflow.results import FrameResult
@@ -92,9 +92,10 @@ class Session(EditsMixin, WorkMixin, KneeMixin):
     history : fluorogui.workflow.history.CommandStack
         The undo history: ``history.undo()``, ``history.redo()``.
     listeners : list of callable
-        Called as ``listener(event, what)`` on every change: ``("pose", (frame,
-        component))``, ``("outline", (frame, view, component))``, ``("knee", ...)``,
-        ``("project", None)``, ``("saved", path)``.
+        Called as ``listener(event, what)`` on every change, ``event`` a
+        :class:`~fluorogui.workflow.events.SessionEvent` (a ``str``: ``"pose"``,
+        ``"outline"``, ``"knee"``, ``"model"``, ``"project"``, ``"saved"``), ``what`` as it
+        lists.
 
     See Also
     --------
@@ -194,7 +195,7 @@ class Session(EditsMixin, WorkMixin, KneeMixin):
         self._splines.clear()
         self.__dict__.pop("_default_frames", None)
         self.history.clear()
-        self._notify("project", None)
+        self._notify(SessionEvent.PROJECT, None)
 
     def save(self, path=None) -> Path:
         """Save the project atomically; the previous file is kept as ``NAME.fluoro.bak``.
@@ -237,7 +238,7 @@ class Session(EditsMixin, WorkMixin, KneeMixin):
         self.dirty_on_disk = False
         self._journaled_settings = json.dumps(self.project.settings, sort_keys=True, default=str)
         self.history.set_clean()
-        self._notify("saved", target)
+        self._notify(SessionEvent.SAVED, target)
         return target
 
     def save_frames(self, results) -> None:
@@ -435,7 +436,7 @@ class Session(EditsMixin, WorkMixin, KneeMixin):
         self.project.model(component).mesh_path = Path(path)
         self._raw_meshes.pop(component, None)
         self._meshes.pop(component, None)
-        self._notify("model", component)
+        self._notify(SessionEvent.MODEL, component)
 
     def mesh(self, component: str) -> PreparedMesh:
         """The component's mesh prepared for matching (cached).

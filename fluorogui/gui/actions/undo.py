@@ -15,6 +15,7 @@ from __future__ import annotations
 from PySide6.QtCore import QObject, Signal
 from PySide6.QtGui import QAction, QKeySequence
 
+from fluorogui.workflow.events import HistoryEvent
 from fluorogui.workflow.history import CommandStack
 
 
@@ -50,8 +51,8 @@ class UndoActions(QObject):
 
     def _heard(self, event: str, entry) -> None:
         self.refresh()
-        if event in ("undo", "redo"):
-            self.stepped.emit(event, str(getattr(entry, "text", "") or ""))
+        if event in (HistoryEvent.UNDO, HistoryEvent.REDO):
+            self.stepped.emit(str(event), str(getattr(entry, "text", "") or ""))
 
     def refresh(self) -> None:
         """Enabled state and texts from the history as it is now."""
