@@ -36,8 +36,9 @@ class RecoveryJournal:
     Parameters
     ----------
     session : fluorogui.workflow.session.Session
-    path : path-like
-        The recovery file (a project file of the session's own).
+    path : path-like or callable
+        The recovery file (a project file of the session's own), or ``path() -> Path``
+        read at each write (the app's data folder may change while it runs).
     origin : callable, optional
         ``origin() -> str``: the project file the session came from, written beside the
         recovery file (``NAME.json``) so a recovery can say what it recovers.
@@ -46,10 +47,14 @@ class RecoveryJournal:
         edit itself goes on.
     """
 
+    @property
+    def path(self) -> Path:
+        return Path(self._path() if callable(self._path) else self._path)
+
     def __init__(self, session, path, origin: Callable[[], str] | None = None,
                  failed: Callable[[Exception], None] | None = None) -> None:
         self.session = session
-        self.path = Path(path)
+        self._path = path
         self.origin = origin or (lambda: "")
         self.failed = failed
         self.enabled = True

@@ -60,7 +60,7 @@ class SessionFiles(QObject):
         self.runner.running_changed.connect(self._running_changed)
         # every change of the session's history (an edit, a tracked frame, a find) is kept in
         # the recovery file's journal as it happens: a crash loses at most the change in flight
-        self.recovery = RecoveryJournal(self.controller.session, self.recovery_path(),
+        self.recovery = RecoveryJournal(self.controller.session, self.recovery_path,
                                         origin=lambda: str(self.controller.path or ""),
                                         failed=self._recovery_failed)
         self.refresh_recent()
