@@ -8,7 +8,9 @@ made by ``tools/find_reference_poses.py --refine``) the region fit starts from t
 matcher's pose (and, with ``--perturb MM_DEG``, also from that pose moved by a random
 offset of that size per axis, to show the fit does not simply stay where it starts).
 The other component's region at the matcher's pose, dilated by 3 px, is left out of the
-evidence (only so that its pixels are not taken for this component's). Prints per frame
+evidence (``region_fit.component_masks``; only so that its pixels are not taken for this
+component's). A fit whose overlap is too low to mean anything (``region_fit.LowOverlap``)
+is refused: printed as such and counted apart, never averaged in. Prints per frame
 and component the matcher minus the reference (dx dy dz mm, dalpha dbeta dgamma deg), the
 region overlap (IoU) per view at the reference and at the matcher's pose (the same
 evidence), and the mean, SD and max of |difference|;
@@ -40,7 +42,6 @@ import sys
 import time
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -50,8 +51,10 @@ from fluorogui.io.calibration import load_view  # noqa: E402
 from fluorogui.io.images import read_image  # noqa: E402
 from fluorogui.io.meshes.read import load_mesh  # noqa: E402
 from fluorogui.reference.region_fit import (  # noqa: E402
+    MIN_IOU,
     EdgeMesh,
-    coverage,
+    LowOverlap,
+    component_masks,
     field_of_view,
     fit_pose,
     pose_difference,
@@ -68,15 +71,6 @@ def read_poses(path: Path) -> dict:
     with open(path, newline="") as fh:
         return {(int(r["frame"]), r["component"]): np.array([float(r[k]) for k in POSE_KEYS])
                 for r in csv.DictReader(fh)}
-
-
-def other_mask(view, mesh: EdgeMesh, pose, dilate_px: int = 3) -> np.ndarray:
-    """The image pixels of a component's projected region at ``pose``, dilated."""
-    world = mesh.vertices @ rotation(*pose[3:]).T + pose[:3]
-    w, h = view.image_size
-    mask = (coverage(view, world, mesh, (0, 0, w, h), 1) > 0).astype(np.uint8)
-    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * dilate_px + 1,) * 2)
-    return cv2.dilate(mask, kernel).astype(bool)
 
 
 def main(argv=None) -> int:
@@ -109,7 +103,7 @@ def main(argv=None) -> int:
     if args.frames:
         frames = frames[:args.frames]
     rng = np.random.default_rng(args.seed)
-    rows, t_all = [], time.perf_counter()
+    rows, refusals, t_all = [], [], time.perf_counter()
     print(f"{'frame':>5} {'component':9} " + " ".join(f"{k:>7}" for k in DIFF_LABELS)
           + "   iou1   iou2 (matcher's) secs" + ("  start-spread" if args.perturb else ""))
     for frame in frames:
@@ -120,9 +114,14 @@ def main(argv=None) -> int:
                 continue
             pose = matcher[frame, comp]
             other = "tibial" if comp == "femoral" else "femoral"
-            exclude = ([other_mask(v, meshes[other], matcher[frame, other]) for v in views]
+            exclude = (component_masks(views, meshes[other], matcher[frame, other])
                        if (frame, other) in matcher else None)
-            fit = fit_pose(views, images, meshes[comp], pose, exclude=exclude, fields=fields)
+            try:
+                fit = fit_pose(views, images, meshes[comp], pose, exclude=exclude, fields=fields)
+            except LowOverlap as refused:
+                print(f"{frame:5d} {comp:9} refused: {refused}", flush=True)
+                refusals.append((frame, comp))
+                continue
             diff = np.r_[pose_difference(pose, fit.pose), rotation_angle(pose, fit.pose)]
             row = {"frame": frame, "component": comp, **dict(zip(DIFF_LABELS, diff)),
                    "iou1": fit.iou[0], "iou2": fit.iou[1], "seconds": fit.seconds,
@@ -133,12 +132,18 @@ def main(argv=None) -> int:
                     + f" {fit.seconds:5.1f}")
             if args.perturb:
                 start = pose + rng.choice([-1.0, 1.0], 6) * args.perturb
-                again = fit_pose(views, images, meshes[comp], start, exclude=exclude, fields=fields)
+                try:
+                    again = fit_pose(views, images, meshes[comp], start, exclude=exclude, fields=fields)
+                except LowOverlap as refused:
+                    again = refused.fit  # a restart that lost the component shows as a large spread
                 spread = np.r_[pose_difference(again.pose, fit.pose), rotation_angle(again.pose, fit.pose)]
                 row.update({f"restart_{k}": v for k, v in zip(DIFF_LABELS, spread)})
                 line += (f"  {np.abs(spread[:3]).max():.3f} mm {spread[6]:.3f} deg")
             print(line, flush=True)
             rows.append(row)
+    if refusals:
+        print(f"\nrefused (overlap under {MIN_IOU:g} in a view), left out: "
+              + ", ".join(f"{f} {c}" for f, c in refusals))
     if not rows:
         print("no frames")
         return 1
@@ -199,7 +204,11 @@ def single_plane(args) -> int:
         for index, frame in enumerate(session.frames):
             images = session.images(frame)
             jointtrack = jointtrack_to_pose(rows[index])
-            fit = fit_pose(views, images, mesh, jointtrack, fields=[field_of_view(im) for im in images])
+            try:
+                fit = fit_pose(views, images, mesh, jointtrack, fields=[field_of_view(im) for im in images])
+            except LowOverlap as refused:
+                print(f"{frame:5d} {comp:9} refused: {refused}", flush=True)
+                continue
             session.set_pose(comp, frame, jointtrack)
             session.match(frame, comp)
             matched = session.project.poses[(frame, comp)].pose
@@ -232,13 +241,17 @@ def xray_accuracy(args) -> int:
             images = [xray_image(v, [Body(world, faces)], XrayModel(), rng) for v in views]
             for _ in range(args.starts):
                 start = truth + rng.uniform(-perturb, perturb, 6)
-                fit = fit_pose(views, images, mesh, start)
+                try:
+                    fit, refused = fit_pose(views, images, mesh, start), ""
+                    errors.append(np.r_[pose_difference(fit.pose, truth), rotation_angle(fit.pose, truth)])
+                except LowOverlap as low:  # counted apart: printed, not in the summary
+                    fit, refused = low.fit, "  refused (overlap too low)"
                 err = np.r_[pose_difference(fit.pose, truth), rotation_angle(fit.pose, truth)]
-                errors.append(err)
                 print(f"{comp:9} {flexion:4.0f} " + " ".join(f"{d:7.3f}" for d in err)
-                      + f" {fit.iou[0]:6.4f} {fit.iou[1]:6.4f} {fit.seconds:5.1f}", flush=True)
+                      + f" {fit.iou[0]:6.4f} {fit.iou[1]:6.4f} {fit.seconds:5.1f}" + refused, flush=True)
         print()
-        summary(comp, np.array(errors))
+        if errors:
+            summary(comp, np.array(errors))
         print()
     print(f"done in {time.perf_counter() - t_all:.0f} s")
     return 0

@@ -1,1 +1,2 @@
-"""References that share no code with the matcher: an X-ray image model, region-overlap fits, hull outlines."""
+"""References that share no code with the matcher: an X-ray image model (with bone and cement
+about an implant), region-overlap fits, hull outlines."""

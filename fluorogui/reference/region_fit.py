@@ -6,20 +6,26 @@ splines, point-to-curve residuals, Levenberg-Marquardt) fits outlines. This modu
 
 * the image side: the implant is the darkest thing near itself. Around the start pose's
   region, local metal and background levels (normalised Gaussian averages inside it and
-  in a ring outside it) turn the image into a soft metal fraction
+  in a ring 2-6 px outside it) turn the image into a soft metal fraction
   ``clip((background - I) / (background - metal), 0, 1)``, kept within 3 px of the edge
   of the region where it exceeds 1/2 (1 inside, 0 outside). Blurring preserves an
   edge's area, so this places a blurred edge where the step was, without an edge
-  detector. The evidence is sampled again around the pose after the coarse stage.
+  detector, provided the background is the level the edge steps to: on real trays the
+  bone and cement next to the metal make the background rise for 10-20 px outward, and
+  a ring further out (6-18 px, as before) put the edge 1-2 px outside the metal. The
+  evidence is sampled again around the pose after each stage, and the last stage is run
+  again until the evidence was sampled where the fit ends.
 * the model side: the triangles of the mesh that face the source are projected here and
   their union (the projected region of the closed mesh) is filled by the winding number
   of their edges on an s x s supersampled grid, smooth along the grid's rows, averaged
   to a coverage fraction per pixel;
 * the objective: the squared differences of the two maps, both blurred by the same
   Gaussian (3 px, then 1 px), over the window's pixels inside the field of view and not
-  masked out (the other component), over all views; minimised over the six pose
-  variables (centroid shift, rotation vector about the centroid) by
-  ``scipy.optimize.least_squares`` with finite differences of 0.4, then 0.2 mm / deg.
+  masked out (the other component: ``component_masks``), over all views; minimised over
+  the six pose variables (centroid shift, rotation vector about the centroid) by
+  ``scipy.optimize.least_squares`` with finite differences of 0.4, then 0.2 mm / deg;
+* a fit whose overlap with the evidence is under ``MIN_IOU`` in a view found too little
+  of the component there to mean anything: it is refused (``LowOverlap``).
 
 Shared with the matcher: only the conventions (DESIGN.md: the pose ``X = R m + t``,
 ``R = Ry(beta) Rz(gamma) Rx(alpha)``, and the view's numbers: source, plane normal,
@@ -38,8 +44,14 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-#: (blur sigma px, supersampling, finite-difference step in mm and deg) of the fit's stages
-STAGES = ((3.0, 1, 0.4), (1.0, 3, 0.2))
+#: the fit's stages: (blur sigma px, supersampling, finite-difference step in mm and deg,
+#: the background's (mode, near, far) px for ``background_level``)
+STAGES = ((3.0, 1, 0.4, ("ring", 2.0, 6.0)), (1.0, 3, 0.2, ("ring", 2.0, 6.0)))
+#: the last stage is run again on evidence sampled anew while its pose moves by more than
+#: this (mm of the centroid or degrees), at most ``SETTLE`` more times
+SETTLE_MOVE, SETTLE = 0.05, 2
+#: a fit whose overlap (IoU) is under this in a view found too little of the component there
+MIN_IOU = 0.5
 
 
 # -- conventions (DESIGN.md), written here -------------------------------------------------
@@ -186,35 +198,72 @@ def _local_mean(values: np.ndarray, where: np.ndarray, sigma: float, fallback: f
 
 
 def metal_fraction(window: np.ndarray, valid: np.ndarray, prior: np.ndarray, band: int = 3,
-                   margin: int = 6, ring: int = 12, sigma: float = 10.0) -> np.ndarray:
+                   margin: int = 6, background: str = "ring", near: float = 2.0, far: float = 6.0,
+                   sigma: float = 10.0) -> np.ndarray:
     """Soft metal fraction in [0, 1] of an image window (float, dark = metal).
 
     ``prior`` (bool, the model's region at the start pose) only tells where to sample the
-    levels: the metal's inside it (eroded by ``margin`` px), the background's in a ring
-    ``margin`` .. ``margin + ring`` px outside it, each averaged locally (a normalised
-    Gaussian, ``sigma`` px: bone, soft tissue and metal thickness vary across a
-    component). The fraction ``f = (background - I) / (background - metal)`` is kept
-    within ``band`` px of the edge of the region f > 1/2 (cleaned by an opening; the
-    parts meeting the inner prior), 1 inside it and 0 outside: a blurred edge keeps its
-    area, so this places the edge without an edge detector."""
+    levels: the metal's inside it (eroded by ``margin`` px), averaged locally (a normalised
+    Gaussian, ``sigma`` px: metal thickness varies across a component), and the
+    background's in the ring ``near`` .. ``far`` px outside it (``background_level``).
+    The fraction ``f = (background - I) / (background - metal)`` is kept within ``band`` px
+    of the edge of the region f > 1/2 (cleaned by an opening; the parts meeting the inner
+    prior), 1 inside it and 0 outside: a blurred edge keeps its area, so this places the
+    edge without an edge detector."""
     w = window.astype(np.float32)
     prior_u8 = (prior & valid).astype(np.uint8)
     inner = cv2.erode(prior_u8, _disc(margin)).astype(bool) & valid
-    grown = cv2.dilate(prior_u8, _disc(margin)).astype(bool)
-    around = cv2.dilate(prior_u8, _disc(margin + ring)).astype(bool) & ~grown & valid
-    if not inner.any() or not around.any():
+    if not inner.any():
+        return np.zeros_like(w)
+    outside = cv2.distanceTransform(1 - prior.astype(np.uint8), cv2.DIST_L2, 5)  # px from the prior, 0 inside
+    bg = background_level(w, valid, outside, background, near, far, sigma)
+    if bg is None:
         return np.zeros_like(w)
     metal = _local_mean(w, inner, sigma, float(np.median(w[inner])))
-    background = _local_mean(w, around, sigma, float(np.median(w[around])))
-    f = np.clip((background - w) / np.maximum(background - metal, 1e-3), 0.0, 1.0)
+    f = np.clip((bg - w) / np.maximum(bg - metal, 1e-3), 0.0, 1.0)
     dark = ((f > 0.5) & valid).astype(np.uint8)
     dark = cv2.morphologyEx(cv2.morphologyEx(dark, cv2.MORPH_OPEN, _disc(2)), cv2.MORPH_CLOSE, _disc(1))
     n, labels = cv2.connectedComponents(dark)
     touched = np.unique(labels[(labels > 0) & inner])
     region = np.isin(labels, touched).astype(np.uint8)
-    outside = cv2.dilate(region, _disc(band)).astype(bool)
+    grown = cv2.dilate(region, _disc(band)).astype(bool)
     core = cv2.erode(region, _disc(band)).astype(bool)
-    return np.where(core, 1.0, np.where(outside, f, 0.0)).astype(np.float32)
+    return np.where(core, 1.0, np.where(grown, f, 0.0)).astype(np.float32)
+
+
+def background_level(w: np.ndarray, valid: np.ndarray, outside: np.ndarray, mode: str, near: float,
+                     far: float, sigma: float) -> np.ndarray | None:
+    """The background's level at every pixel of a window, from the ring of valid pixels
+    ``near`` .. ``far`` px outside the prior (``outside``: each pixel's distance from it).
+
+    ``"ring"``: the ring's local mean (a normalised Gaussian, ``sigma`` px). ``"slope"``:
+    a local straight line in the distance, fitted over the ring (the same Gaussian
+    weights) and read at each pixel's own distance (at 0 inside the prior, at ``far``
+    beyond the ring): the level the background has at the edge, where bone and cement next
+    to the implant make it rise outward. Where the ring is too thin to give a slope, its
+    mean. None when the ring is empty. The fit reads a ring 2-6 px out: against the truth
+    on X-ray model images with the real trays' slope, a slope fitted 3-10 px out turned
+    the tray 2-4 times as far off about its mediolateral axis (the real slope is flat for
+    a few pixels, then steep), the ring 6-18 px out 10 times."""
+    ring = valid & (outside >= near) & (outside <= far)
+    if not ring.any():
+        return None
+    fallback = float(np.median(w[ring]))
+    mean = _local_mean(w, ring, sigma, fallback)
+    if mode == "ring":
+        return mean
+    weight = ring.astype(np.float32)
+    d = np.where(ring, outside, 0.0).astype(np.float32)
+    g = lambda a: cv2.GaussianBlur(a, (0, 0), sigma)  # noqa: E731
+    s0, s1, s2 = g(weight), g(weight * d), g(weight * d * d)
+    si, sdi = g(weight * w), g(weight * d * w)
+    det = s0 * s2 - s1 * s1
+    # the spread of the ring's distances under the window: a slope needs some
+    ok = (s0 > 1e-3) & (det > 0.25 * (far - near) ** 2 / 12.0 * s0 * s0)
+    slope = np.where(ok, (s0 * sdi - s1 * si) / np.where(ok, det, 1.0), 0.0)
+    at = np.clip(outside, 0.0, far)
+    level = np.where(s0 > 1e-3, (si - slope * s1) / np.maximum(s0, 1e-6) + slope * at, fallback)
+    return np.where(ok, level, mean).astype(np.float32)
 
 
 # -- the fit -----------------------------------------------------------------------------------
@@ -252,6 +301,34 @@ class RegionFit:
         return [iou(d, coverage(d.view, world, mesh, d.box, s)) for d in self.evidence]
 
 
+class LowOverlap(RuntimeError):
+    """A region fit refused: in some view its overlap with the evidence is under the
+    minimum (its window held too little of the component, so the pose means nothing).
+    ``fit`` is the refused fit, for counting it apart."""
+
+    def __init__(self, fit: RegionFit, min_iou: float):
+        self.fit = fit
+        worst = int(np.argmin(fit.iou))
+        super().__init__(f"region fit refused: its overlap in view {worst + 1} is {fit.iou[worst]:.2f}, under "
+                         f"{min_iou:g}; its window holds too little of the component")
+
+
+def component_masks(views, mesh: EdgeMesh, pose, dilate_px: int = 3) -> list[np.ndarray]:
+    """Per view, the image pixels of a component's projected region at ``pose`` (mm, deg),
+    dilated by ``dilate_px``: the other component's ``exclude`` for ``fit_pose``."""
+    pose = np.asarray(pose, dtype=float)
+    world = mesh.vertices @ rotation(*pose[3:]).T + pose[:3]
+    out = []
+    for view in views:
+        w, h = view.image_size
+        box = window_box(view, world, dilate_px + 1)
+        region = np.zeros((h, w), dtype=np.uint8)
+        u0, v0, u1, v1 = box
+        region[v0:v1, u0:u1] = coverage(view, world, mesh, box, 1) > 1e-3  # not the sums' float residue
+        out.append(cv2.dilate(region, _disc(dilate_px)).astype(bool) if dilate_px else region.astype(bool))
+    return out
+
+
 def window_box(view, world_vertices: np.ndarray, pad: int) -> tuple[int, int, int, int]:
     """The pixel box around the projected vertices, ``pad`` pixels wider, clipped to the image."""
     uv = project(view, world_vertices)
@@ -264,7 +341,7 @@ def window_box(view, world_vertices: np.ndarray, pad: int) -> tuple[int, int, in
 
 
 def prepare_views(views, images, world_vertices: np.ndarray, mesh: EdgeMesh, pad: int = 30,
-                  exclude=None, fields=None) -> list[ViewData]:
+                  exclude=None, fields=None, background=STAGES[-1][3]) -> list[ViewData]:
     """The evidence of each view around the model placed at a start pose (world vertices).
     ``exclude``: per view a boolean image mask (or None) of pixels to ignore; ``fields``:
     per view the field-of-view mask (``field_of_view`` finds an
@@ -278,7 +355,9 @@ def prepare_views(views, images, world_vertices: np.ndarray, mesh: EdgeMesh, pad
         if exclude is not None and exclude[k] is not None:
             valid &= ~exclude[k][v0:v1, u0:u1]
         prior = coverage(view, world_vertices, mesh, box, 1) >= 0.5
-        out.append(ViewData(view, box, metal_fraction(image[v0:v1, u0:u1], valid, prior), valid))
+        mode, near, far = background
+        out.append(ViewData(view, box, metal_fraction(image[v0:v1, u0:u1], valid, prior, background=mode,
+                                                      near=near, far=far), valid))
     return out
 
 
@@ -300,9 +379,13 @@ def iou(data: ViewData, cover: np.ndarray) -> float:
 
 
 def fit_pose(views, images, mesh: EdgeMesh, start, *, exclude=None, fields=None, pad: int = 20,
-             stages=STAGES, max_nfev: int = 30) -> RegionFit:
+             stages=STAGES, max_nfev: int = 30, settle: int = SETTLE, min_iou: float | None = MIN_IOU) -> RegionFit:
     """Fit the pose of one component (``EdgeMesh`` in its own coordinates) to the dark
-    regions of one or more views, from ``start`` (x, y, z, alpha, beta, gamma: mm, deg)."""
+    regions of one or more views, from ``start`` (x, y, z, alpha, beta, gamma: mm, deg).
+
+    ``exclude``: per view a boolean image mask (or None) of pixels to leave out, such as
+    the other component's region (``component_masks``). Raises ``LowOverlap`` when the
+    fit's overlap is under ``min_iou`` in a view (None: never)."""
     t0 = time.perf_counter()
     vertices = mesh.vertices
     start = np.asarray(start, dtype=float)
@@ -310,11 +393,15 @@ def fit_pose(views, images, mesh: EdgeMesh, start, *, exclude=None, fields=None,
     R0 = rotation(*start[3:])
     c0 = R0 @ centroid + start[:3]
     p = np.zeros(6)
-    evaluations, success, message, history = 0, True, "", []
+    evaluations, success, message, history, moved = 0, True, "", [], np.zeros(6)
 
-    for sigma, s, step in stages:
+    plan = list(stages) + [stages[-1]] * settle
+    for k, (sigma, s, step, background) in enumerate(plan):
+        if k >= len(stages) and np.max(np.abs(moved)) <= SETTLE_MOVE:
+            break  # the evidence was sampled where the fit ended: settled
         # the evidence is sampled around the pose reached so far (levels, window)
-        data = prepare_views(views, images, _place(vertices, centroid, R0, c0, p)[0], mesh, pad, exclude, fields)
+        data = prepare_views(views, images, _place(vertices, centroid, R0, c0, p)[0], mesh, pad, exclude, fields,
+                             background)
         targets = [_blur(d.target, sigma)[d.valid] for d in data]
 
         def residuals(q, s=s, sigma=sigma, data=data, targets=targets):  # this stage's evidence
@@ -327,6 +414,7 @@ def fit_pose(views, images, mesh: EdgeMesh, start, *, exclude=None, fields=None,
         sol = least_squares(residuals, p, method="trf", diff_step=step, jac="2-point",
                             max_nfev=max_nfev, xtol=1e-5, ftol=1e-8)
         evaluations += sol.nfev + 6 * (sol.njev or 0)
+        moved = sol.x - p
         p = sol.x
         history.append((sigma, s, float(np.mean(sol.fun ** 2)), int(sol.nfev)))
         success, message = success and sol.status > 0, sol.message
@@ -334,5 +422,8 @@ def fit_pose(views, images, mesh: EdgeMesh, start, *, exclude=None, fields=None,
     world, R = _place(vertices, centroid, R0, c0, p)
     t = (c0 + p[:3]) - R @ centroid
     covers = [coverage(d.view, world, mesh, d.box, stages[-1][1]) for d in data]
-    return RegionFit(np.r_[t, angles(R)], [iou(d, c) for d, c in zip(data, covers)], history[-1][2],
-                     evaluations, time.perf_counter() - t0, success, message, history, data)
+    fit = RegionFit(np.r_[t, angles(R)], [iou(d, c) for d, c in zip(data, covers)], history[-1][2],
+                    evaluations, time.perf_counter() - t0, success, message, history, data)
+    if min_iou is not None and min(fit.iou) < min_iou:
+        raise LowOverlap(fit, min_iou)
+    return fit

@@ -9,6 +9,9 @@ that model would cancel out. This module images the physics instead:
   crosses of the distance from the source (+ where the ray leaves, - where it enters);
 * Beer-Lambert attenuation, ``exp(-sum mu L)``, metal strongly, plus a soft-tissue and a
   bone background (infinite cylinders, closed-form chords) that the implant overlaps;
+* optional bone and cement about an implant (``fluorogui.reference.zone.Zone``): an
+  attenuation that falls off with the distance from the implant's surface, on the bone's
+  side, so that the metal's edge stands on a sloped background as on real images;
 * blur of the focal spot (its size times the geometric unsharpness ``(m - 1)``) and of
   the detector, quantum noise (Poisson counts of ``photons`` per pixel of air), optional
   radial (image-intensifier) distortion, and 8- or 16-bit output.
@@ -67,6 +70,7 @@ class XrayModel:
         Cylinder((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 50.0, MU_TISSUE),  # the leg
         Cylinder((0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 14.0, MU_BONE),  # a bone shaft along it
     ])
+    zones: list = field(default_factory=list)  # fluorogui.reference.zone.Zone: bone and cement about an implant
     distortion_k1: float = 0.0  # radial distortion: r_observed = r (1 + k1 r^2), r in units of half the width
     bits: int = 16
 
@@ -239,6 +243,9 @@ def line_integrals(view, bodies: list[Body], model: XrayModel) -> np.ndarray:
     mu_l = np.zeros((h, w))
     for cyl in model.background:
         mu_l += cyl.mu * cylinder_chord(view, cyl, uu, vv)
+    # zones are smooth: integrated at pixel centres, interpolated to the sub-pixel samples
+    zones = sum((zone.integral(view, uu, vv) for zone in model.zones), np.zeros((h, w)))
+    mu_l += zones
     transmitted = np.exp(-mu_l)
     box = _box_of(view, bodies, pad=8)
     u0, v0, u1, v1 = box
@@ -247,6 +254,8 @@ def line_integrals(view, bodies: list[Body], model: XrayModel) -> np.ndarray:
         fine = np.zeros(su.shape)
         for cyl in model.background:
             fine += cyl.mu * cylinder_chord(view, cyl, su, sv)
+        if model.zones:  # linear between pixel centres: sample (i + 0.5) / s - 0.5 of the pixel grid
+            fine += cv2.resize(zones[v0:v1, u0:u1], (su.shape[1], su.shape[0]), interpolation=cv2.INTER_LINEAR)
         for body in bodies:
             fine += body.mu * path_length(view, body, s, box)
         fine_t = np.exp(-fine)
