@@ -183,8 +183,8 @@ def test_selected_point_marker_is_cleared_on_another_frame(window, demo):
         angles = np.linspace(0, 2 * np.pi, 40, endpoint=False)
         panel.set_outline(window.controller.component, np.column_stack([200 + 50 * np.cos(angles),
                                                                          200 + 50 * np.sin(angles)]), (0, 0, "x"))
-    panel._selected = 3
-    panel._update_highlight()
+    panel.tools.select(3)
+    panel.tools.update_highlight()
     assert panel.selected_point() == 3
     window.review.step_frame(1)
     assert panel.selected_point() is None
