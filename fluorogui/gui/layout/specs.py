@@ -6,7 +6,12 @@
   (*Open recent*, *Active component*);
 * ``WidgetSpec``: a widget on the toolbar (the component list, the Canny sliders);
 * ``PanelSpec``: a dock (title, object name, area, its widget and its presenter);
-* ``PresenterSpec``: a presenter that belongs to no single panel (the File menu's ...).
+* ``PresenterSpec``: a presenter that belongs to no single panel (the File menu's ...);
+* ``WindowLayout``: all of them, what a ``MainWindow`` is built from.
+
+Besides: the ``Context`` whose keys decide which actions are enabled, and the ``Parts``
+(the window's controller, runner, settings, ``Notices`` ..., its widgets and presenters
+by key) that factories are given.
 
 Where a thing is shown is a ``Place``: the id of a container (a menu's id, ``MENUBAR``
 or ``TOOLBAR``), a group and an order. Groups are sorted by name, with a separator
