@@ -2,51 +2,33 @@
 
 Thin by design: the project lives in the workflow's ``Session`` (``controller.session``);
 every change goes through it (undoable, announced by the ``SessionController``'s
-signals); long work runs the session's jobs in ``TaskRunner``. This module builds the
-window and puts its parts together. What the window does is in objects it owns, each
-with its own actions (``gui.actions``): ``files`` (open, save, import, autosave),
-``edit`` (undo bound to the session's history, the editing tools), ``display`` (the View
-menu), ``model`` (the active component, placing), ``tasks`` (match, track, find),
-``review`` (frames, accept), ``knee`` (export, kinematics) and ``help``; ``session_view``
-shows the session and ``missing`` asks for missing model files.
+signals); long work runs the session's jobs in ``TaskRunner``. The window's panels,
+presenters, actions, menus and toolbar are declared as data in ``gui.layout``
+(``WINDOW``); this module builds them in order - the image panels, the docks, the actions,
+the presenters (each given what it needs), the menus and the toolbar - and keeps the
+window's own concerns: its title, its layout on screen and in the settings, autosave,
+dropped files and closing. Built, the parts are ``window.widgets`` / ``window.docks`` /
+``window.presenters`` by key and ``window.actions_by_id`` by id; the built-in ones also
+go by the names scripts, benchmarks and the guided tour use (``window.matcher``,
+``window.files`` ...).
 """
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 from PySide6.QtCore import QByteArray, QDataStream, QSettings, Qt, QTimer, Signal
-from PySide6.QtGui import QAction, QGuiApplication, QKeySequence
-from PySide6.QtWidgets import (
-    QDockWidget,
-    QFrame,
-    QHBoxLayout,
-    QLabel,
-    QMainWindow,
-    QMessageBox,
-    QScrollArea,
-    QSplitter,
-    QTreeWidget,
-    QWidget,
-)
+from PySide6.QtGui import QGuiApplication
+from PySide6.QtWidgets import QLabel, QMainWindow, QSplitter, QWidget
 
 from fluorogui.gui import theme
-from fluorogui.gui.actions.edit import TOOLS, EditActions
-from fluorogui.gui.actions.files import SessionFiles
-from fluorogui.gui.actions.help import HelpActions
-from fluorogui.gui.actions.knee import KneeActions
-from fluorogui.gui.actions.model import ModelActions
-from fluorogui.gui.actions.review import ReviewActions
-from fluorogui.gui.actions.tasks import MatchControl
-from fluorogui.gui.actions.view import ViewActions
 from fluorogui.gui.controller import SessionController
-from fluorogui.gui.dialogs.missing_files import MissingFiles
-from fluorogui.gui.panels.image_items import Tool
+from fluorogui.gui.layout.build import build_actions, build_docks, build_menus, build_toolbar, menu_order
+from fluorogui.gui.layout.specs import Context, Parts, WindowLayout
+from fluorogui.gui.layout.window import WINDOW
+from fluorogui.gui.notices import Notices
 from fluorogui.gui.panels.image_panel import ImagePanel
-from fluorogui.gui.panels.knee_panel import KneePanel
-from fluorogui.gui.panels.matcher_panel import MatcherPanel
-from fluorogui.gui.panels.pose_editor import PoseEditor
-from fluorogui.gui.panels.timeline import Timeline, TimelineLegend
-from fluorogui.gui.session_view import COMPONENT_COLOURS, SessionView
+from fluorogui.gui.session_view import COMPONENT_COLOURS
 from fluorogui.gui.worker import TaskRunner
 
 AUTOSAVE_MS = 3 * 60 * 1000
@@ -82,37 +64,46 @@ class MainWindow(QMainWindow):
     frame_shown = Signal(int)  # frame number, emitted after its images and overlays are on screen
 
     def __init__(self, settings: QSettings | None = None, with_3d: bool = True,
-                 parent: QWidget | None = None) -> None:
+                 parent: QWidget | None = None, *, layout: WindowLayout = WINDOW) -> None:
+        """``layout``: what the window is built from (``gui.layout.window.WINDOW``, or a
+        variant of it with more panels or actions)."""
         super().__init__(parent)
         self.settings = settings or QSettings("fluorogui", "fluorogui")
         self.controller = SessionController(self)
         self.runner = TaskRunner(self)
-        self.last_error = ""
+        self.notices = Notices(self)
+        # what the actions' enabled-when read; it follows the runner before any presenter does
+        self.context = Context()
+        self.runner.running_changed.connect(lambda running: self.context.set(running=running))
         self.setWindowIcon(theme.icon("app"))
         self.setAcceptDrops(True)
         self.setDockNestingEnabled(True)
-        self._build_widgets(with_3d)
-        self._build_docks()
+        self._build_image_panels()
         self.cursor_label = QLabel("")
         self.frame_label = QLabel("")
-
-        # what the window does, each part with its own actions; the order matters only where
-        # two parts follow one signal (the task's end enables Match before Accept is judged)
-        self.files = SessionFiles(self)
-        self.knee = KneeActions(self)
-        self.edit = EditActions(self)
-        self.display = ViewActions(self)
-        self.model = ModelActions(self)
-        self.tasks = MatchControl(self)
-        self.review = ReviewActions(self)
-        self.help = HelpActions(self)
-        self.missing = MissingFiles(self)
-        self.session_view = SessionView(self)
-
-        self._build_menus()
-        self._build_toolbar()
+        parts = Parts(window=self, controller=self.controller, runner=self.runner, settings=self.settings,
+                      notices=self.notices, context=self.context, panels=self.panels, with_3d=with_3d,
+                      status_labels=SimpleNamespace(cursor=self.cursor_label, frame=self.frame_label))
+        self.widgets, self.presenters = parts.widgets, parts.presenters
+        self.docks = build_docks(self, layout.panels, parts)
+        actions = layout.all_actions()
+        self.actions_by_id = parts.actions = build_actions(self, actions, self.presenters, self.context)
+        for spec in layout.presenters:
+            setattr(self.presenters, spec.key, spec.make(parts))
+        for spec in layout.panels:
+            if spec.presenter is not None and spec.key in self.docks:
+                setattr(self.presenters, spec.key, spec.presenter(parts, getattr(self.widgets, spec.key)))
+        self._name_parts()
+        toggles = [self.docks[key].toggleViewAction() for key in menu_order(layout.panels, self.docks)]
+        self.menus = build_menus(self, layout.menus, actions, self.actions_by_id, self.presenters,
+                                 layout.panel_toggles, toggles)
+        self.toolbar = build_toolbar(self, *layout.toolbar, actions, layout.toolbar_widgets, self.actions_by_id,
+                                     self.presenters)
         self._build_status_bar()
-        self._connect()
+        c = self.controller
+        c.dirty_changed.connect(lambda dirty: self.setWindowModified(dirty))
+        c.path_changed.connect(lambda _p: self.refresh_title())
+        c.project_replaced.connect(self.refresh_title)
         self.autosave_timer = QTimer(self)
         self.autosave_timer.setInterval(int(self.settings.value("autosave_ms", AUTOSAVE_MS)))
         self.autosave_timer.timeout.connect(self.autosave)
@@ -123,7 +114,7 @@ class MainWindow(QMainWindow):
         self.pose_editor.set_component(None)
 
     # -- construction ----------------------------------------------------------------------
-    def _build_widgets(self, with_3d: bool) -> None:
+    def _build_image_panels(self) -> None:
         self.panels = [ImagePanel(i) for i in range(2)]
         splitter = QSplitter(Qt.Orientation.Horizontal)
         for panel in self.panels:
@@ -133,173 +124,24 @@ class MainWindow(QMainWindow):
             panel.placeholder = NO_SESSION_HINT
             splitter.addWidget(panel)
         self.setCentralWidget(splitter)
-        self.scene_widget = None
-        if with_3d:
-            from fluorogui.gui.scene.scene_widget import Scene3DWidget
 
-            self.scene_widget = Scene3DWidget(self)
-            self.scene_widget.rays_button.setChecked(False)  # rays on demand: they hide the models
-        self.pose_editor = PoseEditor()
-        self.matcher = MatcherPanel()
-        self.timeline = Timeline()
-        self.knee_panel = KneePanel()
-        self.tree = QTreeWidget()
-        self.tree.setHeaderHidden(True)
-
-    def _dock(self, title: str, widget: QWidget, area, name: str, scroll: bool = False) -> QDockWidget:
-        """A dock; with ``scroll`` its content scrolls when the window is too small for it
-        (a laptop screen) instead of squeezing or overlapping."""
-        dock = QDockWidget(title, self)
-        dock.setObjectName(name)
-        if scroll:
-            area_widget = QScrollArea()
-            area_widget.setObjectName(f"{name}Scroll")
-            area_widget.setWidgetResizable(True)
-            area_widget.setFrameShape(QFrame.Shape.NoFrame)
-            area_widget.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAsNeeded)
-            area_widget.setWidget(widget)
-            area_widget.setMinimumSize(160, 90)
-            widget = area_widget
-        dock.setWidget(widget)
-        self.addDockWidget(area, dock)
-        return dock
-
-    def _build_docks(self) -> None:
-        right = Qt.DockWidgetArea.RightDockWidgetArea
-        if self.scene_widget is not None:
-            self.scene_dock = self._dock("3D scene", self.scene_widget, right, "sceneDock")
-        self.matcher_dock = self._dock("Matcher", self.matcher, right, "matcherDock", scroll=True)
-        self.pose_dock = self._dock("Pose", self.pose_editor, right, "poseDock", scroll=True)
-        self.session_dock = self._dock("Session", self.tree, right, "sessionDock")
-        self.tabifyDockWidget(self.matcher_dock, self.pose_dock)
-        self.tabifyDockWidget(self.pose_dock, self.session_dock)
-        self.knee_dock = self._dock("Kinematics", self.knee_panel, right, "kneeDock")
-        self.tabifyDockWidget(self.session_dock, self.knee_dock)
-        self.matcher_dock.raise_()
-        frames = QWidget()
-        row = QHBoxLayout(frames)
-        row.setContentsMargins(0, 0, 0, 0)
-        row.addWidget(self.timeline, 1)
-        self.timeline_legend = TimelineLegend()
-        row.addWidget(self.timeline_legend)
-        self.timeline_dock = self._dock("Frames", frames, Qt.DockWidgetArea.BottomDockWidgetArea, "timelineDock")
-        self.timeline_dock.setFeatures(QDockWidget.DockWidgetFeature.DockWidgetMovable)
-
-    def add_action(self, text: str, slot, shortcut=None, icon: str | None = None, tip: str = "") -> QAction:
-        """An action of this window (its shortcut works anywhere in it, and F1 lists it)."""
-        action = QAction(text, self)
-        if shortcut is not None:
-            action.setShortcut(QKeySequence(shortcut))
-        if icon:
-            action.setIcon(theme.icon(icon))
-        if tip:
-            action.setToolTip(tip)
-            action.setStatusTip(tip)
-        action.triggered.connect(slot)
-        self.addAction(action)
-        return action
-
-    def _build_menus(self) -> None:
-        files, edit, display, model = self.files, self.edit, self.display, self.model
-        tasks, review, knee, help_ = self.tasks, self.review, self.knee, self.help
-        menu = self.menuBar()
-        file_menu = menu.addMenu("&File")
-        file_menu.addAction(files.new_action)
-        file_menu.addAction(files.open_action)
-        file_menu.addMenu(files.recent_menu)
-        file_menu.addAction(files.demo_action)
-        file_menu.addSeparator()
-        file_menu.addAction(files.save_action)
-        file_menu.addAction(files.save_as_action)
-        file_menu.addSeparator()
-        file_menu.addAction(files.calibrate_action)
-        file_menu.addSeparator()
-        file_menu.addAction(knee.export_action)
-        file_menu.addAction(knee.import_poses_action)
-        file_menu.addSeparator()
-        file_menu.addAction(files.quit_action)
-
-        edit_menu = menu.addMenu("&Edit")
-        edit_menu.addAction(edit.undo_action)
-        edit_menu.addAction(edit.redo_action)
-        edit_menu.addSeparator()
-        for tool, *_ in TOOLS:
-            edit_menu.addAction(edit.tool_actions[tool])
-        edit_menu.addSeparator()
-        edit_menu.addAction(edit.clear_outline_action)
-
-        view_menu = menu.addMenu("&View")
-        view_menu.addAction(display.fit_action)
-        view_menu.addAction(display.edges_action)
-        view_menu.addSeparator()
-        for dock in self.findChildren(QDockWidget):
-            view_menu.addAction(dock.toggleViewAction())
-        view_menu.addSeparator()
-        theme_menu = view_menu.addMenu("&Theme")
-        for action in display.theme_actions:
-            theme_menu.addAction(action)
-
-        model_menu = menu.addMenu("&Model")
-        model_menu.addMenu(model.component_menu)
-        model_menu.addAction(review.next_component_action)
-        model_menu.addMenu(model.orient_menu)
-        model_menu.addAction(edit.tool_actions[Tool.PLACE])
-        model_menu.addAction(tasks.find_action)
-
-        match_menu = menu.addMenu("M&atch")
-        for action in (tasks.run_action, tasks.run_both_action, tasks.cancel_action, tasks.track_action,
-                       tasks.track_both_action, review.accept_action, review.unaccept_action):
-            match_menu.addAction(action)
-        match_menu.addSeparator()
-        for action in (review.next_action, review.prev_action, review.first_action, review.last_action):
-            match_menu.addAction(action)
-
-        help_menu = menu.addMenu("&Help")
-        for action in (help_.quick_start_action, help_.shortcuts_action, help_.tour_action):
-            help_menu.addAction(action)
-        help_menu.addSeparator()
-        help_menu.addAction(help_.about_action)
-
-    def _build_toolbar(self) -> None:
-        files, edit, display, tasks = self.files, self.edit, self.display, self.tasks
-        bar = self.addToolBar("Main")
-        bar.setObjectName("mainToolbar")
-        bar.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonIconOnly)
-        bar.addAction(files.open_action)
-        bar.addAction(files.save_action)
-        bar.addSeparator()
-        bar.addWidget(QLabel(" Component "))
-        bar.addWidget(self.model.component_combo)
-        bar.addSeparator()
-        for tool, *_ in TOOLS:
-            bar.addAction(edit.tool_actions[tool])
-        bar.addSeparator()
-        bar.addAction(display.fit_action)
-        bar.addAction(display.edges_action)
-        bar.addWidget(display.low_slider)
-        bar.addWidget(display.high_slider)
-        bar.addSeparator()
-        for action in (tasks.run_action, tasks.run_both_action, tasks.track_both_action, tasks.cancel_action,
-                       self.review.accept_action):
-            bar.addAction(action)
+    def _name_parts(self) -> None:
+        """The built-in parts under the names scripts, benchmarks, the guided tour and the
+        tests use (a new panel needs none: ``widgets.<key>``, ``docks[key]``)."""
+        w, d, p = self.widgets, self.docks, self.presenters
+        self.scene_widget = getattr(w, "scene", None)
+        self.matcher, self.pose_editor, self.tree, self.knee_panel = w.matcher, w.pose, w.session, w.kinematics
+        self.timeline, self.timeline_legend = w.frames.timeline, w.frames.legend
+        self.scene_dock, self.matcher_dock, self.pose_dock = d.get("scene"), d["matcher"], d["pose"]
+        self.session_dock, self.knee_dock, self.timeline_dock = d["session"], d["kinematics"], d["frames"]
+        self.files, self.knee, self.edit, self.display, self.model = p.files, p.knee, p.edit, p.display, p.model
+        self.missing, self.session_view, self.tasks, self.review, self.help = (
+            p.missing, p.session_view, p.tasks, p.review, p.help)
 
     def _build_status_bar(self) -> None:
         self.statusBar().addWidget(self.edit.tool_label, 1)
         self.statusBar().addPermanentWidget(self.cursor_label)
         self.statusBar().addPermanentWidget(self.frame_label)
-
-    def _connect(self) -> None:
-        """What joins the parts: each part wires its own actions and the signals it follows."""
-        c = self.controller
-        c.dirty_changed.connect(lambda dirty: self.setWindowModified(dirty))
-        c.path_changed.connect(lambda _p: self.refresh_title())
-        self.edit.tool_changed.connect(self.model.tool_changed)
-        self.pose_editor.pose_edited.connect(
-            lambda pose: c.session.set_pose(c.component, c.frame, pose, text="Edit pose", mergeable=True))
-        if self.scene_widget is not None:
-            self.scene_widget.pose_dragged.connect(
-                lambda name, pose: c.session.set_pose(name, c.frame, pose, text="Drag model", mergeable=True))
-        self.timeline.frame_selected.connect(c.set_frame)
 
     # -- settings and layout ---------------------------------------------------------------
     def _restore_layout(self) -> None:
@@ -310,7 +152,7 @@ class MainWindow(QMainWindow):
         self.fit_to_screen(first=geometry is None, saved=saved_size(geometry))
         if state is not None:
             self.restoreState(state)
-        elif self.scene_widget is not None:
+        elif "scene" in self.docks and "matcher" in self.docks:
             QTimer.singleShot(0, self._share_right_column)
 
     def fit_to_screen(self, first: bool = False, saved: tuple[int, int] | None = None) -> None:
@@ -344,7 +186,7 @@ class MainWindow(QMainWindow):
     def _share_right_column(self) -> None:
         """First start: the 3D scene takes 40 % of the right column, the tabs the rest."""
         height = max(self.height() - 160, 300)
-        self.resizeDocks([self.scene_dock, self.matcher_dock], [int(height * 0.4), int(height * 0.6)],
+        self.resizeDocks([self.docks["scene"], self.docks["matcher"]], [int(height * 0.4), int(height * 0.6)],
                          Qt.Orientation.Vertical)
 
     def _save_layout(self) -> None:
@@ -367,18 +209,18 @@ class MainWindow(QMainWindow):
         self.setWindowTitle(f"{name}[*] — fluorogui")
         self.setWindowModified(self.controller.dirty)
 
+    @property
+    def last_error(self) -> str:
+        """The text of the last warning or error shown (``Notices.last_error``)."""
+        return self.notices.last_error
+
     def warn(self, title: str, message: str) -> None:
         """A warning dialog; its text stays in the status bar and in ``last_error``."""
-        self.last_error = message
-        self.statusBar().showMessage(message, 10000)
-        QMessageBox.warning(self, title, message)
+        self.notices.warn(title, message)
 
     def ask(self, title: str, question: str) -> bool:
         """A yes / no question (No is the default): True for Yes."""
-        answer = QMessageBox.question(self, title, question,
-                                      QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No,
-                                      QMessageBox.StandardButton.No)
-        return answer == QMessageBox.StandardButton.Yes
+        return self.notices.ask(title, question)
 
     # -- what the app, the crash handler and scripts call ------------------------------------
     def open_project(self, path=None, ask: bool = True, quiet_read_only: bool = False) -> bool:

@@ -1,26 +1,31 @@
 """Showing the session in the main window: the frame on screen (images, outlines, model
-overlays, 3D scene), the pose status of its components, the session tree and the
-timeline, kept in step with the session's events.
+overlays, 3D scene, the pose panel's values) and the pose status of its components, kept
+in step with the session's events.
 
-``SessionView`` belongs to a main window and draws into its panels, 3D scene, timeline,
-session tree and status bar; it reads the session (``controller.session``) and never
-changes it. Frames are frame numbers throughout.
+``SessionView`` is given what it draws into (the image panels, the 3D scene, the matcher
+and pose panels, the status bar's labels) and what it tells (``frame_shown``; a callable
+offering to locate a missing model; ``pose_status_shown``, after which the Accept action
+is judged); it reads the session (``controller.session``) and never changes it. The
+Session and Frames panels have presenters of their own (``actions.session_tree``,
+``actions.frames``). Frames are frame numbers throughout.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from contextlib import contextmanager
+from types import SimpleNamespace
 
-from PySide6.QtCore import QObject, Qt, QTimer
+from PySide6.QtCore import QObject, QTimer, Signal
 from PySide6.QtGui import QColor
-from PySide6.QtWidgets import QTreeWidgetItem
 
 from fluorogui.core.matching.loop import predicted_outline
 from fluorogui.core.outlines.spline import OutlineError
 from fluorogui.gui import jobs
-from fluorogui.gui.panels.matcher_panel import describe_pose
+from fluorogui.gui.notices import Notices
+from fluorogui.gui.panels.matcher_panel import MatcherPanel, describe_pose
 from fluorogui.gui.panels.pixel_value import RawPixels, format_value
+from fluorogui.gui.panels.pose_editor import PoseEditor
 from fluorogui.io.errors import InputError
-from fluorogui.workflow.session import FrameState
 
 COMPONENT_COLOURS = {"femoral": QColor(90, 170, 255), "tibial": QColor(110, 220, 120)}
 
@@ -28,20 +33,30 @@ COMPONENT_COLOURS = {"femoral": QColor(90, 170, 255), "tibial": QColor(110, 220,
 class SessionView(QObject):
     """What a main window shows of the session, kept in step with the controller's signals."""
 
-    def __init__(self, window) -> None:
-        super().__init__(window)
-        self.window = window
-        self.controller = c = window.controller
-        self.panels = window.panels
-        self.scene_widget = window.scene_widget
-        self.matcher = window.matcher
-        self.timeline = window.timeline
-        self.tree = window.tree
+    #: the matcher panel now gives the pose status of the frame on screen
+    pose_status_shown = Signal()
+
+    def __init__(self, controller, panels: list, scene_widget, matcher: MatcherPanel, pose_editor: PoseEditor,
+                 notices: Notices, *, labels: SimpleNamespace, frame_shown, offer_locate: Callable,
+                 is_running: Callable[[], bool]) -> None:
+        """``scene_widget``: the 3D scene (None without one); ``labels``: the status bar's
+        ``cursor`` and ``frame`` labels; ``frame_shown``: the signal emitted (with the frame
+        number) once a frame is on screen; ``offer_locate(component, error)``: offers to
+        find a model file that cannot be loaded; ``is_running``: whether a task runs."""
+        super().__init__(notices.parent_widget)
+        self.controller = c = controller
+        self.panels = panels
+        self.scene_widget = scene_widget
+        self.matcher = matcher
+        self.pose_editor = pose_editor
+        self.notices = notices
+        self.labels = labels
+        self.frame_shown = frame_shown
+        self._offer_locate = offer_locate
+        self._is_running = is_running
         self.raw_pixels = RawPixels()
         self._camera_pending = False
         self._deferred_overlay = False
-        self.tree.itemActivated.connect(self._tree_activated)
-        self.tree.itemClicked.connect(self._tree_activated)
         for panel in self.panels:
             panel.cursor_moved.connect(lambda u, v, value, view=panel.view_index: self.show_cursor(u, v, value, view))
         c.project_replaced.connect(self._project_replaced)
@@ -77,14 +92,9 @@ class SessionView(QObject):
         self.matcher.set_settings(s.settings.match)
         self.matcher.show_summary("")
         self._camera_pending = True
-        self._refresh_tree()
-        self.window.refresh_title()
-        self.timeline.set_frames(s.frames, s.frame_states())
-        for frame in s.frames:
-            self.timeline.set_note(frame, self._frame_note(frame))
         self._component_changed(c.component)
         if missing:  # after the window shows the project: offer to relink each missing model
-            offer = self.window.missing.offer_locate
+            offer = self._offer_locate
             QTimer.singleShot(0, lambda: [offer(name, error) for name, error in missing])
 
     def load_scene_model(self, name: str) -> InputError | None:
@@ -104,36 +114,6 @@ class SessionView(QObject):
             self.scene_widget.scene.set_model(name, vertices, faces, colour)
         return None
 
-    def _refresh_tree(self) -> None:
-        s = self.controller.session
-        self.tree.clear()
-        root = QTreeWidgetItem([s.path.name if s.path else "Untitled session"])
-        views = QTreeWidgetItem(root, ["Views"])
-        for i, v in enumerate(s.views):
-            QTreeWidgetItem(views, [f"View {i + 1}: {v.name or 'calibrated'} ({v.image_size[0]}×{v.image_size[1]})"])
-        models = QTreeWidgetItem(root, ["Components"])
-        for name in s.components():
-            item = QTreeWidgetItem(models, [f"{name}  ({s.project.model(name).mesh_path.name})"])
-            item.setData(0, Qt.ItemDataRole.UserRole, ("component", name))
-        frames = QTreeWidgetItem(root, [f"Frames ({len(s.frames)})"])
-        for f in s.frames[:500]:
-            item = QTreeWidgetItem(frames, [f"Frame {f}"])
-            item.setData(0, Qt.ItemDataRole.UserRole, ("frame", f))
-        self.tree.addTopLevelItem(root)
-        root.setExpanded(True)
-        views.setExpanded(True)
-        models.setExpanded(True)
-
-    def _tree_activated(self, item, _column=0) -> None:
-        data = item.data(0, Qt.ItemDataRole.UserRole)
-        if not data:
-            return
-        kind, value = data
-        if kind == "component":
-            self.controller.set_component(value)
-        elif kind == "frame":
-            self.controller.set_frame(value)
-
     # -- the frame on screen ---------------------------------------------------------------------
     def show_frame(self) -> None:
         """Show the current frame: images, outlines, overlays, pose, pose status."""
@@ -147,8 +127,7 @@ class SessionView(QObject):
                 images.append(s.image(frame, view))
                 self.panels[view].placeholder = ""
             except InputError as exc:
-                self.window.statusBar().showMessage(str(exc), 10000)
-                self.window.last_error = str(exc)
+                self.notices.error(str(exc))
                 images.append(None)
                 if view < len(self.panels):
                     self.panels[view].placeholder = f"No image for frame {frame}:\n{exc}"
@@ -166,9 +145,8 @@ class SessionView(QObject):
             self._camera_pending = False
             self.scene_widget.scene.camera_preset("implant")
         self.show_pose_status()
-        self.timeline.set_current(frame)
-        self.window.frame_label.setText(f"Frame {frame} ({c.frame_index + 1}/{len(s.frames)})")
-        self.window.frame_shown.emit(frame)
+        self.labels.frame.setText(f"Frame {frame} ({c.frame_index + 1}/{len(s.frames)})")
+        self.frame_shown.emit(frame)
 
     def show_rays(self) -> None:
         """Rays in the 3D scene through the active component's image outline."""
@@ -190,8 +168,8 @@ class SessionView(QObject):
             self.scene_widget.scene.set_pose(component, pose)
             self.scene_widget.scene.render()
         if component == c.component:
-            self.window.pose_editor.set_pose(pose)
-            self.window.pose_editor.set_uncertainty(_pose_sd(record))
+            self.pose_editor.set_pose(pose)
+            self.pose_editor.set_uncertainty(_pose_sd(record))
 
     def show_model_outline(self, component: str, pose, outlines=None) -> None:
         c, s = self.controller, self.controller.session
@@ -227,20 +205,10 @@ class SessionView(QObject):
             text, level = describe_pose(name, s.pose_record(name, c.frame))
             lines.append((text, level, name == c.component))
         self.matcher.show_poses(lines)
-        self.window.review.refresh_accept_state()
         record = s.pose_record(c.component, c.frame)
-        if not self.window.runner.is_running():  # a running task draws its own plot
+        if not self._is_running():  # a running task draws its own plot
             self.matcher.plot.set_values(record.match.history if record is not None and record.match else [])
-
-    def _frame_note(self, frame: int) -> str:
-        """Why a frame needs review, for the timeline's tooltip ("" when it does not)."""
-        s = self.controller.session
-        notes = []
-        for name in s.components():
-            record = s.pose_record(name, frame)
-            if record is not None and record.needs_review:
-                notes.append(describe_pose(name, record)[0])
-        return "\n".join(notes)
+        self.pose_status_shown.emit()
 
     # -- keeping in step with the session ----------------------------------------------------------
     def _component_changed(self, name: str) -> None:
@@ -248,10 +216,10 @@ class SessionView(QObject):
         for panel in self.panels:
             panel.set_active_component(name)
         known = name in s.components()
-        self.window.pose_editor.set_component(name if known else None)
+        self.pose_editor.set_component(name if known else None)
         if known and c.frame is not None:
-            self.window.pose_editor.set_pose(s.pose(name, c.frame))
-            self.window.pose_editor.set_uncertainty(_pose_sd(s.pose_record(name, c.frame)))
+            self.pose_editor.set_pose(s.pose(name, c.frame))
+            self.pose_editor.set_uncertainty(_pose_sd(s.pose_record(name, c.frame)))
             self.show_pose_status()
         if self.scene_widget is not None and known:
             self.scene_widget.enable_gizmo(name)
@@ -262,7 +230,6 @@ class SessionView(QObject):
         if frame == c.frame:
             self.show_pose(component)
             self.show_pose_status()
-        self._frame_state_changed(frame)
 
     def _outline_changed(self, key, component: str) -> None:
         c, s = self.controller, self.controller.session
@@ -273,7 +240,6 @@ class SessionView(QObject):
                 self.show_model_outline(component, s.pose(component, frame))
             if component == c.component:
                 self.show_rays()
-        self._frame_state_changed(frame)
 
     @contextmanager
     def one_overlay_refresh(self):
@@ -307,13 +273,7 @@ class SessionView(QObject):
             text = f"{value:.4g}"
         else:
             text = "–"
-        self.window.cursor_label.setText(f"u {u:.1f}  v {v:.1f}  value {text}")
-
-    def _frame_state_changed(self, frame: int) -> None:
-        s = self.controller.session
-        state = s.frame_state(frame)
-        self.timeline.set_state(frame, state)
-        self.timeline.set_note(frame, self._frame_note(frame) if state == FrameState.NEEDS_REVIEW else "")
+        self.labels.cursor.setText(f"u {u:.1f}  v {v:.1f}  value {text}")
 
 
 def _pose_sd(record):

@@ -12,6 +12,7 @@ import pytest
 pytest.importorskip("pytestqt")
 
 import pyvista as pv  # noqa: E402
+from PySide6.QtGui import QAction  # noqa: E402
 
 from fluorogui.core.records import ImageSequence, MatchRecord, ModelEntry, PoseRecord, Project
 from fluorogui.core.status import Status
@@ -60,7 +61,7 @@ def test_frame_signals_carry_frame_numbers(controller, qtbot):
 
 def test_undo_redo_actions_change_the_session(controller, qtbot):
     c, s = controller, controller.session
-    undo = UndoActions(s.history, c)
+    undo = UndoActions(s.history, QAction("&Undo", c), QAction("&Redo", c))
     assert not c.dirty and not undo.undo_action.isEnabled()
     start = s.pose("femoral", 0)
     target = start + np.array([1, 2, 3, 4, 5, 6.0])
@@ -77,7 +78,7 @@ def test_undo_redo_actions_change_the_session(controller, qtbot):
 
 def test_the_undo_actions_follow_the_history_when_it_moves_by_itself(controller):
     c, s = controller, controller.session
-    undo = UndoActions(s.history, c)
+    undo = UndoActions(s.history, QAction("&Undo", c), QAction("&Redo", c))
     modified = []
     c.dirty_changed.connect(modified.append)
     s.set_pose("femoral", 0, np.ones(6))
@@ -98,7 +99,7 @@ def test_the_undo_actions_follow_the_history_when_it_moves_by_itself(controller)
 
 def test_mergeable_nudges_are_one_step_and_macros_one_entry(controller):
     c, s = controller, controller.session
-    undo = UndoActions(s.history, c)
+    undo = UndoActions(s.history, QAction("&Undo", c), QAction("&Redo", c))
     for k in range(4):
         s.set_pose("femoral", 0, np.full(6, float(k)), text="Edit pose", mergeable=True)
     assert len(s.history) == 1 and undo.undo_action.text() == "&Undo Edit pose"
@@ -115,7 +116,7 @@ def test_mergeable_nudges_are_one_step_and_macros_one_entry(controller):
 
 def test_a_panel_edit_is_one_reviewed_step_with_the_panels_own_state(controller):
     c, s = controller, controller.session
-    undo = UndoActions(s.history, c)
+    undo = UndoActions(s.history, QAction("&Undo", c), QAction("&Redo", c))
     erased = []
     key = c.outline_key(1)
     c.apply_edit("Erase edges and 2 points", (key, SQUARE), [(lambda: erased.append(1), lambda: erased.pop())])

@@ -78,20 +78,21 @@ def test_accept_and_unaccept_are_separate_labelled_actions(window, demo):
     window.open_project(demo)
     c, s = window.controller, window.session
     name = c.component
-    assert not window.review.accept_action.isEnabled() and not window.review.unaccept_action.isEnabled()  # only placed
+    accept, unaccept = window.actions_by_id["match.accept"], window.actions_by_id["match.unaccept"]
+    assert not accept.isEnabled() and not unaccept.isEnabled()  # only placed
     assert not window.matcher.accept_button.isEnabled()
     record = s.pose_record(name, 0)
     s.set_record(name, 0, PoseRecord(record.pose, None, status="matched"), "Matched by hand")
-    assert window.review.accept_action.isEnabled() and not window.review.unaccept_action.isEnabled()
+    assert accept.isEnabled() and not unaccept.isEnabled()
     assert window.matcher.accept_button.text() == "Accept"
     assert window.review.accept_pose() and s.pose_record(name, 0).reviewed
     assert window.matcher.accept_button.text() == "Un-accept"
-    assert not window.review.accept_action.isEnabled() and window.review.unaccept_action.isEnabled()
+    assert not accept.isEnabled() and unaccept.isEnabled()
     assert not window.review.accept_pose() and s.pose_record(name, 0).reviewed  # a second Accept is no toggle
     assert "already accepted" in window.statusBar().currentMessage()
     window.matcher.accept_button.click()  # the button now says Un-accept and does it
     assert not s.pose_record(name, 0).reviewed
-    assert window.matcher.accept_button.text() == "Accept" and window.review.accept_action.isEnabled()
+    assert window.matcher.accept_button.text() == "Accept" and accept.isEnabled()
     assert not window.review.unaccept_pose()
 
 
@@ -133,7 +134,7 @@ def test_shortcut_list_is_complete(window):
 def test_about_shows_version_and_log_file(window, monkeypatch):
     shown = []
     monkeypatch.setattr(QMessageBox, "about", lambda parent, title, text: shown.append(text))
-    window.help.about_action.trigger()
+    window.actions_by_id["help.about"].trigger()
     assert __version__ in shown[0] and str(log_file_path()) in shown[0]
 
 
@@ -183,8 +184,8 @@ def test_selected_point_marker_is_cleared_on_another_frame(window, demo):
         angles = np.linspace(0, 2 * np.pi, 40, endpoint=False)
         panel.set_outline(window.controller.component, np.column_stack([200 + 50 * np.cos(angles),
                                                                          200 + 50 * np.sin(angles)]), (0, 0, "x"))
-    panel._selected = 3
-    panel._update_highlight()
+    panel.tools.select(3)
+    panel.tools.update_highlight()
     assert panel.selected_point() == 3
     window.review.step_frame(1)
     assert panel.selected_point() is None

@@ -21,7 +21,7 @@ def test_dock_shows_the_current_frame_and_follows_clicks(window, demo, qtbot):
     window.open_project(demo)
     session = window.session
     put_truth(session)
-    window.knee.refresh_knee()
+    window.presenters.kinematics.refresh_knee()
     panel = window.knee_panel
     row = session.knee_at(window.controller.frame)
     assert panel.value_labels[0].text() == f"{row.values.flexion_deg:.2f}"
@@ -53,7 +53,7 @@ def test_side_is_an_undoable_session_setting(window, demo):
 def test_missing_poses_say_why(window, demo):
     window.open_project(demo)
     window.session.project.poses.clear()
-    window.knee.refresh_knee()
+    window.presenters.kinematics.refresh_knee()
     assert "No kinematics" in window.knee_panel.status.text()
     assert window.knee_panel.value_labels[0].text() == "–"
 
@@ -138,7 +138,7 @@ def test_pose_changes_refresh_the_dock_once_the_burst_is_over(window, demo, qtbo
     for frame, by in session.project.settings["demo_truth"].items():
         for c, pose in by.items():
             session.set_pose(c, int(frame), np.asarray(pose, float))
-    assert window.knee.refresh_timer.isActive()  # one refresh pending, not one per pose
+    assert window.presenters.kinematics.refresh_timer.isActive()  # one refresh pending, not one per pose
     expected = f"{session.knee_at(window.controller.frame).values.flexion_deg:.2f}"
     qtbot.waitUntil(lambda: window.knee_panel.value_labels[0].text() == expected, timeout=3000)
-    assert not window.knee.refresh_timer.isActive()
+    assert not window.presenters.kinematics.refresh_timer.isActive()

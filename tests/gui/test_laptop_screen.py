@@ -156,7 +156,7 @@ def put_truth(session, status=Status.MATCHED):
 def test_kinematics_curves_scroll_at_a_readable_size_or_open_in_a_window(window, demo, qtbot):
     window.open_project(demo)
     put_truth(window.session, Status.PLACED)  # placed, not matched: a long review reason
-    window.knee.refresh_knee()
+    window.presenters.kinematics.refresh_knee()
     panel = window.knee_panel
     panel.setParent(None)  # on its own, at a laptop dock's size
     qtbot.addWidget(panel)

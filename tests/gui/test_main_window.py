@@ -261,9 +261,9 @@ def test_the_menus_actions_ask_as_their_methods_do(window, demo, dialogs, monkey
     window.open_project(demo)
     window.session.set_pose("femoral", window.controller.frame, np.ones(6))  # an unsaved change
     dialogs["answers"].append(QMessageBox.StandardButton.Cancel)
-    window.files.demo_action.trigger()
+    window.actions_by_id["file.demo"].trigger()
     assert dialogs["question"] and window.controller.path == demo and window.controller.dirty
     asked = []
     monkeypatch.setattr(QFileDialog, "getOpenFileName", lambda *a, **k: (asked.append(a[1]), ("", ""))[1])
-    window.knee.import_poses_action.trigger()
+    window.actions_by_id["file.import_poses"].trigger()
     assert asked == ["Import poses"]

@@ -231,7 +231,7 @@ def test_find_implants_can_be_cancelled(window, demo, qtbot, fake_find):
     s = window.controller.session
     fake_find["wait"] = True
     entries = len(s.history)
-    window.runner.progress.connect(lambda _p: window.tasks.cancel_action.trigger())  # Esc
+    window.runner.progress.connect(lambda _p: window.actions_by_id["match.cancel"].trigger())  # Esc
     with qtbot.waitSignal(window.runner.cancelled, timeout=60000):
         assert window.find_implants()
     assert fake_find["seen_cancel"] and len(s.history) == entries

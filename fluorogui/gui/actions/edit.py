@@ -1,15 +1,18 @@
 """The Edit menu of the main window: Undo / Redo (bound to the session's history) with
 the status bar saying what was undone, the image panels' editing tools with the
 status-bar hint of the current one, and clearing the active component's outlines (one
-undoable step)."""
+undoable step). The actions are declared in ``gui.layout.actions`` (the tools from
+``TOOLS``); ``EditActions`` is given the ones it keeps in step."""
 from __future__ import annotations
 
 from PySide6.QtCore import QObject, Signal
-from PySide6.QtGui import QAction, QActionGroup
+from PySide6.QtGui import QAction
 from PySide6.QtWidgets import QLabel
 
 from fluorogui.gui.actions.undo import UndoActions
+from fluorogui.gui.notices import Notices
 from fluorogui.gui.panels.image_items import Tool
+from fluorogui.gui.panels.matcher_panel import MatcherPanel
 
 TOOLS = (  # tool, icon, text, key, what it does
     (Tool.NAVIGATE, "navigate", "Navigate", "N",
@@ -31,43 +34,36 @@ class EditActions(QObject):
 
     tool_changed = Signal(object)  # the Tool now in use
 
-    def __init__(self, window) -> None:
-        super().__init__(window)
-        self.window = window
-        self.controller = window.controller
-        self.history = UndoActions(self.controller.session.history, window)
-        self.undo_action, self.redo_action = self.history.undo_action, self.history.redo_action
-        window.addAction(self.undo_action)  # listed with the window's shortcuts (F1)
-        window.addAction(self.redo_action)
+    def __init__(self, controller, panels: list, matcher: MatcherPanel, notices: Notices, *,
+                 undo_action: QAction, redo_action: QAction, tool_actions: dict[Tool, QAction]) -> None:
+        """``tool_actions``: the action of each tool (checkable, one at a time)."""
+        super().__init__(notices.parent_widget)
+        self.controller = controller
+        self.panels = panels
+        self.matcher = matcher
+        self.notices = notices
+        self.history = UndoActions(self.controller.session.history, undo_action, redo_action)
+        self.undo_action, self.redo_action = undo_action, redo_action
         self.history.stepped.connect(self._stepped)
-        for panel in window.panels:
+        for panel in panels:
             panel.nothing_to_edit.connect(lambda tool, name, view=panel.view_index: self._no_outline(tool, name, view))
         self.tool_label = QLabel("")  # what the current tool does, always in view
         self.tool_label.setObjectName("toolHint")
-        self.tool_group = QActionGroup(window)
-        self.tool_actions: dict[Tool, QAction] = {}
-        for tool, icon_name, text, key, tip in TOOLS:
-            action = window.add_action(text, lambda _=False, t=tool: self.set_tool(t), key, icon_name,
-                                       f"{tip} ({key})")
-            action.setCheckable(True)
-            self.tool_group.addAction(action)
-            self.tool_actions[tool] = action
-        self.tool_actions[Tool.NAVIGATE].setChecked(True)
+        self.tool_actions = tool_actions
         self._show_tool_hint(Tool.NAVIGATE)
-        self.clear_outline_action = window.add_action("Clear outline of the active component", self.clear_outlines)
 
     def _stepped(self, event: str, text: str) -> None:
         """After an undo or redo the status bar says what changed: a task's message there
         ("femoral matched … Ctrl+Return accepts") may no longer hold, nor the matcher's
         account of the last task, which is put away (its pose lines show the state now)."""
         done, other = ("Undone", "Ctrl+Shift+Z redoes it") if event == "undo" else ("Redone", "Ctrl+Z undoes it")
-        self.window.statusBar().showMessage(f"{done}: {text or 'the last step'} ({other})", 10000)
-        self.window.matcher.show_summary("")
+        self.notices.status(f"{done}: {text or 'the last step'} ({other})", 10000)
+        self.matcher.show_summary("")
 
     def _no_outline(self, tool: Tool, component: str, view: int) -> None:
         """An outline tool used where there is no outline to edit: what to do first."""
         text = next(t for tl, _i, t, _k, _h in TOOLS if tl == tool)
-        self.window.statusBar().showMessage(
+        self.notices.status(
             f"{text}: there is no {component} outline in view {view + 1} yet. Match (F5) outlines it from "
             "the image, or Pick contour (P) takes an edge as its outline.", 10000)
 
@@ -76,7 +72,7 @@ class EditActions(QObject):
         self.tool_label.setText(f"{text} ({key}): {tip}")
 
     def set_tool(self, tool: Tool) -> None:
-        for panel in self.window.panels:
+        for panel in self.panels:
             panel.set_tool(tool)
         self.tool_actions[tool].setChecked(True)
         self._show_tool_hint(tool)

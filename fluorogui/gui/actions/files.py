@@ -6,18 +6,21 @@ second app cannot write it at the same time. A file another live program holds i
 opened behind its back: a dialog says who holds it and offers to open it read-only
 (look, and save a copy with Save As).
 
-``SessionFiles`` belongs to a main window; it works through the window's controller,
-settings, status bar and ``warn`` / ``refresh_title``."""
+``SessionFiles`` is given what it works with: the session controller, the task runner,
+the settings, the ``Notices`` it speaks to the user through, and two callables of the
+window (close it; refresh its title). Its actions are declared in ``gui.layout.actions``."""
 from __future__ import annotations
 
 import json
 import os
+from collections.abc import Callable
 from pathlib import Path
 
-from PySide6.QtCore import QObject, QStandardPaths, Qt
-from PySide6.QtGui import QKeySequence
+from PySide6.QtCore import QObject, QSettings, QStandardPaths, Qt
 from PySide6.QtWidgets import QApplication, QFileDialog, QMenu, QMessageBox
 
+from fluorogui.gui.notices import Notices
+from fluorogui.gui.worker import TaskRunner
 from fluorogui.io.errors import InputError, collected_input_warnings
 from fluorogui.io.meshes.read import MESH_SUFFIXES
 from fluorogui.io.project.lock import ProjectLocked
@@ -37,27 +40,18 @@ def app_data_dir() -> Path:
 
 
 class SessionFiles(QObject):
-    """The File menu's actions of a main window and the session's life cycle."""
+    """The File menu's work and the session's life cycle."""
 
-    def __init__(self, window) -> None:
-        super().__init__(window)
-        self.window = window
-        self.controller = window.controller
-        self.settings = window.settings
-        self.runner = window.runner
-        add = window.add_action
-        self.open_action = add("&Open…", lambda: self.open_project(), QKeySequence.StandardKey.Open, "open",
-                               "Open a fluorogui project (Ctrl+O)")
-        self.new_action = add("&New session from images and calibration…", lambda: self.import_session(),
-                              QKeySequence.StandardKey.New)
-        self.demo_action = add("Open the &demo session", lambda: self.open_demo())
-        self.save_action = add("&Save", lambda: self.save(), QKeySequence.StandardKey.Save, "save",
-                               "Save the session (Ctrl+S)")
-        self.save_as_action = add("Save &as…", lambda: self.save_as(), QKeySequence.StandardKey.SaveAs)
-        self.calibrate_action = add("&Calibrate fluoroscope (plate, beads)…", self.calibrate_fluoroscope)
-        self.quit_action = add("&Quit", window.close, QKeySequence.StandardKey.Quit)
-        self.recent_menu = QMenu("Open &recent", window)
-        self.runner.running_changed.connect(self._running_changed)
+    def __init__(self, controller, runner: TaskRunner, settings: QSettings, notices: Notices, *,
+                 close: Callable[[], object], refresh_title: Callable[[], None]) -> None:
+        super().__init__(notices.parent_widget)
+        self.controller = controller
+        self.runner = runner
+        self.settings = settings
+        self.notices = notices
+        self._close = close
+        self._refresh_title = refresh_title
+        self.recent_menu = QMenu("Open &recent", notices.parent_widget)
         # every change of the session's history (an edit, a tracked frame, a find) is kept in
         # the recovery file's journal as it happens: a crash loses at most the change in flight
         self.recovery = RecoveryJournal(self.controller.session, self.recovery_path,
@@ -65,18 +59,17 @@ class SessionFiles(QObject):
                                         failed=self._recovery_failed)
         self.refresh_recent()
 
-    def _running_changed(self, running: bool) -> None:
-        """No other session while a task works on this one."""
-        for action in (self.open_action, self.new_action, self.demo_action):
-            action.setEnabled(not running)
+    def quit(self) -> None:
+        """Close the window (it asks about unsaved changes first)."""
+        self._close()
 
     def calibrate_fluoroscope(self) -> None:
         """The calibration wizard (distortion from plates, geometry from a bead phantom)."""
         from fluorogui.gui.dialogs.calibration_wizard import CalibrationWizard
 
-        wizard = CalibrationWizard(self.window)
+        wizard = CalibrationWizard(self.notices.parent_widget)
         if wizard.exec():
-            self.window.statusBar().showMessage("Wrote " + ", ".join(str(p) for p in wizard.written), 10000)
+            self.notices.status("Wrote " + ", ".join(str(p) for p in wizard.written), 10000)
 
     def recent_files(self) -> list[str]:
         value = self.settings.value("recent", [])
@@ -102,7 +95,7 @@ class SessionFiles(QObject):
         if not self.controller.dirty:
             return True
         answer = QMessageBox.question(
-            self.window, "Unsaved changes", "The session has unsaved changes. Save them first?",
+            self.notices.parent_widget, "Unsaved changes", "The session has unsaved changes. Save them first?",
             QMessageBox.StandardButton.Save | QMessageBox.StandardButton.Discard | QMessageBox.StandardButton.Cancel,
             QMessageBox.StandardButton.Save)
         if answer == QMessageBox.StandardButton.Save:
@@ -115,12 +108,13 @@ class SessionFiles(QObject):
         program holds opens read-only if the user says so (without asking when
         ``quiet_read_only``)."""
         if self.runner.is_running():
-            self.window.statusBar().showMessage("Wait for the running task to end (or cancel it) first", 5000)
+            self.notices.status("Wait for the running task to end (or cancel it) first", 5000)
             return False
         if ask and not self.maybe_save():
             return False
         if path is None:
-            name, _ = QFileDialog.getOpenFileName(self.window, "Open project", str(self._last_dir()), PROJECT_FILTER)
+            name, _ = QFileDialog.getOpenFileName(self.notices.parent_widget, "Open project", str(self._last_dir()),
+                                                  PROJECT_FILTER)
             if not name:
                 return False
             path = name
@@ -135,16 +129,16 @@ class SessionFiles(QObject):
                     read_only = True
                     self.controller.open(path, read_only=True)
             except InputError as exc:
-                self.window.warn("Cannot open project", str(exc))
+                self.notices.warn("Cannot open project", str(exc))
                 return False
             except Exception as exc:  # noqa: BLE001 - a check the loader lacks: one dialog, traceback logged
                 logged = log_exception(f"opening {path}")
-                self.window.warn("Cannot open project", f"{path}: could not be opened ({type(exc).__name__})"
-                           + (f"; details in {logged}" if logged else ""))
+                self.notices.warn("Cannot open project", f"{path}: could not be opened ({type(exc).__name__})"
+                                  + (f"; details in {logged}" if logged else ""))
                 return False
         self._add_recent(Path(path).resolve())
         self.settings.setValue("last_dir", str(Path(path).resolve().parent))
-        self.window.statusBar().showMessage(f"Opened {path}" + (" read-only" if read_only else ""), 5000)
+        self.notices.status(f"Opened {path}" + (" read-only" if read_only else ""), 5000)
         self.tell_input_notes("Opened with notes", notes)
         return True
 
@@ -152,18 +146,18 @@ class SessionFiles(QObject):
         """The inputs just read that were repaired or accepted with a note (``InputWarning``),
         in one dialog; nothing when there were none."""
         if notes:
-            self.window.warn(title, "Read, with these notes:\n" + "\n".join(notes))
+            self.notices.warn(title, "Read, with these notes:\n" + "\n".join(notes))
 
     def _ask_read_only(self, exc: ProjectLocked) -> bool:
         """Tell the user who holds a project; True if they want it read-only anyway."""
-        self.window.last_error = str(exc)
+        self.notices.last_error = str(exc)
         answer = QMessageBox.question(
-            self.window, "Project in use",
+            self.notices.parent_widget, "Project in use",
             f"{exc}.\n\nOpen it read-only? You can look at it and save a copy with Save As, but not save over "
             "the file while the other program has it.",
             QMessageBox.StandardButton.Open | QMessageBox.StandardButton.Cancel, QMessageBox.StandardButton.Cancel)
         if answer != QMessageBox.StandardButton.Open:
-            self.window.statusBar().showMessage(f"Not opened: {exc}", 10000)
+            self.notices.status(f"Not opened: {exc}", 10000)
             return False
         return True
 
@@ -183,20 +177,20 @@ class SessionFiles(QObject):
         if ask and not self.maybe_save():
             return False
         QApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
-        self.window.statusBar().showMessage("Preparing the demo session…")
+        self.notices.status("Preparing the demo session…")
         QApplication.processEvents()
         try:
             path = demo_project_path(app_data_dir() / "demo")
         except (InputError, OSError) as exc:
             QApplication.restoreOverrideCursor()
-            self.window.warn("Cannot build the demo", str(exc))
+            self.notices.warn("Cannot build the demo", str(exc))
             return False
         QApplication.restoreOverrideCursor()
         opened = self.open_project(path, ask=False, quiet_read_only=True)  # another window may show it
         if opened:
             self.controller.project.settings["demo"] = True
-            self.window.refresh_title()
-            self.window.statusBar().showMessage(
+            self._refresh_title()
+            self.notices.status(
                 "Demo session: press F5 to match the femoral component, then Ctrl+Return to accept", 15000)
         return opened
 
@@ -234,7 +228,7 @@ class SessionFiles(QObject):
         c = self.controller
         name = c.path.name if c.path is not None and not c.project.settings.get("demo") else "session.fluoro"
         start = str(self.default_save_dir() / name)
-        name, _ = QFileDialog.getSaveFileName(self.window, "Save project as", start, PROJECT_FILTER)
+        name, _ = QFileDialog.getSaveFileName(self.notices.parent_widget, "Save project as", start, PROJECT_FILTER)
         if not name:
             return False
         if not name.endswith(".fluoro"):
@@ -246,12 +240,12 @@ class SessionFiles(QObject):
         try:
             self.controller.save(path)
         except (InputError, OSError) as exc:
-            self.window.warn("Cannot save project", str(exc))
+            self.notices.warn("Cannot save project", str(exc))
             return False
         self._add_recent(path.resolve())
         self.recovery.discard()
-        self.window.refresh_title()
-        self.window.statusBar().showMessage(f"Saved {path}", 5000)
+        self._refresh_title()
+        self.notices.status(f"Saved {path}", 5000)
         return True
 
     def import_session(self, paths: dict | None = None, folder: Path | None = None) -> bool:
@@ -260,7 +254,7 @@ class SessionFiles(QObject):
 
         if not self.maybe_save():
             return False
-        dialog = ImportDialog(self.window)
+        dialog = ImportDialog(self.notices.parent_widget)
         if folder is not None:
             dialog.fill_from_folder(folder)
         if paths:
@@ -271,7 +265,7 @@ class SessionFiles(QObject):
             return False
         self.controller.set_project(dialog.project, None)
         self.controller.session.history.reset_clean()  # never saved: closing asks
-        self.window.statusBar().showMessage("Imported. Save the session to keep it (Ctrl+S)", 8000)
+        self.notices.status("Imported. Save the session to keep it (Ctrl+S)", 8000)
         self.tell_input_notes("Imported with notes", notes)
         return True
 
@@ -289,11 +283,11 @@ class SessionFiles(QObject):
         except (InputError, OSError) as exc:
             self._recovery_failed(exc)
             return False
-        self.window.statusBar().showMessage("Autosaved for recovery", 3000)
+        self.notices.status("Autosaved for recovery", 3000)
         return True
 
     def _recovery_failed(self, exc: Exception) -> None:
-        self.window.statusBar().showMessage(f"Autosave failed: {exc}", 10000)
+        self.notices.status(f"Autosave failed: {exc}", 10000)
 
     def offer_recovery(self) -> bool:
         """After a crash: offer the autosaved session. True if it was recovered."""
@@ -307,7 +301,7 @@ class SessionFiles(QObject):
             pass
         origin = info.get("origin") or ""
         answer = QMessageBox.question(
-            self.window, "Recover session",
+            self.notices.parent_widget, "Recover session",
             "fluorogui did not close normally. Recover the autosaved session"
             + (f" of {Path(origin).name}" if origin else "") + "?",
             QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, QMessageBox.StandardButton.Yes)
@@ -317,15 +311,15 @@ class SessionFiles(QObject):
         try:
             self.controller.open(path, read_only=True)  # the recovery file is this app's own
         except InputError as exc:
-            self.window.warn("Cannot recover the session", str(exc))
+            self.notices.warn("Cannot recover the session", str(exc))
             return False
         held = self.controller.claim(origin) if origin else ""
         if not origin:
             self.controller.session.path = None
             self.controller.read_only = False
         self.controller.session.history.reset_clean()
-        self.window.refresh_title()
-        self.window.statusBar().showMessage("Recovered; save to keep it" + (
+        self._refresh_title()
+        self.notices.status("Recovered; save to keep it" + (
             f" (read-only: {held}; save a copy with Save As)" if held else ""), 8000)
         return True
 

@@ -2,16 +2,19 @@
 ``fluorogui/resources/quickstart.html``), the complete keyboard and mouse shortcut list,
 and About (version and the log file's path).
 
-``HelpActions`` belongs to a main window; the shortcut list is read from the window's own
-actions, so a new action with a shortcut is listed without editing this file.
+``HelpActions`` is given the widget its dialogs belong to, the window's actions (the
+shortcut list is read from them, so a new action with a shortcut is listed without editing
+this file) and how to start the guided tour. Its actions are declared in
+``gui.layout.actions``.
 """
 from __future__ import annotations
 
 import html
+from collections.abc import Callable
 
 from PySide6.QtCore import QObject, Qt
-from PySide6.QtGui import QKeySequence
-from PySide6.QtWidgets import QDialog, QDialogButtonBox, QMessageBox, QTextBrowser, QVBoxLayout
+from PySide6.QtGui import QAction, QKeySequence
+from PySide6.QtWidgets import QDialog, QDialogButtonBox, QMessageBox, QTextBrowser, QVBoxLayout, QWidget
 
 from fluorogui import __version__
 from fluorogui.logs import log_file_path
@@ -34,26 +37,22 @@ MOUSE_AND_PANEL_KEYS = (
 class HelpActions(QObject):
     """The Help menu's actions of a main window: quick start, shortcuts, the guided tour, About."""
 
-    def __init__(self, window) -> None:
-        super().__init__(window)
-        self.window = window
-        self.quick_start_action = window.add_action("&Quick start", self.show_quick_start,
-                                                    tip="How to outline, place, match, track and export")
-        self.shortcuts_action = window.add_action("&Keyboard shortcuts", self.show_shortcuts, "F1",
-                                                  tip="Every keyboard shortcut and mouse gesture (F1)")
-        self.tour_action = window.add_action("Guided &tour", self.show_tour, tip="A one-minute tour of the window")
-        self.about_action = window.add_action("&About fluorogui", self.show_about,
-                                              tip="Version, log file and data folder")
+    def __init__(self, parent: QWidget, *, window_actions: Callable[[], list[QAction]],
+                 start_tour: Callable[[], object]) -> None:
+        """``window_actions``: the actions of the window, in the order they were added;
+        ``start_tour``: shows the guided tour and returns it."""
+        super().__init__(parent)
+        self.dialog_parent = parent
+        self._window_actions = window_actions
+        self._start_tour = start_tour
 
     def show_tour(self):
-        from fluorogui.gui.dialogs.tour import start_tour
-
-        return start_tour(self.window, force=True)
+        return self._start_tour()
 
     def shortcut_rows(self) -> list[tuple[str, str]]:
         """(what, keys) for every action with a shortcut, then the mouse and panel keys."""
         rows, seen = [], set()
-        for action in self.window.actions():
+        for action in self._window_actions():
             keys = list(dict.fromkeys(k.toString(QKeySequence.SequenceFormat.NativeText)
                                       for k in action.shortcuts() if not k.isEmpty()))  # once each
             name = action.text().replace("&", "").rstrip("…").strip()
@@ -71,7 +70,7 @@ class HelpActions(QObject):
         return f"<table cellspacing='0'>{cells}</table>"
 
     def _html_dialog(self, title: str, body: str, name: str) -> QDialog:
-        dialog = QDialog(self.window)
+        dialog = QDialog(self.dialog_parent)
         dialog.setObjectName(name)
         dialog.setWindowTitle(title)
         browser = QTextBrowser(dialog)
@@ -112,4 +111,4 @@ class HelpActions(QObject):
                 f"Data folder (demo, autosave): <code>{html.escape(str(app_data_dir()))}</code></p>")
 
     def show_about(self) -> None:
-        QMessageBox.about(self.window, "About fluorogui", self.about_text())
+        QMessageBox.about(self.dialog_parent, "About fluorogui", self.about_text())

@@ -1,19 +1,19 @@
-"""The knee actions of the main window: the Kinematics panel kept in step with the session,
-*File → Export…* and *File → Import poses…*, the side and the anatomical frames.
+"""*File → Export…* and *File → Import poses…* of the main window (their actions are
+declared in ``gui.layout.actions``; the Kinematics panel's presenter is ``actions.kinematics``).
 Everything computed or written comes from ``fluorogui.workflow`` (``knee``, ``exports``);
-this only asks the user and shows the result."""
+this only asks the user and shows the result. ``KneeActions`` still works through the
+window (its ``warn``, ``ask``, status bar, settings and ``files``)."""
 from __future__ import annotations
 
 import os
 from pathlib import Path
 
-from PySide6.QtCore import QObject, QStandardPaths, QTimer
+from PySide6.QtCore import QObject, QStandardPaths
 from PySide6.QtWidgets import QDialog, QFileDialog, QInputDialog
 
 from fluorogui.core.knee.kinematics import KinematicsError
 from fluorogui.gui.actions.files import app_data_dir
 from fluorogui.gui.actions.tasks import frame_list
-from fluorogui.gui.dialogs.anatomical_frame import AnatomicalFrameDialog
 from fluorogui.gui.dialogs.export_dialog import TIMED_KINDS, ExportDialog
 from fluorogui.io.errors import InputError, collected_input_warnings
 from fluorogui.workflow import exports
@@ -22,53 +22,17 @@ IMPORT_FILTER = "Poses (*.csv *.tra *.jts);;All files (*)"
 
 
 class KneeActions(QObject):
-    """Export, import of poses and the Kinematics panel (``window.knee_panel``) of a main window."""
+    """Export and import of poses of a main window."""
 
     def __init__(self, window) -> None:
         super().__init__(window)
         self.window = window
-        self.controller = c = window.controller
-        self.panel = panel = window.knee_panel
+        self.controller = window.controller
         self.last_export: list = []
-        self.export_action = window.add_action(
-            "&Export results…", self.export_results, "Ctrl+Shift+E",
-            tip="Write poses, kinematics, Autoscoper .tra, JointTrack .jts or the figure")
-        self.import_poses_action = window.add_action(
-            "&Import poses…", lambda: self.import_poses_file(),
-            tip="Read poses from our CSV, Autoscoper .tra or JointTrack .jts")
-        panel.frame_selected.connect(c.set_frame)
-        panel.side_chosen.connect(lambda side: c.session.set_side(side))
-        panel.export_figure_requested.connect(self.export_figure)
-        panel.edit_frames_requested.connect(self.edit_anatomical_frames)
-        # poses change in bursts (a tracked frame stores two; an import hundreds): recompute
-        # once the burst is over, off the path of the frame the user is looking at
-        self.refresh_timer = QTimer(self)
-        self.refresh_timer.setSingleShot(True)
-        self.refresh_timer.setInterval(250)
-        self.refresh_timer.timeout.connect(self.refresh_knee)
-        c.project_replaced.connect(self.refresh_knee)
-        c.pose_changed.connect(lambda _f, _c: self.refresh_timer.start())
-        c.knee_changed.connect(lambda _what: self.refresh_knee())
-        c.frame_changed.connect(lambda frame: panel.set_current(frame))
 
     @property
     def session(self):
         return self.controller.session
-
-    def refresh_knee(self) -> None:
-        """Recompute the rows from the session (cheap) and hand them to the panel."""
-        session = self.session
-        if not session.frames:
-            self.panel.set_rows([], None)
-            return
-        try:
-            rows = session.knee_rows()
-        except (InputError, KinematicsError, KeyError) as exc:
-            self.panel.set_rows([], None)
-            self.panel.status.setText(f"No kinematics: {exc}")
-            return
-        self.panel.set_side(session.side)
-        self.panel.set_rows(rows, self.controller.frame)
 
     def _export_folder(self) -> Path:
         """Where exports go by default: the project's folder; for an unsaved project (or one
@@ -150,22 +114,6 @@ class KneeActions(QObject):
         self.window.settings.setValue("export_dir", dialog.folder.text())
         self.last_export = written
 
-    def export_figure(self) -> None:
-        if not self.session.frames:
-            return
-        stem = self.session.path.stem if self.session.path else "kinematics"
-        path, _ = QFileDialog.getSaveFileName(self.window, "Save the kinematics figure",
-                                              str(self._export_folder() / f"{stem}_kinematics.png"),
-                                              "PNG (*.png);;SVG (*.svg);;PDF (*.pdf)")
-        if not path:
-            return
-        try:
-            exports.export_plot(self.session, path, self.panel.against.currentData())
-        except (InputError, ValueError) as exc:
-            self.window.warn("Save figure failed", str(exc))
-            return
-        self.window.statusBar().showMessage(f"Saved {path}", 6000)
-
     def import_poses_file(self, path: str | None = None, component: str | None = None,
                           view: int | None = None) -> int:
         session = self.session
@@ -208,25 +156,3 @@ class KneeActions(QObject):
             + (f"; kept {len(kept)} matched or accepted" if kept else ""), 8000)
         self.window.files.tell_input_notes("Imported poses with notes", notes)
         return count
-
-    def edit_anatomical_frames(self, component: str | None = None) -> None:
-        session = self.session
-        names = [c for c in ("femoral", "tibial") if session.project.model(c) is not None]
-        if not names:
-            return
-        if component is None:
-            component = self.controller.component if self.controller.component in names else names[0]
-        try:
-            current = session.anatomical_frame(component)
-            default = session.default_anatomical_frame(component)
-        except (InputError, KinematicsError, KeyError) as exc:
-            self.window.warn("Anatomical frame", str(exc))
-            return
-        dialog = AnatomicalFrameDialog(component, current, default, session.anatomical_frame_source(component),
-                                       self.window)
-        if dialog.exec() != QDialog.DialogCode.Accepted:
-            return
-        if dialog.reset_requested and (abs(dialog.result_matrix - default).max() < 1e-8):
-            session.reset_anatomical_frame(component)
-        else:
-            session.set_anatomical_frame(component, dialog.result_matrix)

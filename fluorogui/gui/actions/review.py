@@ -2,43 +2,41 @@
 frame, the next component (K), and *Accept* / *Un-accept* as two separate actions, each
 enabled only in the state where it applies (never a hidden toggle).
 
-``ReviewActions`` belongs to a main window; it changes the session only through its own
-methods (``Session.set_reviewed``).
+``ReviewActions`` is given the controller, the task runner, the matcher panel (its
+Accept button) and the ``Notices``; it changes the session only through its own methods
+(``Session.set_reviewed``). Its actions are declared in ``gui.layout.actions``; whether
+Accept and Un-accept are enabled is declared there too, from the window's context keys
+this presenter sets (``pose_acceptable``, ``pose_accepted``).
 """
 from __future__ import annotations
 
 from PySide6.QtCore import QObject
 
 from fluorogui.core.status import Status
+from fluorogui.gui.layout.specs import Context
+from fluorogui.gui.notices import Notices
+from fluorogui.gui.panels.matcher_panel import MatcherPanel
+from fluorogui.gui.worker import TaskRunner
 
 
 class ReviewActions(QObject):
     """Frame and component navigation and pose acceptance of a main window."""
 
-    def __init__(self, window) -> None:
-        super().__init__(window)
-        self.window = window
-        self.controller = window.controller
-        self.runner = window.runner
-        add = window.add_action
-        self.accept_action = add("&Accept pose", self.accept_pose, "Ctrl+Return", "accept",
-                                 "Accept the active component's pose in this frame (Ctrl+Return)")
-        self.unaccept_action = add("&Un-accept pose", self.unaccept_pose, "Ctrl+Shift+Return",
-                                   tip="Take back the acceptance of the active component's pose (Ctrl+Shift+Return)")
-        self.next_action = add("&Next frame", lambda: self.step_frame(1), "PgDown")
-        self.prev_action = add("&Previous frame", lambda: self.step_frame(-1), "PgUp")
-        self.first_action = add("&First frame", lambda: self.go_to_end(first=True), "Home")
-        self.last_action = add("&Last frame", lambda: self.go_to_end(first=False), "End")
-        self.next_component_action = add("Next &component", self.cycle_component, "K",
-                                         tip="Make the next component the active one (K)")
-        window.matcher.accept_requested.connect(self.accept_pose)
-        window.matcher.unaccept_requested.connect(self.unaccept_pose)
+    def __init__(self, controller, runner: TaskRunner, matcher: MatcherPanel, notices: Notices,
+                 context: Context) -> None:
+        super().__init__(notices.parent_widget)
+        self.controller = controller
+        self.runner = runner
+        self.matcher = matcher
+        self.notices = notices
+        self.context = context
+        matcher.accept_requested.connect(self.accept_pose)
+        matcher.unaccept_requested.connect(self.unaccept_pose)
         self.runner.running_changed.connect(self._running_changed)
 
     def _running_changed(self, running: bool) -> None:
-        """No deciding on a pose while a task may still change it."""
-        for action in (self.accept_action, self.unaccept_action):
-            action.setEnabled(not running)
+        """No deciding on a pose while a task may still change it (the actions say so by
+        the context's "running"); at its end, what the pose now allows."""
         if not running:
             self.refresh_accept_state()
 
@@ -58,7 +56,7 @@ class ReviewActions(QObject):
             c = self.controller
             i = names.index(c.component) if c.component in names else -1
             c.set_component(names[(i + 1) % len(names)])
-            self.window.statusBar().showMessage(f"Active component: {c.component}", 4000)
+            self.notices.status(f"Active component: {c.component}", 4000)
 
     def accept_pose(self) -> bool:
         """Accept the active component's pose in this frame (flagged or not: the user has
@@ -68,14 +66,14 @@ class ReviewActions(QObject):
             return False
         record = s.pose_record(c.component, c.frame)
         if record is None or (record.match is None and record.status == Status.PLACED):
-            self.window.statusBar().showMessage(f"Match the {c.component} component first (F5); then accept it", 8000)
+            self.notices.status(f"Match the {c.component} component first (F5); then accept it", 8000)
             return False
         if record.reviewed:
-            self.window.statusBar().showMessage(f"The {c.component} pose in frame {c.frame} is already accepted "
-                                         "(Un-accept: Ctrl+Shift+Return)", 8000)
+            self.notices.status(f"The {c.component} pose in frame {c.frame} is already accepted "
+                                "(Un-accept: Ctrl+Shift+Return)", 8000)
             return False
         s.set_reviewed(c.component, c.frame, True)
-        self.window.statusBar().showMessage(f"Accepted the {c.component} pose in frame {c.frame}" + (
+        self.notices.status(f"Accepted the {c.component} pose in frame {c.frame}" + (
             " although it was flagged" if record.needs_review else ""), 8000)
         return True
 
@@ -86,10 +84,10 @@ class ReviewActions(QObject):
             return False
         record = s.pose_record(c.component, c.frame)
         if record is None or not record.reviewed:
-            self.window.statusBar().showMessage(f"The {c.component} pose in frame {c.frame} is not accepted", 8000)
+            self.notices.status(f"The {c.component} pose in frame {c.frame} is not accepted", 8000)
             return False
         s.set_reviewed(c.component, c.frame, False)
-        self.window.statusBar().showMessage(f"Un-accepted the {c.component} pose in frame {c.frame}", 8000)
+        self.notices.status(f"Un-accepted the {c.component} pose in frame {c.frame}", 8000)
         return True
 
     def refresh_accept_state(self) -> None:
@@ -98,6 +96,5 @@ class ReviewActions(QObject):
         record = s.pose_record(c.component, c.frame) if c.frame is not None else None
         can = record is not None and not (record.match is None and record.status == Status.PLACED)
         accepted = bool(record is not None and record.reviewed)
-        self.accept_action.setEnabled(can and not accepted)
-        self.unaccept_action.setEnabled(accepted)
-        self.window.matcher.set_accepted(accepted if can or accepted else None)
+        self.context.set(pose_acceptable=can, pose_accepted=accepted)
+        self.matcher.set_accepted(accepted if can or accepted else None)

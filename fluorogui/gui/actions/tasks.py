@@ -3,10 +3,12 @@ track the following frames (the active component or both) and find the implants,
 worker thread with live overlays, progress and cancel; then storing what comes back
 through the session and saying what happened in plain words.
 
-``MatchControl`` belongs to a main window; it uses the window's controller, runner,
-matcher panel and 3D scene, and its ``SessionView`` to draw live results. The jobs come
-from ``Session.match_job`` / ``find_job`` / ``track_job`` (see ``jobs``): no matching
-loop or tracking rule of its own.
+``MatchControl`` is given the controller, the task runner, the matcher panel it drives
+(the Matcher panel's buttons are its controls), the 3D scene, the ``SessionView`` that
+draws live results, ``MissingFiles`` (a task that cannot start for a missing model offers
+to locate it) and the ``Notices``. Its actions are declared in ``gui.layout.actions``. The
+jobs come from ``Session.match_job`` / ``find_job`` / ``track_job`` (see ``jobs``): no
+matching loop or tracking rule of its own.
 """
 from __future__ import annotations
 
@@ -17,6 +19,9 @@ from PySide6.QtCore import QObject, QTimer
 from fluorogui.core.status import Status
 from fluorogui.gui import jobs
 from fluorogui.gui.eta import Eta, describe
+from fluorogui.gui.notices import Notices
+from fluorogui.gui.panels.matcher_panel import MatcherPanel
+from fluorogui.gui.worker import TaskRunner
 from fluorogui.io.errors import InputError
 from fluorogui.workflow.messages import rim_note, view_count_note
 
@@ -73,15 +78,20 @@ class TrackSummary:
 
 
 class MatchControl(QObject):
-    """The long tasks of a main window: their actions, starting them, and their results."""
+    """The long tasks of a main window: starting them, following them, and their results."""
 
-    def __init__(self, window) -> None:
-        super().__init__(window)
-        self.window = window
-        self.controller = window.controller
-        self.runner = runner = window.runner
-        self.matcher = window.matcher
-        self.scene_widget = window.scene_widget
+    def __init__(self, controller, runner: TaskRunner, matcher: MatcherPanel, scene_widget, session_view,
+                 missing, notices: Notices) -> None:
+        """``scene_widget``: the 3D scene (None without one); ``session_view``: a
+        ``SessionView``; ``missing``: a ``MissingFiles``."""
+        super().__init__(notices.parent_widget)
+        self.controller = controller
+        self.runner = runner
+        self.matcher = matcher
+        self.scene_widget = scene_widget
+        self.session_view = session_view
+        self.missing = missing
+        self.notices = notices
         self.last_cancel_latency: float | None = None
         self._last_live_3d = 0.0
         self._live_components: list[str] = []
@@ -97,20 +107,6 @@ class MatchControl(QObject):
         self._follow_timer.setSingleShot(True)
         self._follow_timer.setInterval(0)
         self._follow_timer.timeout.connect(self._follow)
-        add = window.add_action
-        self.run_action = add("&Match active component", lambda: self.run_match(), "F5", "match",
-                              "Match the active component in this frame (F5)")
-        self.run_both_action = add("Match &both components", lambda: self.match_both(), "Ctrl+F5", "match_both",
-                                   "Match every component in this frame (Ctrl+F5)")
-        self.cancel_action = add("&Cancel", runner.cancel, "Esc", "cancel", "Stop the running task (Esc)")
-        self.cancel_action.setEnabled(False)
-        self.track_action = add("&Track following frames", lambda: self.track_frames(), "Shift+F5",
-                                tip="Track the active component through the following frames (Shift+F5)")
-        self.track_both_action = add("Track &both through following frames", lambda: self.track_both(),
-                                     "Ctrl+Shift+F5", "track_both",
-                                     "Track every component through the following frames (Ctrl+Shift+F5)")
-        self.find_action = add("&Find implants automatically", lambda: self.find_implants(), "Ctrl+F",
-                               tip="Locate every component in this frame's images (Ctrl+F)")
         m = self.matcher
         m.run_requested.connect(lambda: self.run_match())
         m.run_both_requested.connect(lambda: self.match_both())
@@ -136,7 +132,7 @@ class MatchControl(QObject):
         c, s = self.controller, self.controller.session
         if c.frame is None or s.n_views < views or not s.components():
             need = "two views" if views >= 2 else "a calibrated view"
-            self.window.warn(title, f"Open a session with {need} and a model first.")
+            self.notices.warn(title, f"Open a session with {need} and a model first.")
             return False
         return True
 
@@ -157,13 +153,13 @@ class MatchControl(QObject):
         todo = [n for n in names if not ((r := s.pose_record(n, c.frame)) is not None and r.reviewed)]
         if not todo:
             what = "poses are" if len(names) > 1 else f"{names[0]} pose is"
-            self.window.statusBar().showMessage(f"The {what} accepted in frame {c.frame}; Un-accept it "
-                                                "(Ctrl+Shift+Return) to match it again", 10000)
+            self.notices.status(f"The {what} accepted in frame {c.frame}; Un-accept it "
+                                "(Ctrl+Shift+Return) to match it again", 10000)
             return False
         try:
             job = s.match_job(c.frame, todo)
         except (InputError, KeyError, ValueError) as exc:
-            self.window.missing.job_error("Cannot match", exc)
+            self.missing.job_error("Cannot match", exc)
             return False
         self._live_components = todo
         self._task_kind = "match"
@@ -189,12 +185,12 @@ class MatchControl(QObject):
         unmatched = any(not ((r := s.pose_record(n, c.frame)) is not None and r.is_matched) for n in names)
         todo = frames[here:] if unmatched else frames[here + 1:]
         if not todo:
-            self.window.statusBar().showMessage("This is the last frame: no frame follows it to track", 8000)
+            self.notices.status("This is the last frame: no frame follows it to track", 8000)
             return False
         try:
             job = s.track_job(frames=todo, components=names, redo=True)
         except (InputError, KeyError, ValueError) as exc:
-            self.window.missing.job_error("Cannot track", exc)
+            self.missing.job_error("Cannot track", exc)
             return False
         self._track = TrackSummary(todo, names)
         self._live_components = []
@@ -212,17 +208,17 @@ class MatchControl(QObject):
             return False
         c, s = self.controller, self.controller.session
         matched = s.matched_in(c.frame)
-        replace = bool(matched) and self.window.ask(
+        replace = bool(matched) and self.notices.ask(
             "Find implants", f"The {' and '.join(matched)} pose{'s are' if len(matched) > 1 else ' is'} matched or "
             f"accepted in frame {c.frame}. Find {'them' if len(matched) > 1 else 'it'} again and replace "
             f"{'their poses' if len(matched) > 1 else 'its pose'}?")
         if matched and not replace and len(matched) == len(s.components()):
-            self.window.statusBar().showMessage(f"Kept the matched poses of frame {c.frame}", 8000)
+            self.notices.status(f"Kept the matched poses of frame {c.frame}", 8000)
             return False
         try:
             job = s.find_job(c.frame, "both", replace=replace)
         except (InputError, KeyError, ValueError) as exc:
-            self.window.missing.job_error("Cannot search", exc)
+            self.missing.job_error("Cannot search", exc)
             return False
         self._find_kept = [] if replace else matched
         self._find_replace = replace
@@ -233,21 +229,21 @@ class MatchControl(QObject):
         return self.runner.start(jobs.find_task(job), f"Finding the implants in frame {c.frame}")
 
     # -- while it runs -------------------------------------------------------------------------------
+    def cancel(self) -> None:
+        """Stop the running task (it ends at its next check)."""
+        self.runner.cancel()
+
     def _running_changed(self, running: bool) -> None:
         self.matcher.set_running(running)
-        self.cancel_action.setEnabled(running)
-        for a in (self.run_action, self.run_both_action, self.track_action, self.track_both_action,
-                  self.find_action):
-            a.setEnabled(not running)
         if running:
             self.matcher.show_summary("")
-            self.window.statusBar().showMessage(self.runner.label + "…")
+            self.notices.status(self.runner.label + "…")
 
     def _task_progress(self, payload) -> None:
         if isinstance(payload, jobs.LiveUpdate):
             if payload.component == self.controller.component or len(self._live_components) == 1:
                 self.matcher.show_live(payload.calls, payload.objective_mm, payload.history)
-            self.window.session_view.show_model_outline(payload.component, payload.pose, payload.outlines_px)
+            self.session_view.show_model_outline(payload.component, payload.pose, payload.outlines_px)
             now = time.perf_counter()
             if (self.scene_widget is not None and now - self._last_live_3d > LIVE_3D_INTERVAL_S
                     and not self.scene_widget.software_gl
@@ -261,11 +257,11 @@ class MatchControl(QObject):
             left = describe(self._eta.update(payload.fraction)) if self._eta is not None else ""
             text = f"{payload.text}, {left}" if left else payload.text
             self.matcher.show_progress(payload.fraction, text)
-            self.window.statusBar().showMessage(f"{self.runner.label}: {text} (Esc cancels)")
+            self.notices.status(f"{self.runner.label}: {text} (Esc cancels)")
 
     def _store(self, results, text: str | None = None) -> None:
         """Results into the session (one undoable step), with one overlay refresh."""
-        with self.window.session_view.one_overlay_refresh():
+        with self.session_view.one_overlay_refresh():
             self.controller.session.store(results, text)
 
     def _task_item(self, payload) -> None:
@@ -281,8 +277,8 @@ class MatchControl(QObject):
         shown = next((r for r in payload.results if r.component == self.controller.component), payload.results[0])
         self._track_history = shown.match.history if shown.match is not None else []
         following = f"; now frame {payload.next_frame}" if payload.next_frame is not None else ""
-        self.window.statusBar().showMessage(f"{self.runner.label}: frame {payload.frame} done ({payload.done}/"
-                                            f"{payload.total}{following}) — {self._track.counts()}")
+        self.notices.status(f"{self.runner.label}: frame {payload.frame} done ({payload.done}/"
+                            f"{payload.total}{following}) — {self._track.counts()}")
 
     def _follow(self) -> None:
         frame, self._follow_frame = self._follow_frame, None
@@ -307,7 +303,7 @@ class MatchControl(QObject):
             text = f"Find implants in frame {frame}: {text}." + (
                 " Press Ctrl+F5 to match both." if found else " Place the models by hand (Place model, C).")
             self.matcher.show_summary(text)
-            self.window.statusBar().showMessage(text, 20000)
+            self.notices.status(text, 20000)
         self._live_components = []
 
     def show_results(self, results) -> None:
@@ -316,7 +312,7 @@ class MatchControl(QObject):
         shown = next((r for r in results if r.component == c.component), results[0] if results else None)
         if shown is not None and shown.match is not None:
             self.matcher.plot.set_values(shown.match.history)
-        self.window.session_view.show_pose_status()
+        self.session_view.show_pose_status()
         parts = []
         for r in results:
             took = f" in {r.seconds:.1f} s" if r.seconds else ""
@@ -336,7 +332,7 @@ class MatchControl(QObject):
         if note:
             text += f" Note: {note}."
         self.matcher.show_summary(text)
-        self.window.statusBar().showMessage(text, 20000)
+        self.notices.status(text, 20000)
 
     def _end_tracking(self, ending: str = "") -> None:
         track, self._track = self._track, None
@@ -353,13 +349,13 @@ class MatchControl(QObject):
             self.controller.set_frame(flagged[0])
         text = track.text(ending)
         self.matcher.show_summary(text)
-        self.window.statusBar().showMessage(text, 30000)
+        self.notices.status(text, 30000)
 
     def _task_cancelled(self) -> None:
         latency = (time.perf_counter() - self.runner.cancel_requested_at) if self.runner.cancel_requested_at else None
         self.last_cancel_latency = latency
         for name in self._live_components:
-            self.window.session_view.show_pose(name)  # back to the stored pose
+            self.session_view.show_pose(name)  # back to the stored pose
         self._live_components = []
         if self._task_kind == "track":
             self._end_tracking("Cancelled: the frames tracked so far are kept (Ctrl+Z undoes them frame by frame); "
@@ -369,12 +365,12 @@ class MatchControl(QObject):
                 else "Cancelled; the poses are unchanged")
         self.matcher.show_message(text)
         self.matcher.show_summary(text)
-        self.window.statusBar().showMessage(text, 8000)
+        self.notices.status(text, 8000)
 
     def _task_failed(self, message: str) -> None:
         for name in self._live_components:
-            self.window.session_view.show_pose(name)
+            self.session_view.show_pose(name)
         self._live_components = []
         if self._task_kind == "track":
             self._end_tracking(f"Stopped: {message}")
-        self.window.warn("The task failed", message)
+        self.notices.warn("The task failed", message)

@@ -1,46 +1,34 @@
 """Undo and Redo bound to the session's own history (``fluorogui.workflow.history``).
 
-There is no second stack: the actions call ``history.undo()`` / ``history.redo()``, and
-their enabled state and texts ("Undo Match femoral") follow the history's listener events
-(push, merge, undo, redo, clear, clean), whoever moved it - the user, a script or a test.
-The window's modified flag follows the same events through the controller's
-``dirty_changed``.
-
-Their keys are the platform's standard ones plus those users bring from elsewhere
-(Ctrl+Shift+Z, which the guides give, and Ctrl+Y for Redo), each bound once: the same
-key bound twice to one action is an ambiguous shortcut, which Qt ignores.
+There is no second stack: the actions (declared in ``gui.layout.actions``, with their
+keys, and given to ``UndoActions``) call ``history.undo()`` / ``history.redo()``, and their enabled state and texts
+("Undo Match femoral") follow the history's listener events (push, merge, undo, redo,
+clear, clean), whoever moved it - the user, a script or a test. The window's modified
+flag follows the same events through the controller's ``dirty_changed``.
 """
 from __future__ import annotations
 
 from PySide6.QtCore import QObject, Signal
-from PySide6.QtGui import QAction, QKeySequence
+from PySide6.QtGui import QAction
 
 from fluorogui.workflow.events import HistoryEvent
 from fluorogui.workflow.history import CommandStack
 
 
-def standard_keys(standard: QKeySequence.StandardKey, *extra: str) -> list[QKeySequence]:
-    """``extra`` keys first, then the platform's bindings of ``standard``, each once."""
-    keys = [QKeySequence(k) for k in extra] + list(QKeySequence.keyBindings(standard))
-    unique = dict.fromkeys(k.toString(QKeySequence.SequenceFormat.PortableText) for k in keys if not k.isEmpty())
-    return [QKeySequence(k) for k in unique]
-
-
 class UndoActions(QObject):
-    """The Undo and Redo actions of one history."""
+    """The Undo and Redo actions of one history, kept in step with it."""
 
     #: a step was undone or redone, by anyone: ("undo" or "redo", the step's text)
     stepped = Signal(str, str)
 
-    def __init__(self, history: CommandStack, parent: QObject) -> None:
-        super().__init__(parent)
+    def __init__(self, history: CommandStack, undo_action: QAction, redo_action: QAction) -> None:
+        """The actions' texts now ("&Undo", "&Redo") are the prefixes of the step's text."""
+        super().__init__(undo_action)
         self.history = history
-        self.undo_action = QAction("&Undo", parent)
-        self.undo_action.setShortcuts(standard_keys(QKeySequence.StandardKey.Undo, "Ctrl+Z"))
-        self.undo_action.triggered.connect(lambda: self.history.undo())
-        self.redo_action = QAction("&Redo", parent)
-        self.redo_action.setShortcuts(standard_keys(QKeySequence.StandardKey.Redo, "Ctrl+Shift+Z", "Ctrl+Y"))
-        self.redo_action.triggered.connect(lambda: self.history.redo())
+        self.undo_action, self.redo_action = undo_action, redo_action
+        self._prefixes = (undo_action.text(), redo_action.text())
+        undo_action.triggered.connect(lambda: self.history.undo())
+        redo_action.triggered.connect(lambda: self.history.redo())
         history.listeners.append(self._heard)
         self.refresh()
 
@@ -56,8 +44,8 @@ class UndoActions(QObject):
 
     def refresh(self) -> None:
         """Enabled state and texts from the history as it is now."""
-        history = self.history
-        for action, prefix, can, text in ((self.undo_action, "&Undo", history.can_undo(), history.undo_text()),
-                                          (self.redo_action, "&Redo", history.can_redo(), history.redo_text())):
+        history, (undo, redo) = self.history, self._prefixes
+        for action, prefix, can, text in ((self.undo_action, undo, history.can_undo(), history.undo_text()),
+                                          (self.redo_action, redo, history.can_redo(), history.redo_text())):
             action.setEnabled(can)
             action.setText(f"{prefix} {text}" if can and text else prefix)

@@ -1,9 +1,11 @@
 """The View menu of the main window: fit the images, show the edges with their two Canny
-thresholds (toolbar sliders, remembered in the settings) and the theme."""
+thresholds (toolbar sliders, remembered in the settings) and the theme. The actions are
+declared in ``gui.layout.actions``; ``ViewActions`` is given the checkable ones it keeps
+in step and makes the sliders the toolbar shows."""
 from __future__ import annotations
 
-from PySide6.QtCore import QObject, Qt
-from PySide6.QtGui import QAction, QActionGroup
+from PySide6.QtCore import QObject, QSettings, Qt
+from PySide6.QtGui import QAction
 from PySide6.QtWidgets import QApplication, QSlider
 
 from fluorogui.gui import theme
@@ -17,15 +19,13 @@ CANNY_SLIDERS = (  # settings key, default (%), tooltip
 class ViewActions(QObject):
     """How a main window's images look: fit, edges and their thresholds, the theme."""
 
-    def __init__(self, window) -> None:
-        super().__init__(window)
-        self.window = window
-        self.settings = window.settings
-        self.fit_action = window.add_action("&Fit images", self.fit_images, "F", "fit",
-                                            "Fit both images to their panels")
-        self.edges_action = window.add_action("Show &edges", self.toggle_edges, "Ctrl+E", "edges",
-                                              "Show Canny edges (thresholds on the toolbar)")
-        self.edges_action.setCheckable(True)
+    def __init__(self, settings: QSettings, panels: list, *, edges_action: QAction,
+                 theme_actions: dict[str, QAction]) -> None:
+        """``edges_action``: *Show edges* (checkable); ``theme_actions``: one per theme name."""
+        super().__init__(edges_action)
+        self.settings = settings
+        self.panels = panels
+        self.edges_action = edges_action
         sliders = []
         for key, value, tip in CANNY_SLIDERS:
             slider = QSlider(Qt.Orientation.Horizontal)
@@ -36,25 +36,19 @@ class ViewActions(QObject):
             slider.valueChanged.connect(self._thresholds_changed)
             sliders.append(slider)
         self.low_slider, self.high_slider = sliders
-        self.theme_group = QActionGroup(window)
-        self.theme_actions: list[QAction] = []
-        for name in theme.THEMES:
-            action = QAction(name.capitalize(), window, checkable=True)
-            action.triggered.connect(lambda _=False, n=name: self.set_theme(n))
-            self.theme_group.addAction(action)
-            self.theme_actions.append(action)
+        for name, action in theme_actions.items():
             if name == self.settings.value("theme", "system"):
                 action.setChecked(True)
 
     def fit_images(self) -> None:
-        for panel in self.window.panels:
+        for panel in self.panels:
             panel.fit()
 
     def toggle_edges(self, on: bool | None = None) -> None:
         on = self.edges_action.isChecked() if on is None else on
         self.edges_action.setChecked(on)
         self._thresholds_changed()
-        for panel in self.window.panels:
+        for panel in self.panels:
             panel.set_edges_visible(on)
 
     def _thresholds_changed(self, _value=None) -> None:
@@ -62,7 +56,7 @@ class ViewActions(QObject):
         if low > high:
             low, high = high, low
         if self.edges_action.isChecked():
-            for panel in self.window.panels:
+            for panel in self.panels:
                 panel.set_canny_thresholds(low, high)
 
     def save_settings(self) -> None:

@@ -1,14 +1,18 @@
 """A component whose mesh file is missing or unreadable: a dialog says so and offers
 *Locate…* to point the session at the file where it is now (``Session.relink_mesh``, one
 undoable step). Its stale 3D model and overlays are cleared by ``SessionView``.
+``MissingFiles`` is given the controller, the ``Notices`` and where file dialogs start when
+the missing file's folder is gone.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 from PySide6.QtCore import QObject
 from PySide6.QtWidgets import QFileDialog, QMessageBox
 
+from fluorogui.gui.notices import Notices
 from fluorogui.io.errors import InputError
 from fluorogui.io.meshes.read import MESH_SUFFIXES
 
@@ -18,25 +22,25 @@ MESH_FILTER = f"Surface models ({' '.join('*' + s for s in sorted(MESH_SUFFIXES)
 class MissingFiles(QObject):
     """Asking a main window's user where a missing model file is now."""
 
-    def __init__(self, window) -> None:
-        super().__init__(window)
-        self.window = window
-        self.controller = window.controller
+    def __init__(self, controller, notices: Notices, *, default_dir: Callable[[], Path]) -> None:
+        super().__init__(notices.parent_widget)
+        self.controller = controller
+        self.notices = notices
+        self._default_dir = default_dir
 
     def offer_locate(self, name: str, error: InputError) -> bool:
         """Say a component's model cannot be loaded and offer *Locate…*; True if relinked."""
-        window = self.window
-        window.last_error = str(error)
-        window.statusBar().showMessage(str(error), 10000)
+        self.notices.error(str(error))
+        parent = self.notices.parent_widget
         box = QMessageBox(QMessageBox.Icon.Warning, "Model file not found",
                           f"The {name} model cannot be loaded:\n{error}\n\nLocate the file where it is now?",
-                          QMessageBox.StandardButton.Cancel, window)
+                          QMessageBox.StandardButton.Cancel, parent)
         locate = box.addButton("Locate…", QMessageBox.ButtonRole.AcceptRole)
         box.setDefaultButton(locate)
         if self.ask(box) is not locate:
             return False
-        start = str(Path(error.path).parent if Path(error.path).parent.is_dir() else window.files.default_save_dir())
-        path, _ = QFileDialog.getOpenFileName(window, f"Locate the {name} model", start, MESH_FILTER)
+        start = str(Path(error.path).parent if Path(error.path).parent.is_dir() else self._default_dir())
+        path, _ = QFileDialog.getOpenFileName(parent, f"Locate the {name} model", start, MESH_FILTER)
         return bool(path) and self.relink_model(name, path)
 
     def ask(self, box: QMessageBox):
@@ -48,9 +52,9 @@ class MissingFiles(QObject):
         try:
             self.controller.session.relink_mesh(name, path)
         except InputError as exc:
-            self.window.warn("Cannot use this model", str(exc))
+            self.notices.warn("Cannot use this model", str(exc))
             return False
-        self.window.statusBar().showMessage(f"The {name} model is now {path}", 8000)
+        self.notices.status(f"The {name} model is now {path}", 8000)
         return True
 
     def job_error(self, title: str, exc: Exception) -> None:
@@ -60,4 +64,4 @@ class MissingFiles(QObject):
                 if Path(exc.path) == Path(entry.mesh_path):
                     self.offer_locate(entry.component, exc)
                     return
-        self.window.warn(title, str(exc).strip("'\""))
+        self.notices.warn(title, str(exc).strip("'\""))

@@ -69,17 +69,19 @@ def distance_colours(distances) -> np.ndarray:
 
 
 def guarded(handler):
-    """Event handler wrapper: an error abandons the gesture and goes to sys.excepthook
-    instead of unwinding through Qt's event dispatch (which is not exception-safe)."""
+    """Event handler wrapper (of an object with a ``_drag``): an error abandons the gesture
+    and goes to sys.excepthook instead of unwinding through Qt's event dispatch (which is
+    not exception-safe). Returns what the handler returns, True (handled) after an error."""
 
     @functools.wraps(handler)
     def wrapper(self, event):
         try:
-            handler(self, event)
+            return handler(self, event)
         except Exception:  # noqa: BLE001 (reported, not hidden)
             self._drag = None
             event.accept()
             sys.excepthook(*sys.exc_info())
+            return True
 
     return wrapper
 

@@ -7,6 +7,10 @@ outline is drawn at its own (u, v). The geometry of every edit lives in
 ``fluorogui.core.outlines.editing``; this widget turns mouse gestures into those calls and
 every outline or edge edit into one undoable step.
 
+The panel is a ``QGraphicsView`` that owns two plain objects: its ``EdgeLayer`` (``edges``:
+the Canny edges and the erased pixels) and its ``PanelInteraction`` (``tools``: the mouse
+and keyboard gestures), which uses the panel only through ``PanelSurface``.
+
 In the app an edit goes to ``edit_sink(text, (key, points) or None, steps)``: the session
 stores the outline under the *key* it was made for (frame, view, component), so undoing
 after the panel has moved on to another frame changes the right outline, and the panel
@@ -32,16 +36,13 @@ from PySide6.QtGui import (
 )
 from PySide6.QtWidgets import (
     QFrame,
-    QGraphicsEllipseItem,
     QGraphicsItem,
-    QGraphicsPathItem,
     QGraphicsPixmapItem,
     QGraphicsScene,
     QGraphicsView,
 )
 
 from fluorogui.core.outlines import editing as oe
-from fluorogui.core.outlines.edges import DEFAULT_HIGH, DEFAULT_LOW
 from fluorogui.core.outlines.spline import OutlineSpline
 from fluorogui.gui.panels.image_edges import EdgeLayer
 from fluorogui.gui.panels.image_items import (
@@ -49,14 +50,13 @@ from fluorogui.gui.panels.image_items import (
     DEFAULT_COLOURS,
     EXTRA_COLOURS,
     FLAGGED_COLOUR,
-    HIGHLIGHT,
     MAX_SCALE,
     MIN_SCALE,
     PICK_TOLERANCE_PX,
     AnonymousImage,
     ComponentItems,
     CrossItem,
-    DotsItem,
+    EditCommand,
     Tool,
     add_spline_runs,
     cosmetic_pen,
@@ -69,7 +69,7 @@ from fluorogui.gui.panels.image_tools import PanelInteraction
 
 
 # -- the panel ------------------------------------------------------------------------------------------
-class ImagePanel(PanelInteraction, EdgeLayer, QGraphicsView):
+class ImagePanel(QGraphicsView):
     """Zoomable image view of one fluoroscope with edges, outlines and outline tools."""
 
     window_level_changed = Signal(float, float)
@@ -122,53 +122,21 @@ class ImagePanel(PanelInteraction, EdgeLayer, QGraphicsView):
         self._image_item.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
         self._scene.addItem(self._image_item)
 
-        # edges
-        self._edges_visible = False
-        self._thresholds = (DEFAULT_LOW, DEFAULT_HIGH)
-        self._canny: np.ndarray | None = None
-        self._contours: list[np.ndarray] | None = None
-        self._erased: dict[object, np.ndarray] = {}
-        self._edge_item = QGraphicsPixmapItem()
-        self._edge_item.setOffset(-0.5, -0.5)
-        self._edge_item.setZValue(1)
-        self._edge_item.setVisible(False)
-        self._edge_item.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
-        self._scene.addItem(self._edge_item)
-
         # outlines
         self._components: dict[str, ComponentItems] = {}
         self._active: str | None = None
-        self._selected: int | None = None
-        self._gap_first: int | None = None
-        self._highlight = DotsItem(12.0, HIGHLIGHT, halo=True)
-        self._highlight.setZValue(4.5)
-        self._scene.addItem(self._highlight)
 
-        # tool feedback
-        self._tool = Tool.NAVIGATE
-        self._brush_radius = 6.0
-        self._brush = QGraphicsEllipseItem()
-        self._brush.setPen(cosmetic_pen(QColor(255, 255, 255, 220), 1.2, Qt.PenStyle.DashLine))
-        self._brush.setBrush(QColor(255, 255, 255, 30))
-        self._brush.setZValue(11)
-        self._brush.setVisible(False)
-        self._scene.addItem(self._brush)
-        self._lasso_item = QGraphicsPathItem()
-        self._lasso_item.setPen(cosmetic_pen(QColor(255, 255, 255, 230), 1.2, Qt.PenStyle.DashLine))
-        self._lasso_item.setBrush(QColor(255, 80, 80, 45))
-        self._lasso_item.setZValue(10)
-        self._scene.addItem(self._lasso_item)
+        #: the Canny edges and erased pixels of the image; the mouse and keyboard gestures
+        self.edges = EdgeLayer(self._scene, self.viewport().update)
+        self.tools = PanelInteraction(self, self._scene, self.edges)
         self._place = CrossItem()
         self._place.setZValue(12)
         self._place.setVisible(False)
         self._scene.addItem(self._place)
 
-        self._drag: dict | None = None
-        self._cursor_scene: QPointF | None = None
         self._fitted = True
         self._image_rect = QRectF(-0.5, -0.5, 512, 512)
         self._scene.setSceneRect(self._image_rect.adjusted(-1024, -1024, 1024, 1024))
-        self._update_cursor_shape()
 
     def set_title(self, title: str) -> None:
         """The label drawn in the top-left corner (default "View <view_index + 1>")."""
@@ -181,14 +149,12 @@ class ImagePanel(PanelInteraction, EdgeLayer, QGraphicsView):
         """Show a 2-D image of any dtype (None clears it), windowed automatically from its
         1st and 99.5th percentiles. ``key`` (hashable) names the image so its erased-edge
         mask is kept while other images are shown."""
-        self._cancel_interaction()
-        self._canny = None
-        self._contours = None
+        self.tools.cancel()
         if image is None:
             self._image = self._index = self._index_values = None
             self._image_key = None
             self._image_item.setPixmap(QPixmap())
-            self._edge_item.setPixmap(QPixmap())
+            self.edges.show_image(None)
             self.viewport().update()
             return
         arr = np.asarray(image)
@@ -197,8 +163,7 @@ class ImagePanel(PanelInteraction, EdgeLayer, QGraphicsView):
         old_shape = None if self._image is None else self._image.shape
         self._image = arr
         if key is None:
-            for stale in [k for k in self._erased if isinstance(k, AnonymousImage)]:
-                del self._erased[stale]
+            self.edges.forget([k for k in self.edges.erased_keys() if isinstance(k, AnonymousImage)])
             key = AnonymousImage()
         self._image_key = key
         self._index, self._index_values = quantise(arr)
@@ -216,14 +181,14 @@ class ImagePanel(PanelInteraction, EdgeLayer, QGraphicsView):
         self._window, self._level = float(hi - lo), float(lo + hi) / 2.0
         self._render_image()
         self.window_level_changed.emit(self._window, self._level)
-        self._refresh_edges()
+        self.edges.show_image(arr, key)
         if old_shape != arr.shape:
             self.fit()
 
     def forget_images(self) -> None:
         """Another session: drop the image, the edges erased in any image and the zoom, so
         the next image is shown whole (an image of the same size used to keep the zoom)."""
-        self._erased.clear()
+        self.edges.forget()
         self.set_image(None)
 
     def image(self) -> np.ndarray | None:
@@ -290,7 +255,7 @@ class ImagePanel(PanelInteraction, EdgeLayer, QGraphicsView):
         factor = float(np.clip(scale * factor, MIN_SCALE, MAX_SCALE) / scale)
         if factor == 1.0:
             return
-        anchor = self._to_scene(viewport_pos)
+        anchor = self.to_scene(viewport_pos)
         self.scale(factor, factor)
         moved = self.viewportTransform().map(anchor) - viewport_pos
         self.horizontalScrollBar().setValue(self.horizontalScrollBar().value() + round(moved.x()))
@@ -298,7 +263,8 @@ class ImagePanel(PanelInteraction, EdgeLayer, QGraphicsView):
         self._fitted = False
         self._after_transform()
 
-    def _pan(self, dx: float, dy: float) -> None:
+    def pan(self, dx: float, dy: float) -> None:
+        """Move the view by (dx, dy) screen pixels (a drag)."""
         self.horizontalScrollBar().setValue(self.horizontalScrollBar().value() - round(dx))
         self.verticalScrollBar().setValue(self.verticalScrollBar().value() - round(dy))
         self._fitted = False
@@ -308,18 +274,18 @@ class ImagePanel(PanelInteraction, EdgeLayer, QGraphicsView):
         for comp in self._components.values():
             comp.dots.set_pixel_scale(scale)
             comp.model_dots.set_pixel_scale(scale)
-        self._highlight.set_pixel_scale(scale)
+        self.tools.set_pixel_scale(scale)
         mode = Qt.TransformationMode.SmoothTransformation if scale < 1.0 else Qt.TransformationMode.FastTransformation
         self._image_item.setTransformationMode(mode)
-        self._edge_item.setTransformationMode(mode)
+        self.edges.set_transformation_mode(mode)
         self.viewport().update()
 
-    def _to_scene(self, pos) -> QPointF:
+    def to_scene(self, pos) -> QPointF:
         """Scene point (u, v) under a viewport position, at sub-pixel precision."""
         inverse, _ = self.viewportTransform().inverted()
         return inverse.map(QPointF(pos))
 
-    def _tolerance(self) -> float:
+    def tolerance(self) -> float:
         """The click tolerance in image pixels."""
         return self.pick_tolerance_px / max(self.scale_factor(), 1e-6)
 
@@ -349,14 +315,14 @@ class ImagePanel(PanelInteraction, EdgeLayer, QGraphicsView):
 
     def set_active_component(self, component: str | None) -> None:
         """The component whose outline the tools edit (None: no editing)."""
-        self._cancel_interaction()
-        self._selected = None
+        self.tools.cancel()
+        self.tools.select(None)
         self._active = component
         if component is not None:
             self._component(component)
         for name in self._components:
             self._style_component(name)
-        self._update_highlight()
+        self.tools.update_highlight()
         self.viewport().update()
 
     def active_component(self) -> str | None:
@@ -387,22 +353,15 @@ class ImagePanel(PanelInteraction, EdgeLayer, QGraphicsView):
         """Show a component's outline (closed, (K, 2) of (u, v); None or empty clears it)
         with its spline; ``key`` names the outline (it is handed back to ``edit_sink``)."""
         comp = self._component(component)
-        if key != comp.key and component == self._active:  # another frame's outline: no stale marker
-            self._selected = self._gap_first = None
+        other = key != comp.key and component == self._active  # another frame's outline: no stale marker
         comp.key = key
         if self._active is None:
             self._active = component
             self._style_component(component)
-        if self._drag is not None and self._drag.get("component") == component:
-            self._cancel_interaction()
-        self._display_outline(component, points)
+        self.tools.leave_outline(component, forget_marks=other)
+        self.display_outline(component, points)
         if component == self._active:
-            n = 0 if comp.points is None else len(comp.points)
-            if self._selected is not None and self._selected >= n:
-                self._selected = None
-            if self._gap_first is not None and self._gap_first >= n:
-                self._gap_first = None
-            self._update_highlight()
+            self.tools.clamp_marks(0 if comp.points is None else len(comp.points))
 
     def outline(self, component: str) -> np.ndarray | None:
         """The outline shown for a component (a copy), None if there is none."""
@@ -418,7 +377,7 @@ class ImagePanel(PanelInteraction, EdgeLayer, QGraphicsView):
         comp = self._components.get(component)
         return bool(comp is not None and comp.spline_ok)
 
-    def _display_outline(self, component: str, points) -> None:
+    def display_outline(self, component: str, points) -> None:
         """Draw an outline (points and spline) without touching its key."""
         comp = self._component(component)
         pts = None if points is None else oe.as_points(points)
@@ -446,6 +405,34 @@ class ImagePanel(PanelInteraction, EdgeLayer, QGraphicsView):
         comp.gap_line.setPath(gap_path)
         self._style_component(component)
         self.viewport().update()
+
+    # -- recording edits -----------------------------------------------------------------------------------
+    def record_edit(self, text: str, component: str | None = None, before=None, after=None, steps=()) -> None:
+        """One undoable edit: ``component``'s outline from ``before`` to ``after`` (when a
+        component is given) together with ``steps``, (do, undo) pairs of the panel's own
+        state (erased edges). It goes to ``edit_sink`` when there is one (the app: the
+        session stores the outline and the panel shows it when told), else onto the
+        panel's own ``undo_stack``."""
+        steps = list(steps)
+        key = None
+        if component is not None:
+            key = self._components[component].key
+            before = None if before is None or len(before) == 0 else oe.as_points(before)
+            after = None if after is None or len(after) == 0 else oe.as_points(after)
+        if self.edit_sink is not None and (component is None or key is not None):
+            self.edit_sink(text, None if component is None else (key, after), steps)
+            if component is not None:
+                self.outline_edited.emit(key, component)
+            return
+        if component is not None:
+            steps.append((lambda: self._apply_outline(key, component, after),
+                          lambda: self._apply_outline(key, component, before)))
+        self.undo_stack.push(EditCommand(text, steps))
+
+    def _apply_outline(self, key, component: str, points: np.ndarray | None) -> None:
+        """Show an outline again (a standalone panel's undo and redo)."""
+        self.set_outline(component, None if points is None else points.copy(), key)
+        self.outline_edited.emit(key, component)
 
     # -- projected model outline -------------------------------------------------------------------------
     def set_model_outline(self, component: str, points_px: np.ndarray | None,
@@ -531,8 +518,78 @@ class ImagePanel(PanelInteraction, EdgeLayer, QGraphicsView):
             fm = QFontMetrics(font)
             width = max(fm.horizontalAdvance(text) for _, text in legend) + 30
             draw_label(painter, font, QPointF(self.viewport().width() - width - 8, 8), legend)
-        if self._tool != Tool.NAVIGATE:
-            text = self._tool.value + (f"  (brush {self._brush_radius:g} px)" if self._tool == Tool.ERASE else "")
+        tool = self.tools.tool()
+        if tool != Tool.NAVIGATE:
+            text = tool.value + (f"  (brush {self.tools.brush_radius():g} px)" if tool == Tool.ERASE else "")
             fm = QFontMetrics(font)
             draw_label(painter, font, QPointF(8, self.viewport().height() - fm.height() - 16), [(None, text)])
         painter.restore()
+
+    # -- the tools and the edges (the panel's own objects) ------------------------------------------------------
+    def set_tool(self, tool: Tool) -> None:
+        self.tools.set_tool(tool)
+
+    def tool(self) -> Tool:
+        return self.tools.tool()
+
+    def set_brush_radius(self, radius_px: float) -> None:
+        """Radius (image pixels) of the ERASE brush."""
+        self.tools.set_brush_radius(radius_px)
+
+    def brush_radius(self) -> float:
+        return self.tools.brush_radius()
+
+    def selected_point(self) -> int | None:
+        return self.tools.selected_point()
+
+    def set_edges_visible(self, visible: bool) -> None:
+        self.edges.set_visible(visible)
+
+    def edges_visible(self) -> bool:
+        return self.edges.visible()
+
+    def set_canny_thresholds(self, low: float, high: float) -> None:
+        """Canny thresholds as fractions of the reference gradient (see core.outlines.edges)."""
+        self.edges.set_thresholds(low, high)
+
+    def canny_thresholds(self) -> tuple[float, float]:
+        return self.edges.thresholds()
+
+    def erased_mask(self, key=None) -> np.ndarray | None:
+        """The erased-edge mask of the image ``key`` (default: the current one); a copy."""
+        return self.edges.erased_mask(key)
+
+    def edge_mask(self) -> np.ndarray | None:
+        """The edges as shown: Canny edges minus erased pixels (None without an image)."""
+        return self.edges.mask()
+
+    def edge_contours(self) -> list[np.ndarray]:
+        """Sub-pixel edge contours of the image, cut where edges were erased."""
+        return self.edges.contours()
+
+    # -- Qt events: the gestures are the tools' ----------------------------------------------------------------
+    def mousePressEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        if not self.tools.mouse_press(event):
+            super().mousePressEvent(event)
+
+    def mouseMoveEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        self.tools.mouse_move(event)
+
+    def mouseReleaseEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        self.tools.mouse_release(event)
+
+    def wheelEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        self.tools.wheel(event)
+
+    def keyPressEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        if not self.tools.key_press(event):
+            super().keyPressEvent(event)
+
+    def leaveEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        self.tools.leave()
+        super().leaveEvent(event)
+
+    def resizeEvent(self, event) -> None:  # noqa: N802 (Qt override)
+        super().resizeEvent(event)
+        if self._fitted:
+            self.fit()

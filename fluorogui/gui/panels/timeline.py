@@ -3,7 +3,8 @@
 Frames are addressed by their numbers (``frame_selected`` emits one, ``set_current`` and
 ``set_state`` take one); positions in the strip are internal. A frame that needs review
 (a check failed, or no pose could be found) has a colour of its own and is never shown
-as matched. ``TimelineLegend`` explains the colours beside the strip.
+as matched. ``TimelineLegend`` explains the colours beside the strip; ``FramesBar`` holds
+the two side by side (the Frames panel).
 """
 from __future__ import annotations
 
@@ -168,3 +169,16 @@ class Timeline(QWidget):
             self.frame_selected.emit(self.frames[-1])
         else:
             super().keyPressEvent(event)
+
+
+class FramesBar(QWidget):
+    """The Frames panel: the timeline with its legend beside it."""
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        row = QHBoxLayout(self)
+        row.setContentsMargins(0, 0, 0, 0)
+        self.timeline = Timeline()
+        row.addWidget(self.timeline, 1)
+        self.legend = TimelineLegend()
+        row.addWidget(self.legend)

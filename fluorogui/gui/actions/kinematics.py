@@ -1,0 +1,102 @@
+"""The Kinematics panel's presenter: the panel's rows kept in step with the session (the
+frame on screen, the side, the poses as they change), its figure saved, the side and the
+anatomical frames set. The rows come from ``Session.knee_rows`` and the figure from
+``fluorogui.workflow.exports``; this only asks the user and shows the result."""
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+from PySide6.QtCore import QObject, QTimer
+from PySide6.QtWidgets import QDialog, QFileDialog
+
+from fluorogui.core.knee.kinematics import KinematicsError
+from fluorogui.gui.dialogs.anatomical_frame import AnatomicalFrameDialog
+from fluorogui.gui.notices import Notices
+from fluorogui.gui.panels.knee_panel import KneePanel
+from fluorogui.io.errors import InputError
+from fluorogui.workflow import exports
+
+
+class KinematicsPresenter(QObject):
+    """The Kinematics panel (a ``KneePanel``) of a main window."""
+
+    def __init__(self, controller, panel: KneePanel, notices: Notices, *,
+                 export_folder: Callable[[], Path]) -> None:
+        """``export_folder``: where a saved figure goes by default (the export folder)."""
+        super().__init__(notices.parent_widget)
+        self.controller = c = controller
+        self.panel = panel
+        self.notices = notices
+        self._export_folder = export_folder
+        panel.frame_selected.connect(c.set_frame)
+        panel.side_chosen.connect(lambda side: c.session.set_side(side))
+        panel.export_figure_requested.connect(self.export_figure)
+        panel.edit_frames_requested.connect(self.edit_anatomical_frames)
+        # poses change in bursts (a tracked frame stores two; an import hundreds): recompute
+        # once the burst is over, off the path of the frame the user is looking at
+        self.refresh_timer = QTimer(self)
+        self.refresh_timer.setSingleShot(True)
+        self.refresh_timer.setInterval(250)
+        self.refresh_timer.timeout.connect(self.refresh_knee)
+        c.project_replaced.connect(self.refresh_knee)
+        c.pose_changed.connect(lambda _f, _c: self.refresh_timer.start())
+        c.knee_changed.connect(lambda _what: self.refresh_knee())
+        c.frame_changed.connect(lambda frame: panel.set_current(frame))
+
+    @property
+    def session(self):
+        return self.controller.session
+
+    def refresh_knee(self) -> None:
+        """Recompute the rows from the session (cheap) and hand them to the panel."""
+        session = self.session
+        if not session.frames:
+            self.panel.set_rows([], None)
+            return
+        try:
+            rows = session.knee_rows()
+        except (InputError, KinematicsError, KeyError) as exc:
+            self.panel.set_rows([], None)
+            self.panel.status.setText(f"No kinematics: {exc}")
+            return
+        self.panel.set_side(session.side)
+        self.panel.set_rows(rows, self.controller.frame)
+
+    def export_figure(self) -> None:
+        if not self.session.frames:
+            return
+        stem = self.session.path.stem if self.session.path else "kinematics"
+        path, _ = QFileDialog.getSaveFileName(self.notices.parent_widget, "Save the kinematics figure",
+                                              str(self._export_folder() / f"{stem}_kinematics.png"),
+                                              "PNG (*.png);;SVG (*.svg);;PDF (*.pdf)")
+        if not path:
+            return
+        try:
+            exports.export_plot(self.session, path, self.panel.against.currentData())
+        except (InputError, ValueError) as exc:
+            self.notices.warn("Save figure failed", str(exc))
+            return
+        self.notices.status(f"Saved {path}", 6000)
+
+    def edit_anatomical_frames(self, component: str | None = None) -> None:
+        session = self.session
+        names = [c for c in ("femoral", "tibial") if session.project.model(c) is not None]
+        if not names:
+            return
+        if component is None:
+            component = self.controller.component if self.controller.component in names else names[0]
+        try:
+            current = session.anatomical_frame(component)
+            default = session.default_anatomical_frame(component)
+        except (InputError, KinematicsError, KeyError) as exc:
+            self.notices.warn("Anatomical frame", str(exc))
+            return
+        dialog = AnatomicalFrameDialog(component, current, default, session.anatomical_frame_source(component),
+                                       self.notices.parent_widget)
+        if dialog.exec() != QDialog.DialogCode.Accepted:
+            return
+        if dialog.reset_requested and (abs(dialog.result_matrix - default).max() < 1e-8):
+            session.reset_anatomical_frame(component)
+        else:
+            session.set_anatomical_frame(component, dialog.result_matrix)
