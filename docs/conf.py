@@ -36,6 +36,7 @@ extensions = [
     "sphinxarg.ext",
     "myst_parser",
     "validation_results",
+    "export_formats",
 ]
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}

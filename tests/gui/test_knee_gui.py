@@ -79,7 +79,7 @@ def test_export_dialog_writes_the_chosen_files(window, demo, tmp_path, monkeypat
     record = window.session.project.poses[(1, "tibial")]
     window.session.project.poses[(1, "tibial")] = PoseRecord(record.pose, status="needs_review", reason="test")
     window.knee.export_results()
-    assert "1 pose flagged for review left out of .tra/.jts" in window.statusBar().currentMessage()
+    assert "1 pose flagged for review and left out of .tra as NaN" in window.statusBar().currentMessage()
     assert (tmp_path / "out" / "demo.tra").read_text().splitlines()[1].split(",")[16] == "NaN"
 
 

@@ -14,9 +14,10 @@ from PySide6.QtWidgets import QDialog, QFileDialog, QInputDialog
 from fluorogui.core.knee.kinematics import KinematicsError
 from fluorogui.gui.actions.files import app_data_dir
 from fluorogui.gui.actions.tasks import frame_list
-from fluorogui.gui.dialogs.export_dialog import TIMED_KINDS, ExportDialog
+from fluorogui.gui.dialogs.export_dialog import ExportDialog
 from fluorogui.io.errors import InputError, collected_input_warnings
 from fluorogui.workflow import exports
+from fluorogui.workflow.exports import ExportOptions
 
 IMPORT_FILTER = "Poses (*.csv *.tra *.jts);;All files (*)"
 
@@ -67,8 +68,10 @@ class KneeActions(QObject):
         if dialog.exec() != QDialog.DialogCode.Accepted:
             return
         targets = dialog.targets()
-        fps, unreviewed = dialog.fps(), dialog.include_unreviewed.isChecked()
-        timed = [k for k in TIMED_KINDS if k in targets]
+        options = ExportOptions(include_unreviewed=dialog.include_unreviewed.isChecked(),
+                                view=dialog.view.currentData())
+        fps = dialog.fps()
+        timed = [f.name for f in exports.formats() if f.timed and f.name in targets]
         if timed and fps is None:
             self.window.warn("Export", f"{', '.join(targets[k].name for k in timed)}: the frame rate is needed "
                                        "(time = frame number / frame rate); give the images' frame rate.")
@@ -76,39 +79,13 @@ class KneeActions(QObject):
         if fps is not None and fps != exports.frame_rate(session):
             exports.set_frame_rate(session, fps)  # the dialog's frame rate is the project's (undoable)
         try:
-            rows = session.knee_rows()  # once, for every file written
-        except (InputError, KinematicsError, KeyError) as exc:
+            written = exports.write_exports(session, targets, options)
+        except (InputError, KinematicsError, KeyError, ValueError) as exc:
             self.window.warn("Export failed", str(exc))
             return
-        writers = {
-            "poses": lambda p: [exports.export_poses_csv(session, p, rows)],
-            "kinematics": lambda p: [exports.export_kinematics_csv(session, p, rows)],
-            "tra": lambda p: [exports.export_tra(session, p, unreviewed)],
-            "jts": lambda p: exports.export_jts(session, p, dialog.view.currentData(), unreviewed),
-            "plot": lambda p: [exports.export_plot(session, p, rows=rows)],
-            "c3d": lambda p: [exports.export_c3d(session, p, include_unreviewed=unreviewed)],
-            "trc": lambda p: [exports.export_trc(session, p, include_unreviewed=unreviewed)],
-            "mot": lambda p: [exports.export_mot(session, p, rows, include_unreviewed=unreviewed)],
-            "xromm": lambda p: [exports.export_xromm(session, p, unreviewed)],
-        }
-        written = []
-        try:
-            for key, path in targets.items():
-                written += writers[key](path)
-        except (InputError, KinematicsError, ValueError) as exc:
-            self.window.warn("Export failed", str(exc))
-            return
-        flagged = exports.unreviewed_matches(session) if {"tra", "jts"} & set(targets) and not unreviewed else []
-        left_out = (f"; {len(flagged)} pose{'s' if len(flagged) != 1 else ''} flagged for review left out of "
-                    ".tra/.jts (accept a pose, Ctrl+Return, to include it)") if flagged else ""
-        motion = {"c3d", "trc", "mot", "xromm"} & set(targets)
-        unmatched = exports.left_out_of_motion_files(session) if motion and not unreviewed else []
-        if unmatched:
-            left_out += (f"; {len(unmatched)} pose{'s' if len(unmatched) != 1 else ''} not matched or accepted left "
-                         "out of the C3D/OpenSim/XMALab files")
-        if "c3d" in targets and not exports.consecutive_frames(session):
-            left_out += ("; the frame numbers are not consecutive, so a C3D reader's times are not frame / fps "
-                         "(the C3D keeps the true ones in FLUOROGUI:FRAMES and :TIMES)")
+        notes = exports.export_notes(session, list(targets), options, naming=lambda f: f.short,
+                                     remedy="accept a pose, Ctrl+Return, to include it")
+        left_out = "".join(f"; {_counted(poses)}{words}" for poses, words in notes)
         self.window.statusBar().showMessage(f"Exported {len(written)} file{'s' if len(written) != 1 else ''} "
                                             f"to {Path(dialog.folder.text())}{left_out}", 8000)
         self.window.settings.setValue("export_dir", dialog.folder.text())
@@ -156,3 +133,8 @@ class KneeActions(QObject):
             + (f"; kept {len(kept)} matched or accepted" if kept else ""), 8000)
         self.window.files.tell_input_notes("Imported poses with notes", notes)
         return count
+
+
+def _counted(poses: list) -> str:
+    """"3 poses " for a note about poses ("" for a note about the file)."""
+    return f"{len(poses)} pose{'s' if len(poses) != 1 else ''} " if poses else ""

@@ -1,8 +1,8 @@
-"""The export dialog: which results to write (poses, kinematics, Autoscoper .tra, JointTrack
-.jts, the kinematics figure; C3D, OpenSim .mot and .trc, XMALab rigid-body CSV), under
-which names in which folder, for JointTrack in which view's camera frame, the project's
-frame rate (time = frame ÷ fps, which C3D, .trc and .mot need) and whether poses not yet
-matched or accepted go in. It only asks; ``actions.knee`` writes through the workflow."""
+"""The export dialog: which results to write (one check box per format of the export
+registry, ``fluorogui.workflow.exports``), under which names in which folder, for the
+formats written in one view's camera frame (JointTrack) which view, the project's frame
+rate (time = frame ÷ fps, which the timed formats need) and whether poses not yet matched
+or accepted go in. It only asks; ``actions.knee`` writes through the workflow."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -24,21 +24,11 @@ from PySide6.QtWidgets import (
 )
 
 from fluorogui.io.motion_files import MAX_FPS
+from fluorogui.workflow.exports.registry import formats
 
-EXPORT_KINDS = (  # key, label, default file name
-    ("poses", "Poses, residuals, status and kinematics (CSV)", "{stem}_poses.csv"),
-    ("kinematics", "Kinematics (CSV)", "{stem}_kinematics.csv"),
-    ("tra", "Autoscoper poses (.tra)", "{stem}.tra"),
-    ("jts", "JointTrack poses (femoral.jts, tibial.jts)", "{stem}_jointtrack"),
-    ("plot", "Kinematics figure (PNG)", "{stem}_kinematics.png"),
-    ("c3d", "Anatomical markers (C3D)", "{stem}.c3d"),
-    ("trc", "Anatomical markers for OpenSim (.trc)", "{stem}.trc"),
-    ("mot", "Kinematics for OpenSim (.mot)", "{stem}_knee.mot"),
-    ("xromm", "XMALab rigid-body transformations (CSV)", "{stem}_xromm.csv"),
-)
-#: the exports that need the frame rate
-TIMED_KINDS = ("c3d", "trc", "mot")
 
+def _words(names: list[str]) -> str:
+    return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
 
 class ExportDialog(QDialog):
     """Which results to write, where, and (for JointTrack) in which view's camera frame."""
@@ -58,17 +48,19 @@ class ExportDialog(QDialog):
         row.addWidget(self.folder, 1)
         row.addWidget(browse)
         form.addRow("Folder", row)
-        for key, label, pattern in EXPORT_KINDS:
-            check = QCheckBox(label)
-            check.setChecked(key in ("poses", "kinematics"))
-            name = QLineEdit(pattern.format(stem=stem))
-            name.setObjectName(f"export_{key}")
-            self.checks[key], self.names[key] = check, name
+        for fmt in formats():  # one row per registered format
+            check = QCheckBox(fmt.label)
+            check.setChecked(fmt.checked)
+            name = QLineEdit(fmt.default_name.format(stem=stem))
+            name.setObjectName(f"export_{fmt.name}")
+            self.checks[fmt.name], self.names[fmt.name] = check, name
             form.addRow(check, name)
+        self.timed = [f for f in formats() if f.timed]
         self.view = QComboBox()
         for k in range(views):
             self.view.addItem(f"View {k + 1}", k)
-        form.addRow("JointTrack camera", self.view)
+        with_view = [f.view_label for f in formats() if f.needs_view]
+        form.addRow(" / ".join(with_view) or "Camera", self.view)
         self.frame_rate = QDoubleSpinBox()
         self.frame_rate.setObjectName("export_fps")
         self.frame_rate.setRange(0.0, MAX_FPS)
@@ -76,20 +68,21 @@ class ExportDialog(QDialog):
         self.frame_rate.setSuffix(" frames/s")
         self.frame_rate.setSpecialValueText("not known")
         self.frame_rate.setValue(fps or 0.0)
-        self.frame_rate.setToolTip("The images' frame rate: time = frame number / frame rate. C3D, .trc and .mot "
-                                   "need it; it is kept in the project.")
+        self.frame_rate.setToolTip(f"The images' frame rate: time = frame number / frame rate. "
+                                   f"{_words([f.short for f in self.timed])} need it; it is kept in the project.")
         form.addRow("Frame rate", self.frame_rate)
         self.include_unreviewed = QCheckBox("Also poses not matched or accepted (placed, or flagged for review)")
         self.include_unreviewed.setObjectName("export_include_unreviewed")
-        self.include_unreviewed.setToolTip(".tra, .jts, C3D, .trc, .mot and XMALab files carry no status: by default "
-                                           "such poses are left out (NaN, invalid markers)")
+        without_status = [f.short for f in formats() if f.statusless or f.motion]
+        self.include_unreviewed.setToolTip(f"{_words(without_status)} files carry no status: by default such poses "
+                                           "are left out (NaN, invalid markers)")
         form.addRow("", self.include_unreviewed)
         self.time_note = QLabel("")
         self.time_note.setObjectName("export_time_note")
         self.time_note.setWordWrap(True)
         form.addRow("", self.time_note)
-        for key in TIMED_KINDS:
-            self.checks[key].toggled.connect(lambda _on: self._explain_time())
+        for fmt in self.timed:
+            self.checks[fmt.name].toggled.connect(lambda _on: self._explain_time())
         self.frame_rate.valueChanged.connect(lambda _v: self._explain_time())
         self._explain_time()
         buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Ok | QDialogButtonBox.StandardButton.Cancel)
@@ -101,9 +94,10 @@ class ExportDialog(QDialog):
         layout.addWidget(buttons)
 
     def _explain_time(self) -> None:
-        timed = [k for k in TIMED_KINDS if self.checks[k].isChecked()]
+        timed = [f for f in self.timed if self.checks[f.name].isChecked()]
         needs = bool(timed) and self.fps() is None
-        self.time_note.setText("C3D, .trc and .mot need the frame rate: give it above." if needs else "")
+        self.time_note.setText(f"{_words([f.short for f in self.timed])} need the frame rate: give it above."
+                               if needs else "")
         self.time_note.setVisible(needs)
 
     def _browse(self) -> None:
