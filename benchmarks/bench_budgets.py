@@ -97,7 +97,7 @@ def uv_sphere(radius: float, n_lat: int, n_lon: int):
 
 
 def render_large_mesh(repeat: int) -> float:
-    view = View.looking_at([0, 0, -1000], [0, 0, 0], [0, -1, 0], 1000.0, (1024, 1024), 0.25)
+    view = View.looking_at([0, 0, -1000], [0, 0, 0], [0, -1, 0], 1000.0, image_size=(1024, 1024), pitch=0.25)
     vertices, faces = uv_sphere(30.0, 121, 304)  # ~73k triangles
     render_silhouette(view, vertices[:10], faces[:0])  # warm-up of numpy paths
     return fastest(lambda: render_silhouette(view, vertices + [0, 0, 50.0], faces), repeat)

@@ -65,7 +65,7 @@ DESIGNS = {
 
 
 def random_cameras(count: int, rng) -> list:
-    return [oblique_camera(rng.uniform(0, 55), rng.uniform(0, 360), rng.uniform(-180, 180),
+    return [oblique_camera(rng.uniform(0, 55), azimuth_deg=rng.uniform(0, 360), roll_deg=rng.uniform(-180, 180),
                            source_to_cage=rng.uniform(550, 950), aim=rng.uniform(-15, 15, 3)) for _ in range(count)]
 
 
@@ -94,7 +94,7 @@ def sweep(name: str, cage, views: int, seed: int) -> None:
     counts = {"right": 0, "wrong": 0, "refused (marker)": 0, "refused (other)": 0}
     seconds = []
     for k in range(views):
-        camera = oblique_camera(rng.uniform(0, 60), rng.uniform(0, 360), rng.uniform(-180, 180),
+        camera = oblique_camera(rng.uniform(0, 60), azimuth_deg=rng.uniform(0, 360), roll_deg=rng.uniform(-180, 180),
                                 source_to_cage=rng.uniform(500, 1000), aim=rng.uniform(-15, 15, 3))
         image = render_cage(cage, camera, seed=k, noise=rng.uniform(0.005, 0.03))
         start = time.perf_counter()

@@ -64,7 +64,7 @@ def main(argv=None) -> int:
             if not videos[-1].exists():
                 write_video(videos[-1], args.frames, args.size, phase=k)
             view = View.looking_at((-1000.0 if k == 0 else 0.0, 0.0 if k == 0 else -1000.0, 0.0), (0, 0, 0),
-                                   (0, 0, 1), 1200.0, (args.size, args.size), 0.3)
+                                   (0, 0, 1), 1200.0, image_size=(args.size, args.size), pitch=0.3)
             cameras.append(folder / f"cam{k + 1}.json")
             save_view_json(view, cameras[-1])
         print(f"videos ready in {time.perf_counter() - t:.1f} s: "

@@ -70,7 +70,8 @@ def main() -> None:
     if not args.photons or args.photons <= 0:
         p.error("--photons: give a positive count (without noise the bound is zero)")
     mesh = prepare_mesh(*load_mesh(args.xray))
-    views = two_views(60.0, 10.0, (40.0, -30.0), (900.0, 1100.0)) if args.tilted else dual_orthogonal_views()
+    views = (two_views(60.0, 10.0, offset_px=(40.0, -30.0), source_to_centre=(900.0, 1100.0)) if args.tilted
+             else dual_orthogonal_views())
     views = views[:1] if args.single_view else views
     model = XrayModel(photons=args.photons)
     print("Cramer-Rao bound of the pose SD (mm, deg) on X-ray model images, "

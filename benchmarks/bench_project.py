@@ -32,8 +32,10 @@ from fluorogui.io.project.document import load_project, save_project  # noqa: E4
 def session(root: Path, frames: int, points: int) -> Project:
     rng = np.random.default_rng(0)
     numbers = list(range(frames))
-    views = [View.looking_at((0, -1000, 0), (0, 0, 0), (0, 0, 1), 1200, (1024, 1024), 0.4, name="cam1"),
-             View.looking_at((800, -600, 0), (0, 0, 0), (0, 0, 1), 1150, (1024, 1024), 0.4, name="cam2")]
+    views = [View.looking_at((0, -1000, 0), (0, 0, 0), (0, 0, 1), 1200, image_size=(1024, 1024), pitch=0.4,
+                             name="cam1"),
+             View.looking_at((800, -600, 0), (0, 0, 0), (0, 0, 1), 1150, image_size=(1024, 1024), pitch=0.4,
+                             name="cam2")]
     sequences = [ImageSequence([root / f"cam{k}" / f"{i:06d}.tif" for i in numbers]) for k in range(2)]
     models = [ModelEntry("femoral", root / "femoral.stl"), ModelEntry("tibial", root / "tibial.stl")]
     records, poses = {}, {}

@@ -244,7 +244,7 @@ def _knee_against_truth(session: Session, truth: dict) -> dict:
             continue
         t = truth[row.frame]
         expected = knee_kinematics(pose_to_matrix(t["femoral"]), pose_to_matrix(t["tibial"]),
-                                   anat["femoral"], anat["tibial"], side)
+                                   anat["femoral"], anat["tibial"], side=side)
         errors.append(row.values.values() - expected.values())
     E = np.array(errors)
     rms = np.sqrt((E ** 2).mean(axis=0)) if len(E) else np.full(6, np.nan)

@@ -58,7 +58,7 @@ def scene(name, views, start_sd, args, mesh, world):
     errors, reported, naive = [], [], []
     t0 = time.perf_counter()
     for _ in range(args.realisations):
-        splines = [OutlineSpline.fit(noisy_hull_outline(v, world, args.noise, args.corr, rng)) for v in views]
+        splines = [OutlineSpline.fit(noisy_hull_outline(v, world, args.noise, args.corr, rng=rng)) for v in views]
         problem = MatchProblem(mesh, views, splines)
         result = match(problem, TRUTH + rng.normal(0, start_sd, 6), MatchSettings())
         errors.append(pose_difference(result.pose, TRUTH))
@@ -95,7 +95,7 @@ def xray_scene(flexion, args):
         start = truth + rng.normal(0, 0.5, 6)
         weights = None
         if args.rim:  # as validate idealized --rim
-            outlines, _, weights = rim_refined_outlines(images, views, mesh, outlines, start)
+            outlines, _, weights = rim_refined_outlines(images, views, mesh, outlines, start=start)
         result = match(MatchProblem(mesh, views, fit_splines(outlines, weights)), start)
         errors.append(pose_difference(result.pose, truth))
         reported.append(result.sd)
@@ -213,7 +213,8 @@ def main() -> None:
     v, f = bent_ellipsoid()
     mesh = prepare_mesh(v, f)
     world = v @ rotation_matrix(*TRUTH[3:]).T + TRUTH[:3]
-    single = View.looking_at([-1000.0, 0, 0], [0, 0, 0], [0, 0, 1], 1200.0, (1024, 1024), 315 / 1024, name="single")
+    single = View.looking_at([-1000.0, 0, 0], [0, 0, 0], [0, 0, 1], 1200.0, image_size=(1024, 1024),
+                             pitch=315 / 1024, name="single")
     scene("biplane, perturbed starts", dual_orthogonal_views(), 0.5, args, mesh, world)
     scene("single view (x out of plane), start at the truth", [single], 0.0, args, mesh, world)
     scene("single view, perturbed starts", [single], 0.5, args, mesh, world)

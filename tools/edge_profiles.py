@@ -63,7 +63,7 @@ def _world(mesh: EdgeMesh, pose) -> np.ndarray:
 
 def _region(view, mesh: EdgeMesh, pose, dilate_px: int) -> np.ndarray:
     w, h = view.image_size
-    region = (coverage(view, _world(mesh, pose), mesh, (0, 0, w, h), 1) > 0).astype(np.uint8)
+    region = (coverage(view, _world(mesh, pose), mesh, (0, 0, w, h), s=1) > 0).astype(np.uint8)
     return cv2.dilate(region, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * dilate_px + 1,) * 2)).astype(bool)
 
 
@@ -74,7 +74,7 @@ def outline_profiles(image, view, mesh: EdgeMesh, pose, masked=None, step: int =
     w, h = view.image_size
     u0, v0 = int(max(uv[:, 0].min() - 60, 0)), int(max(uv[:, 1].min() - 60, 0))
     u1, v1 = int(min(uv[:, 0].max() + 60, w)), int(min(uv[:, 1].max() + 60, h))
-    cover = coverage(view, world, mesh, (u0, v0, u1, v1), 3).astype(np.float32)
+    cover = coverage(view, world, mesh, (u0, v0, u1, v1), s=3).astype(np.float32)
     inside = (cover >= 0.5).astype(np.uint8)
     contours, _ = cv2.findContours(inside, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     c = max(contours, key=len)[:, 0, :].astype(float)

@@ -139,8 +139,10 @@ def make_large(folder: Path) -> None:
     from fluorogui.io.project.document import save_project
 
     save_project(session(folder, 1400, 400), folder / "long.fluoro")
-    views = [View.looking_at((0, -1000, 0), (0, 0, 0), (0, 0, 1), 1200, (1024, 1024), 0.4, name="cam1"),
-             View.looking_at((800, -600, 0), (0, 0, 0), (0, 0, 1), 1150, (1024, 1024), 0.4, name="cam2")]
+    views = [View.looking_at((0, -1000, 0), (0, 0, 0), (0, 0, 1), 1200, image_size=(1024, 1024), pitch=0.4,
+                             name="cam1"),
+             View.looking_at((800, -600, 0), (0, 0, 0), (0, 0, 1), 1150, image_size=(1024, 1024), pitch=0.4,
+                             name="cam2")]
     frames, components = list(range(85_000)), ("femoral", "tibial")
     tiny = Project(views, [ImageSequence([folder / f"c{k}" / f"{i}.tif" for i in frames]) for k in range(2)], frames,
                    [ModelEntry(c, folder / f"{c}.stl") for c in components],

@@ -56,7 +56,7 @@ def run(args) -> int:
     for model_path, mesh in models:
         for method in args.method:
             settings = MatchSettings(method=method, model_points=args.points, outline_points=args.outline_points)
-            case = idealized_case(mesh.vertices, mesh.faces, 45.0, settings, args.starts, args.seed)
+            case = idealized_case(mesh.vertices, mesh.faces, 45.0, settings, n_starts=args.starts, seed=args.seed)
             secs = np.array([r.seconds for r in case.results])
             calls = np.array([r.calls for r in case.results])
             per_call = 1000.0 * secs / np.maximum(calls, 1)

@@ -63,7 +63,7 @@ def run(args) -> int:
         if single and (args.pairs or args.images2):
             raise UsageError("fluorogui: import: one --camera (single-plane) takes --images1 only")
         sources = None if args.pairs else [Path(p) for p in (args.images1, args.images2) if p]
-        project = import_session(args.camera, sources, models, args.pairs, allow_unequal=True)
+        project = import_session(args.camera, sources, models, pairs_csv=args.pairs, allow_unequal=True)
     if args.correction:
         from fluorogui.io.corrections import attach_correction, load_correction
 

@@ -90,7 +90,7 @@ def read_outline(path, view):
     return points
 
 
-def outline_splines(outline_paths, images, image_paths, views, mesh, pose):
+def outline_splines(outline_paths, images, image_paths, views, *, mesh, pose):
     """Splines from given outline files, or segmented from the images near the pose."""
     from fluorogui.core.matching.loop import predicted_outline
     from fluorogui.core.outlines.edges import component_outline
@@ -134,7 +134,7 @@ def match_settings(args, method=None, multistart: bool = True):
 MIN_COMPONENT_PX = 4.0
 
 
-def check_start_visible(views, mesh, start, image_paths, what: str = "--start") -> None:
+def check_start_visible(views, mesh, start, image_paths, *, what: str = "--start") -> None:
     """Refuse a start pose the views cannot see, as a mistake in ``what`` (UsageError, exit 2):
     the component's centre at or behind a view's X-ray source, so close to it that the
     component would be over four times the image across, outside an image, or so far away
@@ -177,7 +177,7 @@ def input_warnings_on_stderr():
     with warnings.catch_warnings():
         shown = warnings.showwarning
 
-        def show(message, category, filename, lineno, file=None, line=None):
+        def show(message, category, filename, lineno, *, file=None, line=None):
             if issubclass(category, InputWarning):
                 print(f"fluorogui: warning: {message}", file=sys.stderr, flush=True)
             else:

@@ -176,7 +176,7 @@ def cmd_validate_idealized(args) -> int:
                          f"the last seed exceeds {SEED_RANGE[1]}")
     if not 64 <= args.image_size <= 4096:
         raise UsageError(f"fluorogui: --image-size {args.image_size}: give 64 to 4096 pixels")
-    views = two_views(args.angle, args.tilt, tuple(args.offset), tuple(args.source_distance),
+    views = two_views(args.angle, args.tilt, offset_px=tuple(args.offset), source_to_centre=tuple(args.source_distance),
                       image_size=(args.image_size, args.image_size), pitch=315.0 / args.image_size)
     beam = None
     if args.single_view:
@@ -220,7 +220,8 @@ def cmd_validate_idealized(args) -> int:
                             settings.model_points = density
                         label = (f"{flexion:g} deg" + (f", {density} pts" if density else "")
                                  + (f", draw {draw + 1}" if args.draws > 1 else ""))
-                        case = idealized_case(vertices, faces, flexion, settings, args.starts, args.seed + draw,
+                        case = idealized_case(vertices, faces, flexion, settings, n_starts=args.starts,
+                                              seed=args.seed + draw,
                                               views=views, label=label, render=render, other=other,
                                               other_is_tibial=other_is_tibial, start_sd_fraction=args.start_sd / 20.0,
                                               rim=args.rim)
@@ -349,7 +350,7 @@ def cmd_validate_spheres(args) -> int:
         settings.model_points = 2500
         if method == "paper" and args.outline_points is None:
             settings.outline_points = 60
-        out = spheres_case(vertices, faces, settings, args.starts, args.seed)
+        out = spheres_case(vertices, faces, settings, n_starts=args.starts, seed=args.seed)
         payload["methods"][method] = out
         print(f"spheres — method {method} (separation, mm; true {SPHERE_DIAMETER:.2f})")
         for name, m, s, r in zip(out["pairs"], out["pair_mean_mm"], out["pair_sd_mm"], out["pair_rmse_mm"]):
@@ -385,9 +386,10 @@ def cmd_validate_repeatability(args) -> int:
     for method in args.method:
         table = []
         for label, image_paths, pose in cases:
-            splines = _case_splines(args, label, image_paths, views, mesh, pose)
+            splines = _case_splines(args, label, image_paths, views, mesh=mesh, pose=pose)
             settings = match_settings(args, method, multistart=False)
-            case = repeatability_case(MatchProblem(mesh, views, splines), pose, settings, args.starts, args.seed,
+            case = repeatability_case(MatchProblem(mesh, views, splines), pose, settings, n_starts=args.starts,
+                                      seed=args.seed,
                                       label=label)
             resid = case.extra["per_view_mean_mm"]
             table.append((f"{label} ({resid[0]:.2f}/{resid[1]:.2f})", case.summary))
@@ -405,14 +407,15 @@ def cmd_validate_repeatability(args) -> int:
     return 0
 
 
-def _case_splines(args, label, image_paths, views, mesh, pose):
+def _case_splines(args, label, image_paths, views, *, mesh, pose):
     """A case's outline splines: from --outline files, or segmented in its images. A problem
     with an image listed in --pairs names the pairs file too."""
     from fluorogui.io.errors import InputError
 
     try:
         images = load_images(image_paths, views)
-        return outline_splines(args.outline if not args.reference else None, images, image_paths, views, mesh, pose)
+        return outline_splines(args.outline if not args.reference else None, images, image_paths, views, mesh=mesh,
+                               pose=pose)
     except InputError as exc:
         if not args.reference or exc.path not in map(str, image_paths):
             raise

@@ -95,8 +95,8 @@ class MainWindow(QMainWindow):
                 setattr(self.presenters, spec.key, spec.presenter(parts, getattr(self.widgets, spec.key)))
         self._name_parts()
         toggles = [self.docks[key].toggleViewAction() for key in menu_order(layout.panels, self.docks)]
-        self.menus = build_menus(self, layout.menus, actions, self.actions_by_id, self.presenters,
-                                 layout.panel_toggles, toggles)
+        self.menus = build_menus(self, layout.menus, actions, self.actions_by_id, presenters=self.presenters,
+                                 panel_toggles=layout.panel_toggles, toggles=toggles)
         self.toolbar = build_toolbar(self, *layout.toolbar, actions, layout.toolbar_widgets, self.actions_by_id,
                                      self.presenters)
         self._build_status_bar()

@@ -84,6 +84,7 @@ def import_session(
     calibrations: Sequence[Path | str],
     image_sources: Sequence[ImageSource] | None,
     models: dict[str, Path | str],
+    *,
     pairs_csv: Path | str | None = None,
     allow_unequal: bool = False,
 ) -> Project:
@@ -194,7 +195,7 @@ def import_folder(folder, allow_unequal: bool = False) -> Project:
                                  "calibration file (e.g. JointTrack JT_INTCALIB) and its images")
     if not found["models"]:
         raise InputError(Path(folder) / "models", "no femoral or tibial mesh found (names must contain fem / tib)")
-    return import_session(found["calibrations"], found["image_sources"], found["models"], found["pairs_csv"],
+    return import_session(found["calibrations"], found["image_sources"], found["models"], pairs_csv=found["pairs_csv"],
                           allow_unequal=allow_unequal)
 
 

@@ -83,7 +83,7 @@ def frame_times(frames, fps: float) -> np.ndarray:
 
 
 # -- C3D -------------------------------------------------------------------------------------------------
-def write_c3d(path, labels: list[str], points: np.ndarray, valid: np.ndarray, fps: float, frames,
+def write_c3d(path, labels: list[str], points: np.ndarray, valid: np.ndarray, *, fps: float, frames,
               descriptions: list[str] | None = None) -> None:
     """Markers ``points`` (frames × markers × 3, mm) with ``valid`` (frames × markers)."""
     import ezc3d
@@ -147,7 +147,7 @@ def _cell(value, empty: str = "NaN", digits: int = 10) -> str:
     return empty if not math.isfinite(value) else repr(round(value, digits))
 
 
-def write_mot(path, name: str, columns: list[str], times: np.ndarray, table: np.ndarray, notes: list[str]) -> None:
+def write_mot(path, name: str, columns: list[str], times: np.ndarray, *, table: np.ndarray, notes: list[str]) -> None:
     """An OpenSim Storage file: ``time`` then ``columns``; ``notes`` are free header lines
     (no ``=`` in them, so OpenSim does not take them for settings)."""
     table = np.asarray(table, dtype=float).reshape(len(times), len(columns))
@@ -159,7 +159,7 @@ def write_mot(path, name: str, columns: list[str], times: np.ndarray, table: np.
 
 
 # -- OpenSim .trc -------------------------------------------------------------------------------------------
-def write_trc(path, labels: list[str], frames, times: np.ndarray, points: np.ndarray, valid: np.ndarray,
+def write_trc(path, labels: list[str], frames, times: np.ndarray, *, points: np.ndarray, valid: np.ndarray,
               fps: float) -> None:
     """Markers (frames × markers × 3, mm); cells of a marker that is not valid are empty."""
     path = Path(path)

@@ -506,7 +506,7 @@ def _listed(frames: list[int]) -> str:
     return f"[{frames[0]} .. {frames[-1]}] ({len(frames)} frames)"
 
 
-def item_problem(kind: str, index: int, item, frames: set, components: list, views: int) -> str | None:
+def item_problem(kind: str, index: int, item, frames: set, *, components: list, views: int) -> str | None:
     """What a checked record or pose contradicts in its project (a frame, component or view
     the project lacks; more per-view values than views), or None."""
     where = f"{kind}[{index}]"

@@ -24,7 +24,7 @@ def bent_ellipsoid(radii=(30.0, 20.0, 12.0), bend: float = 0.15, resolution=(96,
     return p, np.asarray(s.faces).reshape(-1, 4)[:, 1:]
 
 
-def noisy_hull_outline(view, world_vertices, noise_px: float, corr_px: float, rng) -> np.ndarray:
+def noisy_hull_outline(view, world_vertices, noise_px: float, corr_px: float, *, rng) -> np.ndarray:
     """Ordered outline points (K, 2) in pixels of a convex body's projection, with noise."""
     d = np.asarray(world_vertices, dtype=float) - np.asarray(view.source)
     w = d @ np.asarray(view.normal)

@@ -118,7 +118,7 @@ class EdgeMesh:
         return cls(vertices, faces, edges, incidence)
 
 
-def coverage(view, world_vertices: np.ndarray, mesh: EdgeMesh, box, s: int) -> np.ndarray:
+def coverage(view, world_vertices: np.ndarray, mesh: EdgeMesh, box, *, s: int) -> np.ndarray:
     """Fraction (H, W) of each pixel of ``box`` = (u0, v0, u1, v1) covered by the projection
     of the closed mesh (placed at ``world_vertices``), from s x s samples per pixel.
 
@@ -197,7 +197,7 @@ def _local_mean(values: np.ndarray, where: np.ndarray, sigma: float, fallback: f
     return np.where(den > 1e-3, num / np.maximum(den, 1e-6), fallback).astype(np.float32)
 
 
-def metal_fraction(window: np.ndarray, valid: np.ndarray, prior: np.ndarray, band: int = 3,
+def metal_fraction(window: np.ndarray, valid: np.ndarray, prior: np.ndarray, *, band: int = 3,
                    margin: int = 6, background: str = "ring", near: float = 2.0, far: float = 6.0,
                    sigma: float = 10.0) -> np.ndarray:
     """Soft metal fraction in [0, 1] of an image window (float, dark = metal).
@@ -216,7 +216,7 @@ def metal_fraction(window: np.ndarray, valid: np.ndarray, prior: np.ndarray, ban
     if not inner.any():
         return np.zeros_like(w)
     outside = cv2.distanceTransform(1 - prior.astype(np.uint8), cv2.DIST_L2, 5)  # px from the prior, 0 inside
-    bg = background_level(w, valid, outside, background, near, far, sigma)
+    bg = background_level(w, valid, outside, background, near=near, far=far, sigma=sigma)
     if bg is None:
         return np.zeros_like(w)
     metal = _local_mean(w, inner, sigma, float(np.median(w[inner])))
@@ -231,7 +231,7 @@ def metal_fraction(window: np.ndarray, valid: np.ndarray, prior: np.ndarray, ban
     return np.where(core, 1.0, np.where(grown, f, 0.0)).astype(np.float32)
 
 
-def background_level(w: np.ndarray, valid: np.ndarray, outside: np.ndarray, mode: str, near: float,
+def background_level(w: np.ndarray, valid: np.ndarray, outside: np.ndarray, mode: str, *, near: float,
                      far: float, sigma: float) -> np.ndarray | None:
     """The background's level at every pixel of a window, from the ring of valid pixels
     ``near`` .. ``far`` px outside the prior (``outside``: each pixel's distance from it).
@@ -298,7 +298,7 @@ class RegionFit:
         """The overlap per view of another pose's region with this fit's evidence."""
         pose = np.asarray(pose, dtype=float)
         world = mesh.vertices @ rotation(*pose[3:]).T + pose[:3]
-        return [iou(d, coverage(d.view, world, mesh, d.box, s)) for d in self.evidence]
+        return [iou(d, coverage(d.view, world, mesh, d.box, s=s)) for d in self.evidence]
 
 
 class LowOverlap(RuntimeError):
@@ -324,7 +324,7 @@ def component_masks(views, mesh: EdgeMesh, pose, dilate_px: int = 3) -> list[np.
         box = window_box(view, world, dilate_px + 1)
         region = np.zeros((h, w), dtype=np.uint8)
         u0, v0, u1, v1 = box
-        region[v0:v1, u0:u1] = coverage(view, world, mesh, box, 1) > 1e-3  # not the sums' float residue
+        region[v0:v1, u0:u1] = coverage(view, world, mesh, box, s=1) > 1e-3  # not the sums' float residue
         out.append(cv2.dilate(region, _disc(dilate_px)).astype(bool) if dilate_px else region.astype(bool))
     return out
 
@@ -340,7 +340,7 @@ def window_box(view, world_vertices: np.ndarray, pad: int) -> tuple[int, int, in
     return u0, v0, max(u0 + 1, u1), max(v0 + 1, v1)
 
 
-def prepare_views(views, images, world_vertices: np.ndarray, mesh: EdgeMesh, pad: int = 30,
+def prepare_views(views, images, world_vertices: np.ndarray, mesh: EdgeMesh, *, pad: int = 30,
                   exclude=None, fields=None, background=STAGES[-1][3]) -> list[ViewData]:
     """The evidence of each view around the model placed at a start pose (world vertices).
     ``exclude``: per view a boolean image mask (or None) of pixels to ignore; ``fields``:
@@ -354,7 +354,7 @@ def prepare_views(views, images, world_vertices: np.ndarray, mesh: EdgeMesh, pad
                  else np.ones((v1 - v0, u1 - u0), dtype=bool))
         if exclude is not None and exclude[k] is not None:
             valid &= ~exclude[k][v0:v1, u0:u1]
-        prior = coverage(view, world_vertices, mesh, box, 1) >= 0.5
+        prior = coverage(view, world_vertices, mesh, box, s=1) >= 0.5
         mode, near, far = background
         out.append(ViewData(view, box, metal_fraction(image[v0:v1, u0:u1], valid, prior, background=mode,
                                                       near=near, far=far), valid))
@@ -365,7 +365,7 @@ def _blur(a: np.ndarray, sigma: float) -> np.ndarray:
     return cv2.GaussianBlur(a.astype(np.float32), (0, 0), sigma) if sigma > 0 else a.astype(np.float32)
 
 
-def _place(vertices, centroid, R0, c0, p):
+def _place(vertices, centroid, R0, c0, *, p):
     """World vertices for parameters p = (centroid shift mm, rotation vector deg) about the start."""
     R = Rotation.from_rotvec(np.radians(p[3:])).as_matrix() @ R0
     return (vertices - centroid) @ R.T + c0 + p[:3], R
@@ -400,13 +400,14 @@ def fit_pose(views, images, mesh: EdgeMesh, start, *, exclude=None, fields=None,
         if k >= len(stages) and np.max(np.abs(moved)) <= SETTLE_MOVE:
             break  # the evidence was sampled where the fit ended: settled
         # the evidence is sampled around the pose reached so far (levels, window)
-        data = prepare_views(views, images, _place(vertices, centroid, R0, c0, p)[0], mesh, pad, exclude, fields,
-                             background)
+        data = prepare_views(views, images, _place(vertices, centroid, R0, c0, p=p)[0], mesh, pad=pad,
+                             exclude=exclude, fields=fields,
+                             background=background)
         targets = [_blur(d.target, sigma)[d.valid] for d in data]
 
-        def residuals(q, s=s, sigma=sigma, data=data, targets=targets):  # this stage's evidence
-            world, _ = _place(vertices, centroid, R0, c0, q)
-            return np.concatenate([_blur(coverage(d.view, world, mesh, d.box, s), sigma)[d.valid] - t
+        def residuals(q, *, s=s, sigma=sigma, data=data, targets=targets):  # this stage's evidence
+            world, _ = _place(vertices, centroid, R0, c0, p=q)
+            return np.concatenate([_blur(coverage(d.view, world, mesh, d.box, s=s), sigma)[d.valid] - t
                                    for d, t in zip(data, targets)])
 
         # the parameters start at 0 and stay within a few units: diff_step (relative to
@@ -419,9 +420,9 @@ def fit_pose(views, images, mesh: EdgeMesh, start, *, exclude=None, fields=None,
         history.append((sigma, s, float(np.mean(sol.fun ** 2)), int(sol.nfev)))
         success, message = success and sol.status > 0, sol.message
 
-    world, R = _place(vertices, centroid, R0, c0, p)
+    world, R = _place(vertices, centroid, R0, c0, p=p)
     t = (c0 + p[:3]) - R @ centroid
-    covers = [coverage(d.view, world, mesh, d.box, stages[-1][1]) for d in data]
+    covers = [coverage(d.view, world, mesh, d.box, s=stages[-1][1]) for d in data]
     fit = RegionFit(np.r_[t, angles(R)], [iou(d, c) for d, c in zip(data, covers)], history[-1][2],
                     evaluations, time.perf_counter() - t0, success, message, history, data)
     if min_iou is not None and min(fit.iou) < min_iou:

@@ -186,7 +186,7 @@ def plate_underside(vertices: np.ndarray, faces: np.ndarray) -> float:
     return float(z[down][order][np.searchsorted(cumulative, cumulative[-1] / 10)])
 
 
-def tray_zone(vertices: np.ndarray, faces: np.ndarray, pose_matrix: np.ndarray, mu: float = TRAY_MU,
+def tray_zone(vertices: np.ndarray, faces: np.ndarray, pose_matrix: np.ndarray, *, mu: float = TRAY_MU,
               thickness: float = TRAY_THICKNESS, softness: float = TRAY_SOFTNESS) -> Zone:
     """The bone and cement under a tibial tray's plate and around its keel: the tray's mesh
     in its own frame (z proximal), placed by the 4 x 4 model -> world ``pose_matrix``."""

@@ -47,7 +47,7 @@ class Cage:
         return "x,y,z\n" + "".join(f"{x!r},{y!r},{z!r}\n" for x, y, z in self.beads.astype(float).tolist())
 
 
-def two_plate_grid_cage(plate_gap: float = 120.0, spacing: float = 30.0, grid_a=(4, 4), grid_b=(4, 3),
+def two_plate_grid_cage(*, plate_gap: float = 120.0, spacing: float = 30.0, grid_a=(4, 4), grid_b=(4, 3),
                         bead_mm: float = 2.5, marker_mm: float = 5.0, marker_node=(1, 3)) -> Cage:
     """Plate A at z = +gap/2 with a ``grid_a`` (columns, rows) grid, plate B at z = -gap/2
     with ``grid_b``, both centred on the z axis with the same ``spacing``. The marker takes
@@ -68,7 +68,7 @@ def two_plate_grid_cage(plate_gap: float = 120.0, spacing: float = 30.0, grid_a=
     return Cage("two-plate grid", beads, diameters)
 
 
-def helix_cage(n: int = 24, radius: float = 50.0, height: float = 120.0, turns: float = 2.0,
+def helix_cage(*, n: int = 24, radius: float = 50.0, height: float = 120.0, turns: float = 2.0,
                bead_mm: float = 2.5, marker_mm: float = 5.0) -> Cage:
     """``n`` beads evenly along a helix of ``turns`` turns about the z axis; the marker is
     the bottom one."""
@@ -80,7 +80,7 @@ def helix_cage(n: int = 24, radius: float = 50.0, height: float = 120.0, turns: 
     return Cage("helix", beads, diameters)
 
 
-def irregular_cage(n: int = 26, box: float = 120.0, min_gap: float = 15.0, bead_mm: float = 2.5,
+def irregular_cage(*, n: int = 26, box: float = 120.0, min_gap: float = 15.0, bead_mm: float = 2.5,
                    marker_mm: float = 5.0, seed: int = 3) -> Cage:
     """``n`` beads drawn uniformly in a cube of side ``box``, each at least ``min_gap`` from
     the others; the marker is the first."""
@@ -123,7 +123,7 @@ class Camera:
         return View.from_pinhole(self.K, self.R, self.t, self.size, pitch=self.pitch, name=name)
 
 
-def oblique_camera(tilt_deg: float, azimuth_deg: float = 0.0, roll_deg: float = 0.0,
+def oblique_camera(tilt_deg: float, *, azimuth_deg: float = 0.0, roll_deg: float = 0.0,
                    source_to_cage: float = 750.0, source_to_intensifier: float = 1100.0,
                    size: tuple[int, int] = (1024, 1024), pitch: float = 0.3,
                    principal_offset_px=(6.0, -4.0), aim=(0.0, 0.0, 0.0)) -> Camera:
@@ -147,7 +147,7 @@ def oblique_camera(tilt_deg: float, azimuth_deg: float = 0.0, roll_deg: float = 
     return Camera(K, R, -R @ source, (int(w), int(h)), float(pitch))
 
 
-def render_cage(cage: Cage, camera: Camera, mu_per_mm: float = 0.8, field: float = 0.85, vignetting: float = 0.12,
+def render_cage(cage: Cage, camera: Camera, *, mu_per_mm: float = 0.8, field: float = 0.85, vignetting: float = 0.12,
                 blur_px: float = 0.7, noise: float = 0.012, seed: int = 0, supersample: int = 4) -> np.ndarray:
     """The cage's X-ray image (H, W) float32 in [0, 1]: dark beads on a bright field.
 
@@ -200,7 +200,7 @@ def cage_scene(cage: Cage, cameras, seed: int = 0, **render) -> list[tuple[Camer
 
 def two_view_cameras(**camera) -> list[Camera]:
     """The cameras of ``TWO_VIEWS`` (``oblique_camera``'s keywords otherwise)."""
-    return [oblique_camera(tilt, azimuth, roll, **camera) for tilt, azimuth, roll in TWO_VIEWS]
+    return [oblique_camera(tilt, azimuth_deg=azimuth, roll_deg=roll, **camera) for tilt, azimuth, roll in TWO_VIEWS]
 
 
 def write_cage_scene(cage: Cage, cameras, folder, seed: int = 0, **render) -> tuple[list[Path], Path]:

@@ -232,8 +232,8 @@ def views_from_specs(specs, image_size: int = 1024) -> list[View]:
         target = np.asarray(spec.target, dtype=float)
         source = target - spec.source_to_target_mm * direction
         # the field of view stays the same at any image size: the pitch scales instead
-        view = View.looking_at(source, target, up, spec.source_to_image_mm, (image_size, image_size),
-                               spec.pitch_mm / scale, name=spec.name)
+        view = View.looking_at(source, target, up, spec.source_to_image_mm, image_size=(image_size, image_size),
+                               pitch=spec.pitch_mm / scale, name=spec.name)
         cx, cy = view.principal_point
         du, dv = spec.principal_offset_px
         views.append(dataclasses.replace(view, principal_point=(cx + du * scale, cy + dv * scale)))
@@ -310,7 +310,7 @@ def write_pairs_csv(path: Path, frames, sequences, base: Path) -> None:
     atomic_write_text(path, out.getvalue())
 
 
-def _frustum(z0: float, z1: float, r0: float, r1: float, centre=(0.0, 0.0), n: int = 40):
+def _frustum(z0: float, z1: float, r0: float, r1: float, *, centre=(0.0, 0.0), n: int = 40):
     """Closed truncated cone along z (component frame): a bone shaft or a limb segment."""
     theta = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False)
     ring = np.column_stack([np.cos(theta), np.sin(theta)])
@@ -333,10 +333,10 @@ def anatomy_meshes() -> dict:
     at z = 0, femoral condyles below the femoral origin); ``posed_anatomy`` places them.
     """
     parts = {
-        "femur_bone": ("femoral", *_frustum(8.0, 320.0, 30.0, 15.0, (0.0, -4.0))),
-        "tibia_bone": ("tibial", *_frustum(-320.0, -3.0, 14.0, 33.0, (2.0, 0.0))),
-        "thigh": ("femoral", *_frustum(-35.0, 320.0, 56.0, 68.0, (0.0, -6.0))),
-        "shank": ("tibial", *_frustum(-320.0, 20.0, 40.0, 52.0, (0.0, -10.0))),
+        "femur_bone": ("femoral", *_frustum(8.0, 320.0, 30.0, 15.0, centre=(0.0, -4.0))),
+        "tibia_bone": ("tibial", *_frustum(-320.0, -3.0, 14.0, 33.0, centre=(2.0, 0.0))),
+        "thigh": ("femoral", *_frustum(-35.0, 320.0, 56.0, 68.0, centre=(0.0, -6.0))),
+        "shank": ("tibial", *_frustum(-320.0, 20.0, 40.0, 52.0, centre=(0.0, -10.0))),
     }
     return parts
 
@@ -359,7 +359,7 @@ def render_view(view: View, metal_layers, anatomy: dict, rng: np.random.Generato
     return xray_image(view, coverages, anatomy, rng)
 
 
-def xray_image(view: View, metal_coverages, anatomy: dict, rng: np.random.Generator,
+def xray_image(view: View, metal_coverages, anatomy: dict, rng: np.random.Generator, *,
                soft_downsample: int = 1) -> np.ndarray:
     """The image model: transmissions multiply over a shaded background, then blur, field, noise.
 

@@ -112,8 +112,8 @@ TIBIA_START_MM = (0.0, -12.0, -16.0)  # tibial origin (tray top) at frame 0, wor
 
 
 # -- public API -------------------------------------------------------------------------------
-def build_knee_sequence(directory, femoral_mesh, tibial_mesh, frames: int = 100, image_size: int = 1024,
-                        seed: int = 0, side: str = "right", start_frame: int = 0, *, bits: int = 8,
+def build_knee_sequence(directory, femoral_mesh, tibial_mesh, *, frames: int = 100, image_size: int = 1024,
+                        seed: int = 0, side: str = "right", start_frame: int = 0, bits: int = 8,
                         workers: int = 1, drift_mm=(0.0, 0.0, 0.0)) -> Path:
     """Write a generated two-view knee-bend sequence into `directory`; return the .fluoro project path.
 
@@ -296,7 +296,7 @@ def metal_coverage(view: View, vertices_world, faces, topology: "MeshTopology | 
     result = np.zeros((full.image_size[1], full.image_size[0]))
     if c0_w >= c1_w or r0_w >= r1_w:
         return result
-    view = _window(full, int(c0_w), int(r0_w), int(c1_w), int(r1_w))
+    view = _window(full, int(c0_w), int(r0_w), int(c1_w), r1=int(r1_w))
     width, height = view.image_size
     uv = uv - (c0_w, r0_w)
     tri = uv[faces]
@@ -363,7 +363,7 @@ def metal_coverage(view: View, vertices_world, faces, topology: "MeshTopology | 
         if not here.any():
             continue
         soup = soup_all[face[group]].reshape(-1, 3)
-        fine = coverage_of_meshes(_window(view, c0, r0, c1, r1), [(soup, np.arange(len(soup)).reshape(-1, 3))],
+        fine = coverage_of_meshes(_window(view, c0, r0, c1, r1=r1), [(soup, np.arange(len(soup)).reshape(-1, 3))],
                                   SUPERSAMPLE)
         coverage[r0:r1, c0:c1][here] = fine[here]
     window = (slice(int(r0_w), int(r1_w)), slice(int(c0_w), int(c1_w)))
@@ -371,7 +371,7 @@ def metal_coverage(view: View, vertices_world, faces, topology: "MeshTopology | 
     return result
 
 
-def _window(view: View, c0: int, r0: int, c1: int, r1: int) -> View:
+def _window(view: View, c0: int, r0: int, c1: int, *, r1: int) -> View:
     """The view of the pixels [r0, r1) x [c0, c1) of ``view``'s image (same projection)."""
     cx, cy = view.principal_point
     return dataclasses.replace(view, image_size=(c1 - c0, r1 - r0), principal_point=(cx - c0, cy - r0))

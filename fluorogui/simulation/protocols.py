@@ -52,11 +52,11 @@ def dual_orthogonal_views(source_to_centre: float = 1000.0, source_to_intensifie
     for k, phi in enumerate((-45.0, 45.0)):
         d = np.array([np.cos(np.radians(phi)), np.sin(np.radians(phi)), 0.0])
         views.append(View.looking_at(-source_to_centre * d, [0, 0, 0], [0, 0, 1], source_to_intensifier,
-                                     image_size, pitch, name=f"view {k + 1}"))
+                                     image_size=image_size, pitch=pitch, name=f"view {k + 1}"))
     return views
 
 
-def two_views(angle_deg: float = 90.0, tilt_deg: float = 0.0, offset_px=(0.0, 0.0),
+def two_views(angle_deg: float = 90.0, tilt_deg: float = 0.0, *, offset_px=(0.0, 0.0),
               source_to_centre=(1000.0, 1000.0), source_to_intensifier=(1200.0, 1200.0),
               image_size=(1024, 1024), pitch: float = 315.0 / 1024.0) -> list[View]:
     """Two views ``angle_deg`` apart about the vertical (z) axis, both tilted ``tilt_deg``
@@ -67,7 +67,7 @@ def two_views(angle_deg: float = 90.0, tilt_deg: float = 0.0, offset_px=(0.0, 0.
         tilt = np.radians(tilt_deg) * (1 if k == 0 else -0.5)  # tilted differently: no common plane
         d = np.array([np.cos(np.radians(phi)) * np.cos(tilt), np.sin(np.radians(phi)) * np.cos(tilt), np.sin(tilt)])
         view = View.looking_at(-source_to_centre[k] * d, [0, 0, 0], [0, 0, 1], source_to_intensifier[k],
-                               image_size, pitch, name=f"view {k + 1}")
+                               image_size=image_size, pitch=pitch, name=f"view {k + 1}")
         if any(offset_px):
             pp = (view.principal_point[0] + offset_px[0], view.principal_point[1] + offset_px[1])
             view = View(view.source, view.normal, view.e_u, view.e_v, view.distance, view.pitch, pp,
@@ -105,7 +105,7 @@ def mesh_variant(vertices, faces, variant: str) -> tuple[np.ndarray, np.ndarray]
     raise ValueError(f"unknown mesh variant {variant!r} ({', '.join(VARIANTS)})")
 
 
-def perturbed_starts(truth, n: int, rng: np.random.Generator, range_mm: float = 20.0,
+def perturbed_starts(truth, n: int, rng: np.random.Generator, *, range_mm: float = 20.0,
                      range_deg: float = 20.0, sd_fraction: float = 1.0 / 3.0) -> np.ndarray:
     """``n`` starts: the truth plus truncated Gaussian noise (SD = range * sd_fraction)."""
     truth = np.asarray(truth, dtype=float)
@@ -184,7 +184,8 @@ def outlines_from_images(images, views, mesh: PreparedMesh, nominal_pose) -> lis
 
 
 def run_starts(problem: MatchProblem, truth, starts, settings: MatchSettings,
-               progress: Callable[[int, int], None] | None = None, cancel=None) -> tuple[list[MatchResult], np.ndarray]:
+               *, progress: Callable[[int, int], None] | None = None, cancel=None) -> tuple[list[MatchResult],
+                                                                                            np.ndarray]:
     results, errors = [], []
     for k, s in enumerate(starts):
         res = match(problem, s, settings, cancel=cancel)
@@ -200,7 +201,7 @@ INSERT_GAP_MM = 8.0
 
 
 def other_component_pose(matched_vertices, matched_pose, other_vertices, other_is_tibial: bool,
-                         flexion_deg: float, gap_mm: float = INSERT_GAP_MM) -> tuple[np.ndarray, np.ndarray]:
+                         *, flexion_deg: float, gap_mm: float = INSERT_GAP_MM) -> tuple[np.ndarray, np.ndarray]:
     """(R, t) of the other component of the knee, world from its model frame, for a matched
     component at ``matched_pose``: the femoral component flexed ``flexion_deg`` about the
     tibial tray's mediolateral (x) axis, centred over the tray, its lowest point
@@ -220,13 +221,13 @@ def other_component_pose(matched_vertices, matched_pose, other_vertices, other_i
     return R_m @ R_ft, R_m @ t_ft + t_m
 
 
-def occlusion_masks(views, mesh: PreparedMesh, R, t, margin_px: int = 3) -> list[np.ndarray]:
+def occlusion_masks(views, mesh: PreparedMesh, R, t, *, margin_px: int = 3) -> list[np.ndarray]:
     """Per view, where a mesh at (R, t) projects, grown by ``margin_px`` (as the knee
     workflow masks the other component at its matched pose)."""
     return [projected_region(view, [(mesh, R, t)], margin_px) for view in views]
 
 
-def rim_refined_outlines(images, views, mesh: PreparedMesh, plain, start, settings: MatchSettings | None = None,
+def rim_refined_outlines(images, views, mesh: PreparedMesh, plain, *, start, settings: MatchSettings | None = None,
                          occluded=None, mode: str = "on") -> tuple[list, list[int], list]:
     """``plain`` outlines refined for the metal's rim as the automatic loop does: at the pose
     matched from ``start``, twice (the second time at the pose the first refinement gives),
@@ -247,7 +248,7 @@ def rim_refined_outlines(images, views, mesh: PreparedMesh, plain, start, settin
     return outlines, only, weights
 
 
-def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings, n_starts: int = 10,
+def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings, *, n_starts: int = 10,
                    seed: int = 0, views: list[View] | None = None, label: str = "",
                    render: Callable | None = None, other=None, other_is_tibial: bool = True,
                    start_sd_fraction: float = 1.0 / 3.0, rim: str = "auto") -> CaseResult:
@@ -274,7 +275,7 @@ def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings,
     bodies, occluded, extra = [(world, mesh.faces)], None, {}
     if other is not None:
         other_mesh = prepare_mesh(*other)
-        R, t = other_component_pose(mesh.vertices, truth, other_mesh.vertices, other_is_tibial, flexion_deg)
+        R, t = other_component_pose(mesh.vertices, truth, other_mesh.vertices, other_is_tibial, flexion_deg=flexion_deg)
         bodies.append((other_mesh.vertices @ R.T + t, other_mesh.faces))
         occluded = occlusion_masks(views, other_mesh, R, t)
         R_m = rotation_matrix(*truth[3:])
@@ -283,8 +284,9 @@ def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings,
     images = [(render or render_fluoro)(v, bodies, rng) for v in views]
     outlines = segment_outlines(images, views, mesh, truth, occluded)
     starts = perturbed_starts(truth, n_starts, rng, sd_fraction=start_sd_fraction)
-    outlines, extra["rim_refined"], weights = rim_refined_outlines(images, views, mesh, outlines, starts[0], settings,
-                                                                   occluded, rim)
+    outlines, extra["rim_refined"], weights = rim_refined_outlines(images, views, mesh, outlines, start=starts[0],
+                                                                   settings=settings,
+                                                                   occluded=occluded, mode=rim)
     problem = MatchProblem(mesh, views, fit_splines(outlines, weights), occluded)
     results, errors = run_starts(problem, truth, starts, settings)
     return CaseResult(label or f"{flexion_deg:g} deg", truth, results, errors, summarise(errors, results), extra)
@@ -298,7 +300,7 @@ def sphere_centres(n: int = 8, diameter: float = SPHERE_DIAMETER) -> np.ndarray:
     return np.column_stack([x, np.zeros(n), k * step_z - (n - 1) * step_z / 2.0])
 
 
-def spheres_case(sphere_vertices, sphere_faces, settings: MatchSettings, n_starts: int = 10,
+def spheres_case(sphere_vertices, sphere_faces, settings: MatchSettings, *, n_starts: int = 10,
                  seed: int = 0, views: list[View] | None = None) -> dict:
     """Table 3: match every sphere from perturbed starts, report adjacent separations.
 
@@ -338,7 +340,7 @@ def spheres_case(sphere_vertices, sphere_faces, settings: MatchSettings, n_start
     }
 
 
-def repeatability_case(problem: MatchProblem, pose, settings: MatchSettings, n_starts: int = 10,
+def repeatability_case(problem: MatchProblem, pose, settings: MatchSettings, *, n_starts: int = 10,
                        seed: int = 0, label: str = "") -> CaseResult:
     """Table 4: spread of the matched pose over perturbed starts of a given pose.
 

@@ -131,7 +131,7 @@ def render_fluoro(
     view: View,
     meshes,
     rng: np.random.Generator,
-    contrast: float = 0.55,
+    *, contrast: float = 0.55,
     noise_sd: float = 0.02,
     blur_sigma_px: float = 0.7,
     background: str = "shaded",

@@ -69,7 +69,7 @@ def fit_plates(plates: dict[int, str], spacing_mm: float, grid: str = "square", 
             progress(f"view {view + 1}: fitting the plate")
         image = read_image(path)
         try:
-            fit = fit_plate(image, spacing_mm, grid, model, degree=degree)
+            fit = fit_plate(image, spacing_mm, grid=grid, model=model, degree=degree)
         except DistortionError as exc:
             raise InputError(path, str(exc)) from None
         out[view] = PlateResult(str(path), fit, image)
@@ -93,7 +93,7 @@ def calibrate_views(images: dict[int, str], phantom_path, corrections: dict[int,
         correction = corrections.get(view)
         try:
             model = None if correction is None else correction_from_dict(correction)
-            result = calibrate_view(image, beads, model, pitch, name=f"view {view + 1}")
+            result = calibrate_view(image, beads, correction=model, pitch=pitch, name=f"view {view + 1}")
         except BeadError as exc:
             raise InputError(phantom_path if exc.about_phantom else path, str(exc)) from None
         fitted = result.view if correction is None else attach_correction(result.view, correction)

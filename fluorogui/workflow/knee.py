@@ -264,9 +264,10 @@ class KneeMixin:
             else:
                 femur, tibia = records["femoral"].pose, records["tibial"].pose
                 values = knee_kinematics(pose_to_matrix(femur), pose_to_matrix(tibia), anat["femoral"], anat["tibial"],
-                                         side)
-                sd = kinematics_sd(femur, tibia, anat["femoral"], anat["tibial"], side,
-                                   record_sd(records["femoral"]), record_sd(records["tibial"]), pose_to_matrix)
+                                         side=side)
+                sd = kinematics_sd(femur, tibia, anat["femoral"], anat["tibial"], side=side,
+                                   femoral_sd=record_sd(records["femoral"]), tibial_sd=record_sd(records["tibial"]),
+                                   pose_matrix=pose_to_matrix)
             rows.append(KneeRow(frame, values, status, reason, records, sd))
         return rows
 

@@ -113,7 +113,7 @@ class RecoveryJournal:
             return
         if not poses and not records and settings == self._settings:
             return
-        journal_frames(project, self.path, poses, records, settings != self._settings)
+        journal_frames(project, self.path, poses, records, settings=settings != self._settings)
         self._settings = settings
 
     def write_whole(self) -> None:

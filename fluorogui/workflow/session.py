@@ -267,7 +267,7 @@ class Session(EditsMixin, WorkMixin, KneeMixin):
         settings = json.dumps(self.project.settings, sort_keys=True, default=str)
         changed = settings != getattr(self, "_journaled_settings", None)
         journal_frames(self.project, self.path, [(r.frame, r.component) for r in results],
-                       [(r.frame, v, r.component) for r in results for v in range(self.n_views)], changed)
+                       [(r.frame, v, r.component) for r in results for v in range(self.n_views)], settings=changed)
         self._journaled_settings = settings
         self.dirty_on_disk = True
         self.history.set_clean()

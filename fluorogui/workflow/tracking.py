@@ -259,7 +259,7 @@ class TrackJob:
             earlier = self._images(last_frame)
         except InputError:
             return None
-        centroid = relocated_centroid(earlier, images, self.views, self.meshes[c], last_pose)
+        centroid = relocated_centroid(earlier, images, self.views, self.meshes[c], pose=last_pose)
         return None if centroid is None else with_centroid(start, self.meshes[c], centroid)
 
 

@@ -16,7 +16,8 @@ def two_views() -> list[View]:
     views = []
     for k, phi in enumerate((-35.0, 35.0)):
         d = np.array([np.cos(np.radians(phi)), np.sin(np.radians(phi)), 0.0])
-        views.append(View.looking_at(-1000.0 * d + [3.0, -2.0, 5.0], [0, 0, 0], [0, 0, 1], 1200.0, SIZE, PITCH,
+        views.append(View.looking_at(-1000.0 * d + [3.0, -2.0, 5.0], [0, 0, 0], [0, 0, 1], 1200.0, image_size=SIZE,
+                                     pitch=PITCH,
                                      name=f"view {k + 1}"))
     return views
 

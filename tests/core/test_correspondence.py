@@ -34,7 +34,7 @@ GRID_VIEWS = [
 
 @pytest.mark.parametrize("tilt, azimuth, roll, distance, aim, noise, seed", GRID_VIEWS)
 def test_two_plate_grid_matched_right(tilt, azimuth, roll, distance, aim, noise, seed):
-    camera = oblique_camera(tilt, azimuth, roll, source_to_cage=distance, aim=aim)
+    camera = oblique_camera(tilt, azimuth_deg=azimuth, roll_deg=roll, source_to_cage=distance, aim=aim)
     image = render_cage(GRID, camera, seed=seed, noise=noise)
     result = calibrate_view(image, GRID.beads, pitch=camera.pitch)
     assert wrong_pairs(GRID, camera, image, result.pairs) == []
@@ -46,7 +46,7 @@ def test_deep_cage_from_close_by_matched_right():
     """Plates 200 mm apart 523 mm from the source (the near plate 1.5x the far one's scale),
     three beads outside the image: matched with four wrong pairs before."""
     cage = two_plate_grid_cage(plate_gap=200.0)
-    camera = oblique_camera(17.6, 159.7, -85.9, source_to_cage=523.3, aim=(-14.5, -7.6, 10.8))
+    camera = oblique_camera(17.6, azimuth_deg=159.7, roll_deg=-85.9, source_to_cage=523.3, aim=(-14.5, -7.6, 10.8))
     image = render_cage(cage, camera, seed=22, noise=0.0091)
     result = calibrate_view(image, cage.beads, pitch=camera.pitch)
     assert wrong_pairs(cage, camera, image, result.pairs) == []
@@ -58,7 +58,7 @@ def test_cage_with_its_extreme_beads_outside_the_image():
     """Half of one plate outside the image, with every bead of the first round of bases:
     refused before bases came in rounds."""
     cage = two_plate_grid_cage(plate_gap=200.0)
-    camera = oblique_camera(51.5, 121.4, 105.7, source_to_cage=699.5, aim=(2.8, 7.1, 0.0))
+    camera = oblique_camera(51.5, azimuth_deg=121.4, roll_deg=105.7, source_to_cage=699.5, aim=(2.8, 7.1, 0.0))
     image = render_cage(cage, camera, seed=15, noise=0.0223)
     result = calibrate_view(image, cage.beads, pitch=camera.pitch)
     assert wrong_pairs(cage, camera, image, result.pairs) == []
@@ -69,7 +69,7 @@ def test_dense_grid_along_the_normal_not_seen_from_the_other_side():
     """Two like 6x6 plates seen along their normal: the cage seen as from its other side fits
     64 blobs to 0.04 px, with the marker bead 8 px off the marker blob (it was taken)."""
     cage = two_plate_grid_cage(spacing=20.0, grid_a=(6, 6), grid_b=(6, 6), marker_node=(1, 4))
-    camera = oblique_camera(0.9, 336.0, -149.1, source_to_cage=922.5, aim=(-4.0, 13.5, -3.0))
+    camera = oblique_camera(0.9, azimuth_deg=336.0, roll_deg=-149.1, source_to_cage=922.5, aim=(-4.0, 13.5, -3.0))
     image = render_cage(cage, camera, seed=6, noise=0.0284)
     result = calibrate_view(image, cage.beads, pitch=camera.pitch)
     assert wrong_pairs(cage, camera, image, result.pairs) == []
@@ -82,7 +82,8 @@ def test_dense_grid_sheared_match_with_its_principal_point_inside_the_image_refu
     principal point 610 px towards a corner, inside the image: its pixels' skew, which a
     zero-skew pinhole cannot fit (0.35 px), gives it away."""
     cage = two_plate_grid_cage(spacing=20.0, grid_a=(6, 6), grid_b=(6, 6), marker_node=(1, 4))
-    camera = oblique_camera(5.567, 336.735, -48.552, source_to_cage=587.919, aim=(-15.0, -13.187, -8.560))
+    camera = oblique_camera(5.567, azimuth_deg=336.735, roll_deg=-48.552, source_to_cage=587.919, aim=(-15.0,
+                                                                                                       -13.187, -8.560))
     image = render_cage(cage, camera, seed=25, noise=0.0154)
     result = calibrate_view(image, cage.beads, pitch=camera.pitch)
     assert wrong_pairs(cage, camera, image, result.pairs) == []
@@ -93,7 +94,8 @@ def test_merged_blobs_left_out():
     """Plates 60 mm apart seen at 12 degrees: six of the 20 blobs are two beads merged, two
     of them were paired 1.7 and 1.95 px off (the source 14 mm off)."""
     cage = two_plate_grid_cage(plate_gap=60.0)
-    camera = oblique_camera(12.389, 275.372, 15.676, source_to_cage=958.521, aim=(0.319, 11.065, -5.705))
+    camera = oblique_camera(12.389, azimuth_deg=275.372, roll_deg=15.676, source_to_cage=958.521, aim=(0.319, 11.065,
+                                                                                                       -5.705))
     image = render_cage(cage, camera, seed=75, noise=0.0138)
     result = calibrate_view(image, cage.beads, pitch=camera.pitch)
     assert wrong_pairs(cage, camera, image, result.pairs) == []
@@ -107,7 +109,8 @@ def test_marker_outside_the_image_refused():
     plate's beads look as large as a marker, and the cage seen from its other side fitted
     20 of them to 0.011 px before the marker's size was checked with perspective taken out."""
     cage = two_plate_grid_cage(plate_gap=200.0)
-    camera = oblique_camera(28.663, 256.446, -8.244, source_to_cage=529.585, aim=(1.865, -12.4, 12.88))
+    camera = oblique_camera(28.663, azimuth_deg=256.446, roll_deg=-8.244, source_to_cage=529.585, aim=(1.865, -12.4,
+                                                                                                       12.88))
     image = render_cage(cage, camera, seed=41, noise=0.0128)
     with pytest.raises(BeadError, match="cannot be matched.*is the marker bead in the image"):
         calibrate_view(image, cage.beads, pitch=camera.pitch)
@@ -115,7 +118,7 @@ def test_marker_outside_the_image_refused():
 
 @pytest.mark.slow
 def test_phantom_files_that_break_the_contract_are_refused():
-    camera = oblique_camera(30.0, 120.0, -10.0)
+    camera = oblique_camera(30.0, azimuth_deg=120.0, roll_deg=-10.0)
     image = render_cage(GRID, camera, seed=3)
     with pytest.raises(BeadError, match="cannot be matched.*is the marker bead in the image, and the phan") as info:
         calibrate_view(image, np.roll(GRID.beads, -1, axis=0))  # the marker listed last
@@ -127,7 +130,7 @@ def test_phantom_files_that_break_the_contract_are_refused():
 
 def test_helix_matched_right():
     cage = helix_cage()
-    camera = oblique_camera(20.0, 300.0, 40.0)
+    camera = oblique_camera(20.0, azimuth_deg=300.0, roll_deg=40.0)
     image = render_cage(cage, camera, seed=4)
     result = calibrate_view(image, cage.beads, pitch=camera.pitch)
     assert wrong_pairs(cage, camera, image, result.pairs) == []

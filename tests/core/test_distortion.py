@@ -40,7 +40,7 @@ def true_ideal_rms(fit, distortion) -> float:
 @pytest.mark.parametrize("model", ["global", "local"])
 def test_square_plate_without_noise(square_plate, distortion, model):
     image, centres = square_plate
-    fit = fit_plate(image, 2.0, "square", model)
+    fit = fit_plate(image, 2.0, grid="square", model=model)
     assert len(fit.holes_px) >= len(centres) - 4 and fit.discarded == 0
     assert fit.rms_px <= {"global": 0.044, "local": 0.034}[model]  # measured 0.022 (global), 0.017 (local)
     assert fit.max_px <= 0.1  # measured 0.057, 0.048
@@ -57,17 +57,17 @@ def test_square_plate_without_noise(square_plate, distortion, model):
 
 def test_hex_plate_with_noise(distortion):
     image, _ = plate_image(distortion, SIZE, "hex", SPACING_PX, noise_sd=0.02, rng=np.random.default_rng(5))
-    fit = fit_plate(image, 2.0, "hex", "global")
+    fit = fit_plate(image, 2.0, grid="hex", model="global")
     # seeded noise: fixed numbers for this seed
     assert fit.grid == "hex" and fit.rms_px <= 0.067  # measured 0.034 px with noise SD 0.02 (plate contrast 0.7)
     assert true_ideal_rms(fit, distortion) <= 0.032  # measured 0.016
     with pytest.raises(DistortionError, match="square grid"):
-        fit_plate(image, 2.0, "square")
+        fit_plate(image, 2.0, grid="square")
 
 
 def test_points_both_ways_and_images(square_plate, distortion):
     image, _ = square_plate
-    fit = fit_plate(image, 2.0, "square", "global")
+    fit = fit_plate(image, 2.0, grid="square", model="global")
     ideal = np.random.default_rng(2).uniform(40, 340, (200, 2))
     distorted = fit.correction.distort_points(ideal)
     np.testing.assert_allclose(fit.correction.correct_points(distorted), ideal, atol=5e-11)  # measured 2.4e-11 px
@@ -82,7 +82,7 @@ def test_serialisation_keeps_the_correction(square_plate):
     image, _ = square_plate
     points = np.random.default_rng(3).uniform(20, 360, (50, 2))
     for model in ("global", "local"):
-        correction = fit_plate(image, 2.0, "square", model).correction
+        correction = fit_plate(image, 2.0, grid="square", model=model).correction
         again = correction_from_dict(correction.to_dict())
         np.testing.assert_allclose(again.correct_points(points), correction.correct_points(points), atol=1e-12)
 
@@ -92,7 +92,7 @@ def test_non_holes_discarded_and_no_grid(square_plate):
     spoiled = image.copy()
     spoiled[5:60, 300:370] = 0.9  # a bright marker ten holes large
     spoiled[200:202, 101:103] = 0.9  # a speck between holes
-    fit = fit_plate(spoiled, 2.0, "square")
+    fit = fit_plate(spoiled, 2.0, grid="square")
     assert fit.rms_px <= 0.058  # measured 0.029
     assert not np.any((fit.holes_px[:, 0] > 300) & (fit.holes_px[:, 1] < 60))
     picture = residual_picture(spoiled, fit)
@@ -131,7 +131,7 @@ def test_match_after_correction_reaches_undistorted_accuracy(square_plate, disto
     from fluorogui.simulation.protocols import dual_orthogonal_views, flexion_pose
     from fluorogui.simulation.render import render_fluoro
 
-    fit = fit_plate(square_plate[0], 2.0, "square", "global")
+    fit = fit_plate(square_plate[0], 2.0, grid="square", model="global")
     vertices, faces = femoral_component_mesh()
     mesh = prepare_mesh(vertices, faces)
     truth = flexion_pose(vertices, 45.0)

@@ -16,7 +16,8 @@ from fluorogui.core.outlines.spline import OutlineSpline, validate_outline
 from fluorogui.core.projection.geometry import View
 from fluorogui.simulation.render import render_fluoro
 
-VIEW = View.looking_at([0, 0, -1000], [0, 0, 0], [0, -1, 0], 1000.0, (256, 256), 0.25)  # z=0 at 0.25 mm/px
+VIEW = View.looking_at([0, 0, -1000], [0, 0, 0], [0, -1, 0], 1000.0, image_size=(256, 256),
+                       pitch=0.25)  # z=0 at 0.25 mm/px
 
 
 def flat_polygon(xy_mm):

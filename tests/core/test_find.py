@@ -172,12 +172,12 @@ def test_edge_refinement_pulls_a_rough_pose_in(scene):
     maps = [ss.EdgeMaps(image) for image in images]
     R0 = rotation_matrix(*truth["femoral"][3:])
     c0 = R0 @ mesh.centroid + truth["femoral"][:3]
-    right = np.mean(ss.pose_edge_score(lib.coarse, R0, c0, views, maps))
+    right = np.mean(ss.pose_edge_score(lib.coarse, R0, c0, views, maps=maps))
     R = rotvec_matrix(np.radians([6.0, -5.0, 4.0])) @ R0
     c = c0 + np.array([3.0, -2.0, 2.0])
-    assert np.mean(ss.pose_edge_score(lib.coarse, R, c, views, maps)) < right - 0.32  # measured 0.358 vs 0.995
-    R, c = ss.refine_on_edges(lib.coarse, views, maps, R, c)
-    R, c = ss.refine_on_edges(lib.fine, views, maps, R, c, (4, 3, 3))
+    assert np.mean(ss.pose_edge_score(lib.coarse, R, c, views, maps=maps)) < right - 0.32  # measured 0.358 vs 0.995
+    R, c = ss.refine_on_edges(lib.coarse, views, maps, R, c=c)
+    R, c = ss.refine_on_edges(lib.fine, views, maps, R, c=c, radii_px=(4, 3, 3))
     angle = np.degrees(np.arccos(np.clip((np.trace(R.T @ R0) - 1) / 2, -1, 1)))
     # measured 0.093 deg, 0.0096 mm
     assert angle < 0.185 and np.linalg.norm(c - c0) < 0.019, (angle, np.linalg.norm(c - c0))

@@ -5,7 +5,7 @@ from fluorogui.core.projection.geometry import GeometryError, View, closest_poin
 
 
 def _view():
-    return View.looking_at([0, -1000, 0], [0, 0, 0], [0, 0, 1], 1200.0, (1024, 1024), 0.3)
+    return View.looking_at([0, -1000, 0], [0, 0, 0], [0, 0, 1], 1200.0, image_size=(1024, 1024), pitch=0.3)
 
 
 def test_projection_is_eq3_on_the_plane_and_pixels_agree():
@@ -44,7 +44,7 @@ def test_jacobian_matches_finite_differences():
 
 
 def test_rays_triangulate_a_point_and_report_the_miss():
-    v1, v2 = _view(), View.looking_at([-1000, 0, 0], [0, 0, 0], [0, 0, 1], 1200.0, (1024, 1024), 0.3)
+    v1, v2 = _view(), View.looking_at([-1000, 0, 0], [0, 0, 0], [0, 0, 1], 1200.0, image_size=(1024, 1024), pitch=0.3)
     X = np.array([[10.0, 5.0, 20.0]])
     p, miss = triangulate([v1, v2], [v1.project(X)[0], v2.project(X)[0]])
     assert np.allclose(p, X[0], atol=1e-9) and miss < 1e-9

@@ -28,7 +28,7 @@ def _directed_edges_unique(faces) -> bool:
 
 def _lateral_area(vertices, faces) -> float:
     """Area (px) of the silhouette seen along the mediolateral axis."""
-    view = View.looking_at([-1000, 0, 0], [0, 0, 0], [0, 0, 1], 1200, (1024, 1024), 315 / 1024)
+    view = View.looking_at([-1000, 0, 0], [0, 0, 0], [0, 0, 1], 1200, image_size=(1024, 1024), pitch=315 / 1024)
     p = mesh_silhouette(prepare_mesh(vertices, faces), np.eye(3), np.zeros(3), view, spacing_px=1.0).points_px
     return 0.5 * abs(np.dot(p[:, 0], np.roll(p[:, 1], -1)) - np.dot(p[:, 1], np.roll(p[:, 0], -1)))
 

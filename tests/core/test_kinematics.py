@@ -155,7 +155,8 @@ def test_sd_propagation_matches_a_monte_carlo_spread():
     sd_f = np.array([0.05, 0.2, 0.05, 0.05, 0.1, 0.05])
     sd_t = np.array([0.08, 0.1, 0.3, 0.1, 0.05, 0.2])
     eye = np.eye(4)
-    predicted = kinematics_sd(femur, tibia, eye, eye, "right", sd_f, sd_t, pose_to_matrix)
+    predicted = kinematics_sd(femur, tibia, eye, eye, side="right", femoral_sd=sd_f, tibial_sd=sd_t,
+                              pose_matrix=pose_to_matrix)
     rng = np.random.default_rng(3)
     samples = np.array([knee_kinematics(pose_to_matrix(femur + rng.normal(size=6) * sd_f),
                                         pose_to_matrix(tibia + rng.normal(size=6) * sd_t), eye, eye).values()
@@ -163,4 +164,5 @@ def test_sd_propagation_matches_a_monte_carlo_spread():
     observed = samples.std(axis=0)
     # statistical: 4000 samples know an SD to about 1.1 % (1 / sqrt(2 n)); measured 2.3 % at most
     assert predicted == pytest.approx(observed, rel=0.06)
-    assert np.all(np.isnan(kinematics_sd(femur, tibia, eye, eye, "right", sd_f, [np.nan] * 6, pose_to_matrix)))
+    assert np.all(np.isnan(kinematics_sd(femur, tibia, eye, eye, side="right", femoral_sd=sd_f,
+                                         tibial_sd=[np.nan] * 6, pose_matrix=pose_to_matrix)))

@@ -30,7 +30,7 @@ def _egg():
 
 
 def _noisy_outline(view, world, noise_px, corr_px, rng):
-    return noisy_hull_outline(view, world, noise_px, corr_px, rng)
+    return noisy_hull_outline(view, world, noise_px, corr_px, rng=rng)
 
 
 def _spread(views, start_sd: float, n: int = 80, seed: int = 1):
@@ -58,7 +58,8 @@ def test_biplane_sd_matches_the_spread_over_noise_realisations():
 @pytest.mark.slow
 def test_single_view_out_of_plane_translation_is_least_certain():
     # looking along world x: x is the out-of-plane translation
-    view = View.looking_at([-1000.0, 0, 0], [0, 0, 0], [0, 0, 1], 1200.0, (1024, 1024), 315 / 1024, name="single")
+    view = View.looking_at([-1000.0, 0, 0], [0, 0, 0], [0, 0, 1], 1200.0, image_size=(1024, 1024), pitch=315 / 1024,
+                           name="single")
     observed, reported = _spread([view], start_sd=0.5)
     ratio = reported / observed
     assert np.all(ratio > 1 / 1.5) and np.all(ratio < 1.5), (ratio, observed, reported)

@@ -82,7 +82,7 @@ def test_precision_weights_are_the_inverse_variance_of_the_fits_about_each_point
 def _outline(view, world, sd_px, rng):
     """The hull outline (1 px apart) moved along its normal by noise correlated over 3 px
     whose SD is ``sd_px(fraction along the outline)``; and the SD per point."""
-    exact = noisy_hull_outline(view, world, 0.0, 0.0, rng)
+    exact = noisy_hull_outline(view, world, 0.0, 0.0, rng=rng)
     tangent = np.roll(exact, -1, 0) - np.roll(exact, 1, 0)
     normal = np.column_stack([tangent[:, 1], -tangent[:, 0]]) / np.linalg.norm(tangent, axis=1)[:, None]
     e = gaussian_filter1d(rng.normal(size=len(exact)), 3.0, mode="wrap")

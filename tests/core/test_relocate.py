@@ -34,7 +34,7 @@ def scene():
 
 def test_the_new_centroid_is_found_from_the_images(scene):
     mesh, views, images = scene
-    found = relocated_centroid(images["before"], images["after"], views, mesh, BEFORE)
+    found = relocated_centroid(images["before"], images["after"], views, mesh, pose=BEFORE)
     assert found is not None
     miss = np.linalg.norm(found - _centroid(mesh, AFTER))
     # measured 1.97 mm after moving 31 mm and turning 9 deg (the turned patch correlates
@@ -46,7 +46,7 @@ def test_views_that_disagree_give_no_answer(scene):
     mesh, views, images = scene
     # view 2 shows the component moved elsewhere: its ray misses view 1's (by 29 mm, measured)
     mixed = [images["after"][0], images["elsewhere"][1]]
-    assert relocated_centroid(images["before"], mixed, views, mesh, BEFORE) is None
+    assert relocated_centroid(images["before"], mixed, views, mesh, pose=BEFORE) is None
 
 
 def test_a_component_out_of_the_image_gives_no_shift(scene):

@@ -10,7 +10,7 @@ from fluorogui.simulation.render import render_fluoro, render_silhouette
 
 def overhead_view(size=128, pitch=0.25):
     """Source 1000 mm above the z = 0 plane, intensifier at 1000 mm: plane z=0 at 1:1."""
-    return View.looking_at([0, 0, -1000], [0, 0, 0], [0, -1, 0], 1000.0, (size, size), pitch)
+    return View.looking_at([0, 0, -1000], [0, 0, 0], [0, -1, 0], 1000.0, image_size=(size, size), pitch=pitch)
 
 
 def cube(edge):

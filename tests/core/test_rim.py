@@ -62,7 +62,7 @@ def test_refined_outline_sits_on_the_true_silhouette(tray, mu):
     for view in VIEWS:
         image = xray_image(view, [Body(world, mesh.faces, mu)], XrayModel(), np.random.default_rng(3))
         canny = component_outline(image, predicted_outline(mesh, pose, view))
-        refined, model = refine_outline(image, view, mesh, pose, canny)
+        refined, model = refine_outline(image, view, mesh, pose, outline_px=canny)
         before.append(signed_distance_to_truth(view, world, mesh.faces, canny).mean())
         after.append(signed_distance_to_truth(view, world, mesh.faces, refined).mean())
         print(f"mu {mu} {view.name}: canny {before[-1]:+.3f} refined {after[-1]:+.3f} model {model}")
@@ -82,7 +82,7 @@ def test_a_sharp_edge_keeps_its_place(tray):
     view = VIEWS[0]
     image = xray_image(view, [Body(world, mesh.faces, 50.0)], XrayModel(), np.random.default_rng(4))
     canny = component_outline(image, predicted_outline(mesh, pose, view))
-    refined, model = refine_outline(image, view, mesh, pose, canny)
+    refined, model = refine_outline(image, view, mesh, pose, outline_px=canny)
     before = signed_distance_to_truth(view, world, mesh.faces, canny)
     after = signed_distance_to_truth(view, world, mesh.faces, refined)
     print(f"step: canny {before.mean():+.3f} refined {after.mean():+.3f} model {model}")
@@ -207,9 +207,9 @@ def test_a_stretch_pulled_by_another_edge_is_left_out(tray, monkeypatch):
     def near_stretch(points):
         return cKDTree(canny[stretch]).query(points)[0] < 1.0
 
-    kept, _ = refine_outline(spoiled, view, mesh, pose, canny)
+    kept, _ = refine_outline(spoiled, view, mesh, pose, outline_px=canny)
     monkeypatch.setattr("fluorogui.core.outlines.rim.MAX_DROPPED", -1.0)  # leave nothing out
-    every, _ = refine_outline(spoiled, view, mesh, pose, canny)
+    every, _ = refine_outline(spoiled, view, mesh, pose, outline_px=canny)
     pulled = signed_distance_to_truth(view, world, mesh.faces, every[near_stretch(every)])
     print(f"stretch of {len(stretch)}: {near_stretch(kept).sum()} kept near it of {len(kept)} "
           f"({len(canny)} in); without leaving out, it lies {pulled.mean():+.2f} px from the truth; "

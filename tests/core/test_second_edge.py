@@ -72,10 +72,10 @@ def test_a_bone_edge_beside_a_stretch_no_longer_pulls_it(tray, monkeypatch, wher
         near = cKDTree(canny[stretch[8:-8]]).query(outline)[0] < 1.0
         return signed_distance_to_truth(view, world, mesh.faces, outline[near]).mean()
 
-    modelled, _ = rim.refine_outline(spoiled, view, mesh, pose, canny)
+    modelled, _ = rim.refine_outline(spoiled, view, mesh, pose, outline_px=canny)
     monkeypatch.setattr(rim, "second_edges", lambda image, points, *a: (np.full(len(points), np.nan),) * 2)
     monkeypatch.setattr(rim, "_GATHERED", [])  # gathered again, without the second edges
-    ignored, _ = rim.refine_outline(spoiled, view, mesh, pose, canny)
+    ignored, _ = rim.refine_outline(spoiled, view, mesh, pose, outline_px=canny)
     print(f"stretch at {where:.2f}: modelled {stretch_error(modelled):+.3f} px, "
           f"ignored {stretch_error(ignored):+.3f} px")
     # measured: modelled -0.008 / -0.016 px, ignored -0.191 / -0.262 px; without the blur's

@@ -11,7 +11,7 @@ from fluorogui.simulation.phantoms import femoral_component_mesh, sphere_mesh
 
 
 def _view():
-    return View.looking_at([0, -1000, 0], [0, 0, 0], [0, 0, 1], 1200.0, (1024, 1024), 0.3)
+    return View.looking_at([0, -1000, 0], [0, 0, 0], [0, 0, 1], 1200.0, image_size=(1024, 1024), pitch=0.3)
 
 
 def test_sphere_silhouette_is_the_exact_circle():

@@ -27,7 +27,7 @@ from fluorogui.reference.xray import MU_TISSUE, Body, Cylinder, XrayModel, path_
 from fluorogui.reference.zone import REAL_BLUR_PX, tray_zone
 
 REFERENCE_POSES = Path(__file__).resolve().parents[1] / "data" / "biplane_reference_poses.csv"
-VIEW = View.looking_at([-1000.0, 0, 0], [0, 0, 0], [0, 0, 1], 1200.0, (128, 128), 0.5)
+VIEW = View.looking_at([-1000.0, 0, 0], [0, 0, 0], [0, 0, 1], 1200.0, image_size=(128, 128), pitch=0.5)
 
 
 def _mesh(polydata):
@@ -60,7 +60,7 @@ def test_coverage_is_the_x_ray_models_shadow_of_a_closed_mesh():
     torus = pv.ParametricTorus(ringradius=12.0, crosssectionradius=4.0).rotate_y(60.0).translate((0, 3, -2))
     for poly in (torus, pv.Sphere(radius=10.0, center=(20.0, 3.0, -2.0), theta_resolution=90, phi_resolution=90)):
         v, f = _mesh(poly)
-        cover = coverage(VIEW, v, EdgeMesh.from_arrays(v, f), (0, 0, 128, 128), 4)
+        cover = coverage(VIEW, v, EdgeMesh.from_arrays(v, f), (0, 0, 128, 128), s=4)
         # independent: ray casting of the X-ray model, 4 x 4 rays per pixel
         shadow = (path_length(VIEW, Body(v, f), 4, (0, 0, 128, 128)) > 1e-9).reshape(128, 4, 128, 4).mean((1, 3))
         assert cover.max() == pytest.approx(1.0) and cover.min() == 0.0
@@ -168,7 +168,7 @@ def test_the_other_components_mask_is_its_region_dilated():
     v, f = _mesh(pv.Sphere(radius=10.0, theta_resolution=60, phi_resolution=60))
     mesh = EdgeMesh.from_arrays(v, f)
     (mask,) = component_masks([VIEW], mesh, [5.0, 0.0, 0.0, 0.0, 0.0, 0.0], dilate_px=3)
-    region = coverage(VIEW, v + [5.0, 0.0, 0.0], mesh, (0, 0, 128, 128), 1) > 1e-3
+    region = coverage(VIEW, v + [5.0, 0.0, 0.0], mesh, (0, 0, 128, 128), s=1) > 1e-3
     assert mask.shape == (128, 128) and mask[region].all()
     away = cv2.distanceTransform((~region).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     # a disc of radius 3 px reaches (1, 3) px off: sqrt(10)

@@ -9,7 +9,7 @@ from fluorogui.reference.xray import MU_METAL, Body, XrayModel, xray_image
 from fluorogui.reference.zone import Zone, plate_underside, tray_zone
 
 # looking along +x from x = -1000; the detector 1200 mm from the source, 0.5 mm pixels
-VIEW = View.looking_at([-1000.0, 0, 0], [0, 0, 0], [0, 0, 1], 1200.0, (128, 128), 0.5)
+VIEW = View.looking_at([-1000.0, 0, 0], [0, 0, 0], [0, 0, 1], 1200.0, image_size=(128, 128), pitch=0.5)
 
 
 def _sphere(radius=10.0):

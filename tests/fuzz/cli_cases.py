@@ -40,8 +40,8 @@ def make_scene(folder: Path) -> dict:
     from fluorogui.io.outlines import write_outline_csv
 
     folder.mkdir(parents=True, exist_ok=True)
-    views = [View.looking_at((0, -1000, 0), (0, 0, 0), (0, 0, 1), 1200, (64, 48), 0.4, name="a"),
-             View.looking_at((1000, 0, 0), (0, 0, 0), (0, 0, 1), 1200, (64, 48), 0.4, name="b")]
+    views = [View.looking_at((0, -1000, 0), (0, 0, 0), (0, 0, 1), 1200, image_size=(64, 48), pitch=0.4, name="a"),
+             View.looking_at((1000, 0, 0), (0, 0, 0), (0, 0, 1), 1200, image_size=(64, 48), pitch=0.4, name="b")]
     scene = {}
     t = np.linspace(0, 2 * np.pi, 40, endpoint=False)
     for k, view in enumerate(views):

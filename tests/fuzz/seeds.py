@@ -39,7 +39,7 @@ def make_seeds(folder: Path) -> dict[str, list[Path]]:
     for name, text in (("mayacam2.txt", MAYACAM2), ("mayacam1.txt", MAYACAM1), ("jointtrack.txt", JOINTTRACK)):
         (folder / name).write_text(text)
         seeds["calibration"].append(folder / name)
-    view = View.looking_at((0, -1000, 0), (0, 0, 0), (0, 0, 1), 1200, (64, 48), 0.4, name="a")
+    view = View.looking_at((0, -1000, 0), (0, 0, 0), (0, 0, 1), 1200, image_size=(64, 48), pitch=0.4, name="a")
     save_view_json(view, folder / "cal.json")
     seeds["calibration"].append(folder / "cal.json")
     image = np.linspace(0, 1, 64 * 48).reshape(48, 64)

@@ -27,8 +27,8 @@ def log_folder(tmp_path, monkeypatch):
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("cli")
-    views = [View.looking_at((0, -1000, 0), (0, 0, 0), (0, 0, 1), 1200, (64, 48), 0.4, name="a"),
-             View.looking_at((1000, 0, 0), (0, 0, 0), (0, 0, 1), 1200, (64, 48), 0.4, name="b")]
+    views = [View.looking_at((0, -1000, 0), (0, 0, 0), (0, 0, 1), 1200, image_size=(64, 48), pitch=0.4, name="a"),
+             View.looking_at((1000, 0, 0), (0, 0, 0), (0, 0, 1), 1200, image_size=(64, 48), pitch=0.4, name="b")]
     out = {"dir": d}
     for k, view in enumerate(views):
         save_view_json(view, d / f"cam{k}.json")

@@ -16,7 +16,7 @@ import pytest
 pytestmark = pytest.mark.slow
 
 CHILD = textwrap.dedent("""
-    import json, sys
+    import json, sys, time
     from PySide6.QtCore import QSettings, QTimer
     from fluorogui.gui.app import make_application
     from fluorogui.gui.main_window import MainWindow
@@ -41,6 +41,8 @@ CHILD = textwrap.dedent("""
     def tracked(item):  # after the window stored it (connected later)
         say(stored=item.frame, pose=s.pose("femoral", item.frame).tolist(),
             status=str(s.pose_record("femoral", item.frame).status))
+        if item.frame == 1:  # the GUI thread stores the results: frame 2 cannot land before the kill
+            time.sleep(600)
 
     window.runner.item.connect(tracked)
     window.runner.finished.connect(found)

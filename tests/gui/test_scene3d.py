@@ -44,8 +44,8 @@ def gl_context():
 
 def synthetic_views():
     """Two small views 90 deg apart looking at the origin; images 64 x 48 (non-square)."""
-    v1 = View.looking_at([0, -1000, 0], [0, 0, 0], [0, 0, 1], 1200.0, (64, 48), 3.0, name="a")
-    v2 = View.looking_at([-1000, 0, 0], [0, 0, 0], [0, 0, 1], 1200.0, (64, 48), 3.0, name="b")
+    v1 = View.looking_at([0, -1000, 0], [0, 0, 0], [0, 0, 1], 1200.0, image_size=(64, 48), pitch=3.0, name="a")
+    v2 = View.looking_at([-1000, 0, 0], [0, 0, 0], [0, 0, 1], 1200.0, image_size=(64, 48), pitch=3.0, name="b")
     return [v1, v2]
 
 

@@ -296,7 +296,7 @@ def test_view_file_view_round_trip(tmp_path, fmt):
     from fluorogui.io.calibration import save_view
 
     view = View.looking_at((812.3, -95.1, 240.7), (3.2, 1.1, -4.0), (0.1, 0.2, 1.0), 1187.654321,
-                           (1024, 768), DEFAULT_PITCH_MM, name="cam")
+                           image_size=(1024, 768), pitch=DEFAULT_PITCH_MM, name="cam")
     view = View(view.source, view.normal, view.e_u, view.e_v, view.distance, view.pitch, (530.25, 371.875),
                 view.image_size, "cam")
     save_view(view, tmp_path / "v.txt", fmt)
@@ -341,7 +341,7 @@ def test_jointtrack_round_trip_and_refusal(tmp_path):
     save_view_jointtrack(view, tmp_path / "jt.txt")
     np.testing.assert_allclose(_numbers_of((tmp_path / "jt.txt").read_text()), [1198, 3.73, -7.46, 0.373], rtol=1e-12)
     _assert_same_view(view, load_view(tmp_path / "jt.txt"))
-    moved = View.looking_at((0, 0, 1000), (0, 0, 0), (0, 1, 0), 1198, (1024, 1024), 0.373)
+    moved = View.looking_at((0, 0, 1000), (0, 0, 0), (0, 1, 0), 1198, image_size=(1024, 1024), pitch=0.373)
     with pytest.raises(InputError, match="own camera frame"):
         save_view_jointtrack(moved, tmp_path / "no.txt")
     assert not (tmp_path / "no.txt").exists()

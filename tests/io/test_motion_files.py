@@ -49,8 +49,8 @@ def test_c3d_markers_read_back_by_another_library(tmp_path):
     valid[1, 2] = valid[4, 0] = False
     points[3, 1] = np.nan  # a missing pose is invalid whatever ``valid`` says
     path = tmp_path / "m.c3d"
-    write_c3d(path, ["a_origin", "a_x", "b_origin"], points, valid, 29.97, [10, 11, 12, 13, 14],
-              ["one", "two", "three"])
+    write_c3d(path, ["a_origin", "a_x", "b_origin"], points, valid, fps=29.97, frames=[10, 11, 12, 13, 14],
+              descriptions=["one", "two", "three"])
     labels, read, residual, info = read_c3d(path)
     assert labels == ["a_origin", "a_x", "b_origin"]
     assert math.isclose(info["rate"], 29.97, rel_tol=1e-6) and info["units"] == "mm"
@@ -67,10 +67,11 @@ def test_c3d_markers_read_back_by_another_library(tmp_path):
 def test_c3d_replaces_a_file_atomically_and_leaves_no_temp(tmp_path):
     path = tmp_path / "m.c3d"
     path.write_bytes(b"old")
-    write_c3d(path, ["p"], np.zeros((2, 1, 3)), np.ones((2, 1), bool), 10.0, [0, 1])
+    write_c3d(path, ["p"], np.zeros((2, 1, 3)), np.ones((2, 1), bool), fps=10.0, frames=[0, 1])
     assert path.read_bytes()[:1] != b"o" and sorted(p.name for p in tmp_path.iterdir()) == ["m.c3d"]
     with pytest.raises(InputError, match="m.c3d"):  # a folder in the way: the error names the file
-        write_c3d(tmp_path / "dir" / "m.c3d", ["p"], np.zeros((2, 1, 3)), np.ones((2, 1), bool), 10.0, [0, 1])
+        write_c3d(tmp_path / "dir" / "m.c3d", ["p"], np.zeros((2, 1, 3)), np.ones((2, 1), bool), fps=10.0, frames=[0,
+                                                                                                                   1])
 
 
 def parse_mot(path):
@@ -85,8 +86,8 @@ def parse_mot(path):
 def test_mot_is_an_opensim_storage_table(tmp_path):
     table = np.array([[10.0, 1.0, -2.0, 0.001, 0.002, 0.030], [np.nan] * 6])
     path = tmp_path / "k.mot"
-    write_mot(path, "knee", ["a", "b", "c", "d", "e", "f"], np.array([0.0, 0.04]), table,
-              ["units: translations in meters", "a=b is not a setting"])
+    write_mot(path, "knee", ["a", "b", "c", "d", "e", "f"], np.array([0.0, 0.04]), table=table,
+              notes=["units: translations in meters", "a=b is not a setting"])
     header, columns, read = parse_mot(path)
     assert header[0] == "knee" and "inDegrees=yes" in header and "nRows=2" in header and "nColumns=7" in header
     settings = [line for line in header[1:] if "=" in line]
@@ -102,7 +103,7 @@ def test_trc_has_opensims_header_and_empty_missing_markers(tmp_path):
     points = np.arange(2 * 2 * 3, dtype=float).reshape(2, 2, 3) + 0.5
     valid = np.array([[True, True], [True, False]])
     path = tmp_path / "m.trc"
-    write_trc(path, ["p", "q"], [7, 9], np.array([0.7, 0.9]), points, valid, 10.0)
+    write_trc(path, ["p", "q"], [7, 9], np.array([0.7, 0.9]), points=points, valid=valid, fps=10.0)
     lines = path.read_text().split("\n")
     assert lines[0].split("\t") == ["PathFileType", "4", "(X/Y/Z)", "m.trc"]
     keys, values = lines[1].split("\t"), lines[2].split("\t")

@@ -29,8 +29,8 @@ FIXTURES = Path(__file__).resolve().parent / "data"
 def full_project(root: Path) -> Project:
     rng = np.random.default_rng(3)
     views = [
-        View.looking_at((0, -1000, 0), (0, 0, 0), (0, 0, 1), 1200, (64, 48), 0.4, name="cam1"),
-        View.looking_at((800, -600, 0), (0, 0, 0), (0, 0, 1), 1150, (64, 48), 0.4, name="cam2"),
+        View.looking_at((0, -1000, 0), (0, 0, 0), (0, 0, 1), 1200, image_size=(64, 48), pitch=0.4, name="cam1"),
+        View.looking_at((800, -600, 0), (0, 0, 0), (0, 0, 1), 1150, image_size=(64, 48), pitch=0.4, name="cam2"),
     ]
     sequences = [
         ImageSequence([root / "images" / "cam1" / f"{i:03d}.tif" for i in range(3)]),

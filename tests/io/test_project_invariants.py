@@ -118,9 +118,9 @@ def test_rigid_transforms(matrix, problem):
 def test_every_view_of_the_suite_and_the_real_data_is_plausible():
     from fluorogui.core.projection.geometry import View
 
-    views = [View.looking_at((0, -1000, 0), (0, 0, 0), (0, 0, 1), 1200, (64, 48), 0.4),
-             View.looking_at([0, -1000, 0], [0, 0, 0], [0, 0, 1], 1200.0, (64, 48), 3.0),
-             View.looking_at([0, 0, -1000], [0, 0, 0], [0, -1, 0], 1000.0, (1024, 1024), 315 / 1024)]
+    views = [View.looking_at((0, -1000, 0), (0, 0, 0), (0, 0, 1), 1200, image_size=(64, 48), pitch=0.4),
+             View.looking_at([0, -1000, 0], [0, 0, 0], [0, 0, 1], 1200.0, image_size=(64, 48), pitch=3.0),
+             View.looking_at([0, 0, -1000], [0, 0, 0], [0, -1, 0], 1000.0, image_size=(1024, 1024), pitch=315 / 1024)]
     assert [view_problem(v) for v in views] == [None] * 3
-    narrow = View.looking_at((0, -1000, 0), (0, 0, 0), (0, 0, 1), 1200, (8, 8), 0.001)
+    narrow = View.looking_at((0, -1000, 0), (0, 0, 0), (0, 0, 1), 1200, image_size=(8, 8), pitch=0.001)
     assert view_problem(narrow)[0] == "focal"

@@ -114,7 +114,7 @@ class BeadCalibration:
         return float(self.residual_px.max())
 
 
-def calibrate_view(image: np.ndarray, beads, correction=None, pitch: float | None = None,
+def calibrate_view(image: np.ndarray, beads, *, correction=None, pitch: float | None = None,
                    name: str = "", square_pixels: bool = True) -> BeadCalibration:
     """The view that imaged the phantom ``beads`` (N, 3 mm; the first one larger) as ``image``.
 
@@ -131,7 +131,7 @@ def calibrate_view(image: np.ndarray, beads, correction=None, pitch: float | Non
     points3 = beads[[i for i, _ in pairs]]
     points2 = centres[[j for _, j in pairs]]
     K, R, t = decompose(dlt(points3, points2))
-    K, R, t = refine(K, R, t, points3, points2, square_pixels)
+    K, R, t = refine(K, R, t, points3=points3, points2=points2, square_pixels=square_pixels)
     try:
         view = View.from_pinhole(K, R, t, (w, h), pitch=pitch or DEFAULT_PITCH_MM, name=name)
     except GeometryError as exc:

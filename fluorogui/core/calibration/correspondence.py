@@ -268,7 +268,7 @@ def _basis_rounds(beads, detections) -> list[list[tuple[int, int, int]]]:
     return [bases[k:k + per_round] for k in range(0, len(bases), per_round)]
 
 
-def _affine_hypotheses(beads, centres, marker, tolerance, keep, bases) -> list[tuple[int, tuple, np.ndarray]]:
+def _affine_hypotheses(beads, centres, marker, tolerance, *, keep, bases) -> list[tuple[int, tuple, np.ndarray]]:
     """The ``keep`` best (score, basis, detection quadruple) over the ``bases`` and every
     ordered triple of detections other than the marker, a dense phantom being scored on
     ``SCORED_BEADS`` of its beads.
@@ -411,7 +411,7 @@ def _perspective_guesses(X, x, beads) -> list[np.ndarray]:
     return guesses
 
 
-def _refine_hypothesis(basis, quadruple, beads, centres, tolerance, rng):
+def _refine_hypothesis(basis, quadruple, beads, centres, *, tolerance, rng):
     """Perspective refinement of one affine hypothesis: (pairs, P) or ([], None)."""
     seeds3, seeds2 = [0, *basis], list(quadruple)
     X = np.column_stack([beads[seeds3], np.ones(4)])
@@ -453,7 +453,7 @@ def _refine_hypothesis(basis, quadruple, beads, centres, tolerance, rng):
     return _converge(best, beads, centres, tolerance)
 
 
-def _search(beads, centres, areas, markers, tolerance, need, frame=None,
+def _search(beads, centres, areas, markers, *, tolerance, need, frame=None,
             rounds=None) -> tuple[list[tuple[int, int]], int]:
     """The best inlier pairs over every marker candidate's hypotheses, and their count
     (over the first ``rounds`` of bases, all by default)."""
@@ -465,10 +465,10 @@ def _search(beads, centres, areas, markers, tolerance, need, frame=None,
         if best_key[0] >= need:
             break  # this blob did serve as the marker, these bases as the seeds
         for rank, (_, basis, quadruple) in enumerate(_affine_hypotheses(beads, centres, marker, tolerance,
-                                                                        MORE_HYPOTHESES, bases)):
+                                                                        keep=MORE_HYPOTHESES, bases=bases)):
             if rank >= HYPOTHESES and best_key[0] >= need:
                 break  # the first ones matched; more only while nothing has
-            pairs, P = _refine_hypothesis(basis, quadruple, beads, centres, tolerance, rng)
+            pairs, P = _refine_hypothesis(basis, quadruple, beads, centres, tolerance=tolerance, rng=rng)
             if P is None or not _is_proper(P, beads) or not _is_plausible(P, MAX_SKEW, MAX_ASPECT, frame):
                 continue
             if any(j == marker and i != 0 for i, j in pairs):
@@ -497,10 +497,11 @@ def match_beads(beads: np.ndarray, centres: np.ndarray, areas: np.ndarray, frame
     spacing = float(np.median(cKDTree(centres).query(centres, k=2)[0][:, 1]))
     tolerance = 0.35 * spacing
     need = max(MIN_BEADS, int(np.ceil(MIN_SHARE * min(len(beads), len(centres)))))
-    pairs, found = _search(beads, centres, areas, markers, tolerance, need, frame)
+    pairs, found = _search(beads, centres, areas, markers, tolerance=tolerance, need=need, frame=frame)
     if found >= need:
         return sorted(_single_blobs(beads, centres, areas, pairs))
-    if _search(beads * [1.0, 1.0, -1.0], centres, areas, markers, tolerance, need, frame, rounds=1)[1] >= need:
+    if _search(beads * [1.0, 1.0, -1.0], centres, areas, markers, tolerance=tolerance, need=need, frame=frame,
+                        rounds=1)[1] >= need:
         raise BeadError("the beads match the phantom only mirrored: are the phantom file's coordinates "
                         "left-handed?", about_phantom=True)
     fit = f"at most {found}" if found else "none"

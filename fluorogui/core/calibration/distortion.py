@@ -333,8 +333,8 @@ def index_grid(centres: np.ndarray, image_size, grid: str = "square") -> tuple[n
     while queue:
         h = queue.popleft()
         i, j = position[h]
-        local_a = _local_step(index_of, centres, i, j, (1, 0), a)
-        local_b = _local_step(index_of, centres, i, j, (0, 1), b)
+        local_a = _local_step(index_of, centres, i, j, step=(1, 0), default=a)
+        local_b = _local_step(index_of, centres, i, j, step=(0, 1), default=b)
         for di, dj in ((1, 0), (-1, 0), (0, 1), (0, -1)):
             key = (i + di, j + dj)
             if key in index_of:
@@ -352,7 +352,7 @@ def index_grid(centres: np.ndarray, image_size, grid: str = "square") -> tuple[n
     return indices, members
 
 
-def _local_step(index_of, centres, i, j, step, default):
+def _local_step(index_of, centres, i, j, *, step, default):
     di, dj = step
     here = index_of.get((i, j))
     ahead, behind = index_of.get((i + di, j + dj)), index_of.get((i - di, j - dj))
@@ -398,7 +398,7 @@ class PlateFit:
         return out
 
 
-def fit_plate(image: np.ndarray, spacing_mm: float, grid: str = "square", model: str = "global",
+def fit_plate(image: np.ndarray, spacing_mm: float, *, grid: str = "square", model: str = "global",
               degree: int = 5, neighbours: int = 12, progress=None) -> PlateFit:
     """Detect, index and fit: the correction of a plate image (see the module docstring)."""
     if spacing_mm <= 0:
@@ -412,7 +412,7 @@ def fit_plate(image: np.ndarray, spacing_mm: float, grid: str = "square", model:
         progress(f"{len(centres)} holes detected")
     indices, members = index_grid(centres, (w, h), grid)
     holes = centres[members]
-    polynomial, ideal = _fit_global(holes, indices, (w, h), grid, degree)
+    polynomial, ideal = _fit_global(holes, indices, (w, h), grid, degree=degree)
     correction: Correction = polynomial
     left_out = None
     if model == "local":
@@ -430,7 +430,7 @@ def _lattice_step_px(ideal: np.ndarray, indices: np.ndarray) -> float:
     return float(np.linalg.norm(coef[1]))
 
 
-def _fit_global(holes, indices, image_size, grid, degree):
+def _fit_global(holes, indices, image_size, grid, *, degree):
     """Joint least squares of the ideal lattice (origin, a; b = a turned) and the polynomial."""
     centre = (np.asarray(image_size, dtype=float) - 1) / 2.0
     scale = float(max(image_size)) / 2.0

@@ -63,7 +63,7 @@ def decompose(P) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return K / K[2, 2], R, t
 
 
-def refine(K, R, t, points3, points2, square_pixels: bool = True):
+def refine(K, R, t, *, points3, points2, square_pixels: bool = True):
     """Least-squares pinhole (zero skew; one focal length when ``square_pixels``, which
     removes most of the focal-length / distance trade-off of a shallow phantom)."""
     n_intrinsic = 3 if square_pixels else 4

@@ -152,7 +152,7 @@ def joint_kinematics(femur_world, tibia_world, side: str = "right") -> KneeKinem
 
 
 def knee_kinematics(femoral_pose_matrix, tibial_pose_matrix, femoral_frame, tibial_frame,
-                    side: str = "right") -> KneeKinematics:
+                    *, side: str = "right") -> KneeKinematics:
     """Knee kinematics (Grood & Suntay) from the two components' poses and anatomical frames.
 
     Parameters
@@ -213,7 +213,7 @@ def relative_pose_from_kinematics(values, side: str = "right") -> np.ndarray:
     return out
 
 
-def kinematics_sd(femoral_pose, tibial_pose, femoral_frame, tibial_frame, side: str,
+def kinematics_sd(femoral_pose, tibial_pose, femoral_frame, tibial_frame, *, side: str,
                   femoral_sd, tibial_sd, pose_matrix) -> np.ndarray:
     """Standard deviations of the six values from the poses' own (independent) SDs, by
     first-order propagation through central differences of the pose parameters.
@@ -228,7 +228,7 @@ def kinematics_sd(femoral_pose, tibial_pose, femoral_frame, tibial_frame, side: 
     frames = [femoral_frame, tibial_frame]
 
     def values(p0, p1) -> np.ndarray:
-        return knee_kinematics(pose_matrix(p0), pose_matrix(p1), frames[0], frames[1], side).values()
+        return knee_kinematics(pose_matrix(p0), pose_matrix(p1), frames[0], frames[1], side=side).values()
 
     variance = np.zeros(6)
     for which in (0, 1):

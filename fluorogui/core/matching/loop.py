@@ -160,8 +160,9 @@ def refine_rims(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.n
     if chosen:
         excludes = [occluded[k] if occluded is not None and k < len(occluded) else None for k in chosen]
         new, fitted, new_weights = refine_outlines([images[k] for k in chosen], [views[k] for k in chosen], mesh,
-                                                   pose, [outlines[k] for k in chosen], [models[k] for k in chosen],
-                                                   excludes)
+                                                   pose, outlines_px=[outlines[k] for k in chosen],
+                                                   models=[models[k] for k in chosen],
+                                                   excludes=excludes)
         for k, outline, model, w in zip(chosen, new, fitted, new_weights):
             refined[k], models[k], weights[k] = outline, model, w
     return refined, models, weights
@@ -188,7 +189,7 @@ def soft_edge_views(images, views, mesh: PreparedMesh, pose, outlines: Sequence[
         model = models[k]
         if model is None:
             check_cancel(cancel)
-            model = models[k] = edge_model(images[k], views[k], mesh, pose, points, excludes[k])
+            model = models[k] = edge_model(images[k], views[k], mesh, pose, outline_px=points, exclude=excludes[k])
             judged_here.append(k)
         if is_soft(model):
             soft.append(k)
@@ -196,7 +197,8 @@ def soft_edge_views(images, views, mesh: PreparedMesh, pose, outlines: Sequence[
     if len(together) > 1:
         check_cancel(cancel)
         joint = rim_models_together([images[k] for k in together], [views[k] for k in together], mesh, pose,
-                                    [outlines[k] for k in together], [excludes[k] for k in together])
+                                    outlines_px=[outlines[k] for k in together],
+                                    excludes=[excludes[k] for k in together])
         if all(is_soft(m) for m in joint):  # together they must still be soft rims
             for k, model in zip(together, joint):
                 models[k] = model

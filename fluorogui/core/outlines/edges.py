@@ -35,7 +35,7 @@ def smoothed_gradients(image: np.ndarray, sigma: float = 1.0):
     return img, gx, gy
 
 
-def canny_edges(image: np.ndarray, low: float = DEFAULT_LOW, high: float = DEFAULT_HIGH, sigma: float = 1.0,
+def canny_edges(image: np.ndarray, low: float = DEFAULT_LOW, high: float = DEFAULT_HIGH, sigma: float = 1.0, *,
                 roi: tuple[int, int, int, int] | None = None, gradients=None, magnitude=None) -> np.ndarray:
     """Boolean Canny edge map of a float image.
 
@@ -68,7 +68,7 @@ def canny_edges(image: np.ndarray, low: float = DEFAULT_LOW, high: float = DEFAU
 
 
 # -- sub-pixel localisation ------------------------------------------------------------------
-def subpixel_edges(gx: np.ndarray, gy: np.ndarray, pixels: np.ndarray, max_shift: float = 1.0,
+def subpixel_edges(gx: np.ndarray, gy: np.ndarray, pixels: np.ndarray, *, max_shift: float = 1.0,
                    fit: str = "gaussian", magnitude: np.ndarray | None = None):
     """Move edge pixels (K, 2) to the gradient-magnitude maximum along the gradient.
 
@@ -202,7 +202,7 @@ def _drop_backtracking(points: np.ndarray, closed: bool) -> np.ndarray:
     return points[keep]
 
 
-def edge_contours(image: np.ndarray, low: float = DEFAULT_LOW, high: float = DEFAULT_HIGH, sigma: float = 1.0,
+def edge_contours(image: np.ndarray, low: float = DEFAULT_LOW, high: float = DEFAULT_HIGH, sigma: float = 1.0, *,
                   min_length_px: int = 20, subpixel: bool = True, roi=None) -> list[np.ndarray]:
     """Canny edges linked into ordered chains (K, 2) of (u, v), each edge pixel once, at
     sub-pixel precision unless ``subpixel`` is False. A closed chain's first and last points
@@ -211,7 +211,7 @@ def edge_contours(image: np.ndarray, low: float = DEFAULT_LOW, high: float = DEF
     dropping them would drop one side of the edge and bias it; ``min_length_px`` applies to
     the connected edge a chain belongs to. Sub-pixel points that would step backwards
     along a chain are removed."""
-    edges = canny_edges(image, low, high, sigma, roi)
+    edges = canny_edges(image, low, high, sigma, roi=roi)
     chains = _pixel_chains(edges)
     _, labels, stats, _ = cv2.connectedComponentsWithStats(edges.astype(np.uint8), connectivity=8)
     size = stats[:, cv2.CC_STAT_AREA]
@@ -283,7 +283,7 @@ def select_outline(contours: list[np.ndarray], predicted_px: np.ndarray, merge: 
     return _merge_along(contours, predicted_px, tolerance_px)
 
 
-def _merge_along(contours, predicted_px, tolerance_px, bin_px: float = 1.0, pieces=None, along=None,
+def _merge_along(contours, predicted_px, tolerance_px, *, bin_px: float = 1.0, pieces=None, along=None,
                  near=None) -> np.ndarray:
     """Points of contours near the prediction, ordered along it: every ``bin_px`` of the
     prediction's arc is served by the piece (a contour, or the given ``pieces`` label per
@@ -357,7 +357,7 @@ def best_translation(edge_mask: np.ndarray, predicted_px: np.ndarray, search_px:
     return best
 
 
-def _dark_edge_points(image, edges, predicted, sigma, polarity, gradients=None, within_px=None, along=None,
+def _dark_edge_points(image, edges, predicted, sigma, *, polarity, gradients=None, within_px=None, along=None,
                       magnitude=None):
     """Sub-pixel points of the pixels of an edge map, their connected-edge labels (of the
     whole map), whether each has the expected polarity relative to the predicted
@@ -392,7 +392,7 @@ def _band(shape, predicted: np.ndarray, within_px: float) -> np.ndarray:
     return band > 0
 
 
-def uncovered_arc(points: np.ndarray, predicted_px: np.ndarray, tolerance_px: float = 8.0,
+def uncovered_arc(points: np.ndarray, predicted_px: np.ndarray, *, tolerance_px: float = 8.0,
                   bin_px: float = 1.0, min_gap_px: float = 6.0,
                   hidden: np.ndarray | None = None, along: _Along | None = None,
                   near: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -431,7 +431,7 @@ def uncovered_arc(points: np.ndarray, predicted_px: np.ndarray, tolerance_px: fl
     return bins, np.roll(keep, shift)
 
 
-def component_outline(image: np.ndarray, predicted_px: np.ndarray, sigma: float = 1.0, tolerance_px: float = 8.0,
+def component_outline(image: np.ndarray, predicted_px: np.ndarray, *, sigma: float = 1.0, tolerance_px: float = 8.0,
                       polarity: str = "dark", search_px: int = 60, low: float = DEFAULT_LOW,
                       high: float = DEFAULT_HIGH, gap_fill: tuple[float, float] | None = (0.04, 0.12),
                       min_gap_px: float = 6.0, exclude: np.ndarray | None = None) -> np.ndarray:
@@ -478,17 +478,18 @@ def component_outline(image: np.ndarray, predicted_px: np.ndarray, sigma: float 
     roi = (int(np.floor(lo[0])) - u0, int(np.floor(lo[1])) - v0, int(np.ceil(hi[0])) + 1 - u0,
            int(np.ceil(hi[1])) + 1 - v0)
     keep = None if exclude is None else ~np.asarray(exclude, dtype=bool)[v0:v1, u0:u1]
-    outline = _outline_in_region(crop, predicted - offset, roi, keep, sigma, tolerance_px, polarity, search_px,
-                                 low, high, gap_fill, min_gap_px)
+    outline = _outline_in_region(crop, predicted - offset, roi, keep, sigma=sigma, tolerance_px=tolerance_px,
+                                 polarity=polarity, search_px=search_px,
+                                 low=low, high=high, gap_fill=gap_fill, min_gap_px=min_gap_px)
     return outline + offset
 
 
-def _outline_in_region(image, predicted, roi, keep, sigma, tolerance_px, polarity, search_px, low, high, gap_fill,
+def _outline_in_region(image, predicted, roi, keep, *, sigma, tolerance_px, polarity, search_px, low, high, gap_fill,
                        min_gap_px) -> np.ndarray:
     """``component_outline`` in the coordinates of an image crop; ``keep`` masks usable edges."""
     gradients = smoothed_gradients(image, sigma)  # shared by both Canny maps and the sub-pixel step
     magnitude = np.hypot(gradients[1], gradients[2])
-    edges = canny_edges(image, low, high, sigma, roi, gradients, magnitude)
+    edges = canny_edges(image, low, high, sigma, roi=roi, gradients=gradients, magnitude=magnitude)
     hidden = None
     if keep is not None:
         edges &= keep
@@ -499,7 +500,8 @@ def _outline_in_region(image, predicted, roi, keep, sigma, tolerance_px, polarit
 
     def weak_edges():
         if not weak_map:
-            weak = canny_edges(image, gap_fill[0], gap_fill[1], sigma, roi, gradients, magnitude)
+            weak = canny_edges(image, gap_fill[0], gap_fill[1], sigma, roi=roi, gradients=gradients,
+                                   magnitude=magnitude)
             inside = np.zeros_like(weak)
             inside[max(roi[1], 0):max(roi[3], 0), max(roi[0], 0):max(roi[2], 0)] = True
             weak_map.append(weak & inside if keep is None else weak & inside & keep)
@@ -515,26 +517,30 @@ def _outline_in_region(image, predicted, roi, keep, sigma, tolerance_px, polarit
         # edge is two pixels thick); pieces are the connected edges
         # points farther than tolerance_px from the prediction count nowhere (not as
         # cover, left out of the merge): only those near are refined
-        refined, labels, agrees, near = _dark_edge_points(image, edges, pred, sigma, polarity, gradients,
-                                                          tolerance_px, along, magnitude)
+        refined, labels, agrees, near = _dark_edge_points(image, edges, pred, sigma, polarity=polarity,
+                                                          gradients=gradients,
+                                                          within_px=tolerance_px, along=along, magnitude=magnitude)
         points, pieces = refined[agrees], labels[agrees]
         near = (near[0][agrees], near[1][agrees])
         had_gaps = False
         if gap_fill is not None:
-            _, gap = uncovered_arc(points, pred, tolerance_px, min_gap_px=min_gap_px, hidden=hidden, along=along,
+            _, gap = uncovered_arc(points, pred, tolerance_px=tolerance_px, min_gap_px=min_gap_px, hidden=hidden,
+                                   along=along,
                                    near=near)
             had_gaps = bool(gap.any())
             weak = weak_edges() & ~edges if had_gaps else None
             if had_gaps and weak.any():
-                w_points, w_labels, w_agrees, w_near = _dark_edge_points(image, weak, pred, sigma, polarity,
-                                                                         gradients, tolerance_px, along, magnitude)
-                w_bins, _ = uncovered_arc(w_points, pred, tolerance_px, min_gap_px=min_gap_px, along=along,
+                w_points, w_labels, w_agrees, w_near = _dark_edge_points(image, weak, pred, sigma, polarity=polarity,
+                                                                         gradients=gradients, within_px=tolerance_px,
+                                                                         along=along, magnitude=magnitude)
+                w_bins, _ = uncovered_arc(w_points, pred, tolerance_px=tolerance_px, min_gap_px=min_gap_px, along=along,
                                           near=w_near)
                 use = w_agrees & gap[w_bins]
                 points = np.vstack([points, w_points[use]])
                 pieces = np.concatenate([pieces, w_labels[use] + (int(labels.max()) + 1 if len(labels) else 0)])
                 near = (np.concatenate([near[0], w_near[0][use]]), np.concatenate([near[1], w_near[1][use]]))
-        _, left = uncovered_arc(points, pred, tolerance_px, min_gap_px=0.0, hidden=hidden, along=along, near=near)
+        _, left = uncovered_arc(points, pred, tolerance_px=tolerance_px, min_gap_px=0.0, hidden=hidden, along=along,
+                                near=near)
         return pred, points, pieces, had_gaps, int(left.sum()), along, near
 
     shift = best_translation(edges, predicted, search_px) if search_px > 0 else np.zeros(2)

@@ -138,7 +138,7 @@ _GATHERED: list = []
 _GATHERED_LOCK = threading.Lock()
 
 
-def _gather(image, view, mesh, pose, points, exclude=None) -> tuple[_Points, np.ndarray]:
+def _gather(image, view, mesh, pose, *, points, exclude=None) -> tuple[_Points, np.ndarray]:
     """What the fit needs of each outline point, and the model's outward normal (P, 2)
     along which it moves (read-only arrays: the same inputs give the same object)."""
     pose, points = np.asarray(pose, dtype=float), np.asarray(points, dtype=float)
@@ -148,7 +148,7 @@ def _gather(image, view, mesh, pose, points, exclude=None) -> tuple[_Points, np.
             if all(a is b for a, b in zip(entry[0], key)) and np.array_equal(entry[1], pose) \
                     and np.array_equal(entry[2], points):
                 return entry[3]
-    result = _gather_uncached(np.asarray(image, dtype=float), view, mesh, pose, points, exclude)
+    result = _gather_uncached(np.asarray(image, dtype=float), view, mesh, pose, points=points, exclude=exclude)
     for array in (*vars(result[0]).values(), result[1]):
         array.flags.writeable = False
     with _GATHERED_LOCK:
@@ -157,7 +157,7 @@ def _gather(image, view, mesh, pose, points, exclude=None) -> tuple[_Points, np.
     return result
 
 
-def _gather_uncached(image, view, mesh, pose, points, exclude) -> tuple[_Points, np.ndarray]:
+def _gather_uncached(image, view, mesh, pose, *, points, exclude) -> tuple[_Points, np.ndarray]:
     model = mesh_silhouette(mesh, rotation_matrix(*pose[3:]), pose[:3], view).resample(spacing_px=0.5).points_px
     normals_model = outward_normals(model)
     _, nearest = cKDTree(model).query(points)
@@ -337,7 +337,7 @@ def fit_rim_models(views_pts: list[_Points], max_points: int = 120, tolerance: f
     grid = np.log(MU_GRID)
     if 0 < best < len(MU_GRID) - 1:
         grid = log_mu + FINE_LOG_MU_STEPS
-        curves = [_residual_per_mu_near(pts, max_points, sigma_grid, tuple(np.exp(grid)), c[1][best])
+        curves = [_residual_per_mu_near(pts, max_points, sigma_grid, tuple(np.exp(grid)), sigma=c[1][best])
                   if c is not None else None for pts, c in zip(views_pts, curves)]
         fitted = [c for c in curves if c is not None]
         total = sum(per_mu / per_mu.min() for per_mu, _ in fitted)
@@ -373,7 +373,7 @@ def _residual_per_mu(pts: _Points, max_points: int, sigma_grid: tuple,
 
 
 def _residual_per_mu_near(pts: _Points, max_points: int, sigma_grid: tuple, mu_grid: tuple,
-                          sigma: float) -> tuple[np.ndarray, np.ndarray] | None:
+                          *, sigma: float) -> tuple[np.ndarray, np.ndarray] | None:
     """``_residual_per_mu`` over only the blurs of the grid within two steps of ``sigma``
     (the finer attenuations lie close to the coarse best, and so does their blur), or the
     whole grid where a least residual lands on that window's edge. Only the least sample
@@ -407,7 +407,7 @@ def _parabola_vertex(x: np.ndarray, y: np.ndarray, k: int | None = None) -> tupl
     return vertex, float(np.polyval(coef, vertex))
 
 
-def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_px: np.ndarray,
+def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, *, outline_px: np.ndarray,
                    model: RimModel | None = None, exclude: np.ndarray | None = None,
                    smooth: int = 8) -> tuple[np.ndarray, RimModel]:
     """``outline_px`` (K, 2, ordered along a closed outline) moved along the model's
@@ -418,11 +418,12 @@ def refine_outline(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outl
     ``exclude`` (a boolean image: another component, whose own edge would spoil it).
     Points that land far from the rest (``profile_fit.strays``) are left out of the result, and a
     result that crosses itself is mended or given up (``simple_or_plain``)."""
-    outlines, models, _ = refine_outlines([image], [view], mesh, pose, [outline_px], [model], [exclude], smooth)
+    outlines, models, _ = refine_outlines([image], [view], mesh, pose, outlines_px=[outline_px], models=[model],
+                                          excludes=[exclude], smooth=smooth)
     return outlines[0], models[0]
 
 
-def refine_outlines(images, views, mesh: PreparedMesh, pose, outlines_px, models=None, excludes=None,
+def refine_outlines(images, views, mesh: PreparedMesh, pose, *, outlines_px, models=None, excludes=None,
                     smooth: int = 8) -> tuple[list[np.ndarray], list[RimModel], list[np.ndarray | None]]:
     """``refine_outline`` in each of a component's views; the views whose model is not
     given (None in ``models``) have theirs fitted together (``fit_rim_models``: one
@@ -437,7 +438,7 @@ def refine_outlines(images, views, mesh: PreparedMesh, pose, outlines_px, models
             gathered.append((points, None, None, None))
             models[k] = models[k] or STEP
             continue
-        pts, n = _gather(images[k], views[k], mesh, pose, points, excludes[k])
+        pts, n = _gather(images[k], views[k], mesh, pose, points=points, exclude=excludes[k])
         gathered.append((points, pts, n, _usable(pts)))
     to_fit = [k for k, (_, pts, _, _) in enumerate(gathered) if pts is not None and models[k] is None]
     if to_fit:
@@ -464,23 +465,23 @@ def refine_outlines(images, views, mesh: PreparedMesh, pose, outlines_px, models
     return refined, models, weights
 
 
-def rim_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_px: np.ndarray,
+def rim_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, *, outline_px: np.ndarray,
               exclude: np.ndarray | None = None, smooth: int = 8, judging: bool = False) -> RimModel:
     """The image's rim model as ``refine_outline`` fits it (without moving anything);
     ``judging``: without the second fit where the first finds a step (``_fit_model``)."""
     points = np.asarray(outline_px, dtype=float).reshape(-1, 2)
     if len(points) < 8:
         return STEP
-    pts, _ = _gather(image, view, mesh, pose, points, exclude)
+    pts, _ = _gather(image, view, mesh, pose, points=points, exclude=exclude)
     return _fit_model(pts, _usable(pts), smooth, judging)
 
 
-def rim_models_together(images, views, mesh: PreparedMesh, pose, outlines_px, excludes=None,
+def rim_models_together(images, views, mesh: PreparedMesh, pose, *, outlines_px, excludes=None,
                         smooth: int = 8) -> list[RimModel]:
     """The rim models of one component's views as ``refine_outlines`` fits them together
     (one attenuation, each view's blur), without moving anything."""
     excludes = list(excludes) if excludes is not None else [None] * len(views)
-    gathered = [_gather(image, view, mesh, pose, points, exclude)[0]
+    gathered = [_gather(image, view, mesh, pose, points=points, exclude=exclude)[0]
                 for image, view, points, exclude in zip(images, views, outlines_px, excludes)]
     return _fit_models(gathered, [_usable(pts) for pts in gathered], smooth)
 
@@ -541,7 +542,7 @@ def is_soft(model: RimModel) -> bool:
     return model.mu < SOFT_BELOW_MU
 
 
-def edge_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_px: np.ndarray,
+def edge_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, *, outline_px: np.ndarray,
                exclude: np.ndarray | None = None) -> RimModel:
     """The image's rim model, quickly when that is enough: a quick fit over
     ``DECIDE_POINTS`` evenly spread outline points and a coarse blur grid (0.3-0.5 s per
@@ -552,7 +553,7 @@ def edge_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_
     sparse = points[::max(1, len(points) // DECIDE_POINTS)]
     if len(sparse) < 8:
         return STEP
-    pts, _ = _gather(image, view, mesh, pose, sparse, exclude)
+    pts, _ = _gather(image, view, mesh, pose, points=sparse, exclude=exclude)
     usable = _usable(pts)
     if usable.sum() < 8:
         return STEP
@@ -560,7 +561,7 @@ def edge_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, outline_
                           sigma_grid=DECIDE_SIGMAS)
     if quick.mu >= MAYBE_SOFT_BELOW_MU:
         return quick
-    return rim_model(image, view, mesh, pose, points, exclude, judging=True)
+    return rim_model(image, view, mesh, pose, outline_px=points, exclude=exclude, judging=True)
 
 
 #: at most this share of an outline's points is left out as strays

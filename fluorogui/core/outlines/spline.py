@@ -441,10 +441,10 @@ class OutlineSpline:
         miss_before = rel - w_before[:, None] * back
         use_after = np.einsum("ij,ij->i", miss_after, miss_after) <= np.einsum("ij,ij->i", miss_before, miss_before)
         t = np.where(use_after, tp[k] + w_after * (tp[k + 1] - tp[k]), tp[k] - w_before * (tp[k] - t_before))
-        t, g, d1 = self._refine(p, t, t_before, tp[k + 1], newton_steps)
+        t, g, d1 = self._refine(p, t, t_before, tp[k + 1], steps=newton_steps)
         return np.linalg.norm(p - g, axis=1), g, self._unit_outward(d1), self.wrap(t)
 
-    def _refine(self, p, t, lo, hi, steps: int, start=None):
+    def _refine(self, p, t, lo, hi, *, steps: int, start=None):
         """Safeguarded Newton on f(t) = g'(t) . (g(t) - p) = 0 inside [lo, hi]: a step is
         kept only where it brings g(t) closer to p (else halved next time); Gauss-Newton
         replaces Newton where the curve bends away so much that f' <= 0. Returns t, g, g'."""

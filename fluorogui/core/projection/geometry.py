@@ -162,7 +162,7 @@ class View:
 
     # -- construction ------------------------------------------------------------------
     @classmethod
-    def from_pinhole(cls, K, R, t, image_size, pitch: float | None = None, name: str = "") -> "View":
+    def from_pinhole(cls, K, R, t, image_size, *, pitch: float | None = None, name: str = "") -> "View":
         """A view from OpenCV extrinsics ``x_cam = R X + t`` and intrinsics ``K`` (pixels)."""
         K = np.asarray(K, dtype=float)
         R = np.asarray(R, dtype=float)
@@ -197,7 +197,7 @@ class View:
         )
 
     @classmethod
-    def looking_at(cls, source, target, up, distance, image_size, pitch, name: str = "") -> "View":
+    def looking_at(cls, source, target, up, distance, *, image_size, pitch, name: str = "") -> "View":
         """A view whose principal ray goes from ``source`` through ``target``, principal point
         at the image centre; ``up`` sets the direction of decreasing rows (v)."""
         source = np.asarray(source, dtype=float)

@@ -9,7 +9,7 @@ from fluorogui.core.projection.mesh import PreparedMesh
 from fluorogui.core.projection.pose import rotation_matrix
 
 
-def path_lengths(mesh: PreparedMesh, pose, view: View, uv: np.ndarray, cell_px: float = 2.0) -> np.ndarray:
+def path_lengths(mesh: PreparedMesh, pose, view: View, uv: np.ndarray, *, cell_px: float = 2.0) -> np.ndarray:
     """Length (mm) of the ray from the source through each pixel position ``uv`` (K, 2)
     inside the closed mesh at ``pose``: the sum over the triangles it crosses of the
     distance from the source, + where it leaves and - where it enters."""

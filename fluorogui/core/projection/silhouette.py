@@ -121,7 +121,7 @@ def _silhouette_edge_indices(mesh: PreparedMesh, s_model: np.ndarray) -> np.ndar
     return np.flatnonzero(on)
 
 
-def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View, scale: float = 2.0,
+def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View, *, scale: float = 2.0,
                     spacing_px: float | None = None) -> Silhouette:
     """Outer silhouette outline of ``mesh`` at pose (R, t) in ``view``.
 

@@ -250,15 +250,17 @@ def _candidates(lib, views, maps, centres, rotations, shifts, keep: int, steps: 
     found = []
     for h, centre in enumerate(centres):
         steps.report(at + span * 0.2 * h / max(1, len(centres)), "scanning orientations")
-        score, best = ss.scan_orientations(lib, views, maps, centre, rotations, shifts)
+        score, best = ss.scan_orientations(lib, views, maps, centre, rotations=rotations, shifts_px=shifts)
         top = np.argsort(-score)[:RESCORE]  # the blurred maps rank well enough to shortlist, not to choose
         R = rotations[top]
-        score, best = ss.rescore(lib, views, maps, centre, R, best[top], ss.shift_grid(12, 4))
+        score, best = ss.rescore(lib, views, maps, centre, rotations=R, shifts=best[top], local_px=ss.shift_grid(12, 4))
         # the grid is ~9 degrees coarse: try 5-degree steps around the best, on the sharp maps
         k = np.argsort(-score)[:LOCAL]
         R_local = np.matmul(_LOCAL_STEPS[None], R[k][:, None]).reshape(-1, 3, 3)
-        s_local, b_local = ss.rescore(lib, views, maps, centre, R_local, np.repeat(best[k], len(_LOCAL_STEPS), axis=0),
-                                      ss.shift_grid(8, 4))
+        s_local, b_local = ss.rescore(lib, views, maps, centre, rotations=R_local, shifts=np.repeat(best[k],
+                                                                                                    len(_LOCAL_STEPS),
+                                                                                                    axis=0),
+                                      local_px=ss.shift_grid(8, 4))
         R, score, best = np.concatenate([R, R_local]), np.r_[score, s_local], np.concatenate([best, b_local])
         for i in _distinct(np.argsort(-score), R, keep):
             found.append((score[i], R[i], _moved_centre(views, centre, best[i])))
@@ -267,12 +269,12 @@ def _candidates(lib, views, maps, centres, rotations, shifts, keep: int, steps: 
     for k, (_, R, c) in enumerate(found[:keep]):
         if k % 3 == 0:
             steps.report(at + span * (0.2 + 0.6 * k / keep), "refining candidates on edges")
-        R, c = ss.refine_on_edges(lib.coarse, views, maps, R, c, SCREEN_RADII)
-        out.append(_Candidate(R, c, ss.pose_edge_score(lib.coarse, R, c, views, maps)))
+        R, c = ss.refine_on_edges(lib.coarse, views, maps, R, c=c, radii_px=SCREEN_RADII)
+        out.append(_Candidate(R, c, ss.pose_edge_score(lib.coarse, R, c, views, maps=maps)))
     out.sort(key=lambda cand: -cand.score)
     for k, cand in enumerate(out[:final]):
-        R, c = ss.refine_on_edges(lib.fine, views, maps, cand.R, cand.c, FINISH_RADII)
-        out[k] = _Candidate(R, c, ss.pose_edge_score(lib.coarse, R, c, views, maps))
+        R, c = ss.refine_on_edges(lib.fine, views, maps, cand.R, c=cand.c, radii_px=FINISH_RADII)
+        out[k] = _Candidate(R, c, ss.pose_edge_score(lib.coarse, R, c, views, maps=maps))
     steps.report(at + span, "refining candidates on edges")
     out[:final] = sorted(out[:final], key=lambda cand: -cand.score)
     distinct: list[_Candidate] = []  # several starts often end at the same pose
@@ -298,13 +300,14 @@ def _rank_hypotheses(lib, views, maps, hypotheses, steps: _Steps, at: float, spa
         rotations = _grid(n_rot)
         h = len(scored)
         centres = np.repeat(np.array(scored), n_rot, axis=0)
-        score, best = ss.scan_orientations(lib, views, maps, centres, np.tile(rotations, (h, 1, 1)), shifts,
+        score, best = ss.scan_orientations(lib, views, maps, centres, rotations=np.tile(rotations, (h, 1, 1)),
+                                           shifts_px=shifts,
                                            chunk=4000)
         if n_rot == 600:  # the best 20 orientations of each hypothesis again on the sharp maps
             top = np.argsort(-score.reshape(h, n_rot), axis=1)[:, :20]
             rows = (np.arange(h)[:, None] * n_rot + top).ravel()
-            fine, fine_best = ss.rescore(lib, views, maps, centres[rows], np.tile(rotations, (h, 1, 1))[rows],
-                                         best[rows], ss.shift_grid(12, 4))
+            fine, fine_best = ss.rescore(lib, views, maps, centres[rows], rotations=np.tile(rotations, (h, 1, 1))[rows],
+                                         shifts=best[rows], local_px=ss.shift_grid(12, 4))
             score = np.full(h * n_rot, -np.inf)
             score[rows], best[rows] = fine, fine_best
         score = score.reshape(h, n_rot)
@@ -363,7 +366,7 @@ def _assess(images, views, mesh, lib, maps, res, splines, hidden=None):
     R = rotation_matrix(*pose[3:])
     hidden = hidden or [None] * len(views)
     iou = [_outline_iou(mesh, pose, v, s, img.shape[:2], m) for v, s, img, m in zip(views, splines, images, hidden)]
-    return iou, ss.pose_edge_score(lib.coarse, R, R @ mesh.centroid + pose[:3], views, maps, hidden=hidden)
+    return iou, ss.pose_edge_score(lib.coarse, R, R @ mesh.centroid + pose[:3], views, maps=maps, hidden=hidden)
 
 
 def _objective_px(res, views, maps) -> float:

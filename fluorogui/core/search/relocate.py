@@ -61,7 +61,7 @@ def image_shift(before: np.ndarray, after: np.ndarray, region: np.ndarray,
 
 
 def relocated_centroid(before: Sequence[np.ndarray], after: Sequence[np.ndarray], views: Sequence[View],
-                       mesh: PreparedMesh, pose) -> np.ndarray | None:
+                       mesh: PreparedMesh, *, pose) -> np.ndarray | None:
     """The world centroid of ``mesh`` in the images ``after``, from where it was at ``pose``
     in the images ``before`` (two views); None when a view lost it or the views disagree."""
     if len(views) != 2:

@@ -125,7 +125,7 @@ class ShapeLibrary:
     tree: cKDTree  # of the directions
 
     @classmethod
-    def build(cls, mesh: PreparedMesh, n_directions: int = 1000, n_points: int = 32,
+    def build(cls, mesh: PreparedMesh, *, n_directions: int = 1000, n_points: int = 32,
               distance: float = 1000.0, resolution_mm: float = 0.5) -> "ShapeLibrary":
         coarse = decimate_mesh(mesh, 4000)
         d = sphere_directions(n_directions)
@@ -292,7 +292,7 @@ def place_templates(lib: ShapeLibrary, view: View, rotations: np.ndarray, centre
     return pts, nrm
 
 
-def scan_orientations(lib: ShapeLibrary, views, maps, centre: np.ndarray, rotations: np.ndarray,
+def scan_orientations(lib: ShapeLibrary, views, maps, centre: np.ndarray, *, rotations: np.ndarray,
                       shifts_px: np.ndarray, level: str = "coarse", chunk: int = 1000):
     """Edge score of every rotation with the centroid near ``centre`` ((3,), or (N, 3): one
     per rotation): per view the best of the 2D ``shifts_px`` (S, 2; px of a 1024-pixel
@@ -315,7 +315,7 @@ def scan_orientations(lib: ShapeLibrary, views, maps, centre: np.ndarray, rotati
     return total, best
 
 
-def rescore(lib: ShapeLibrary, views, maps, centre: np.ndarray, rotations: np.ndarray, shifts: np.ndarray,
+def rescore(lib: ShapeLibrary, views, maps, centre: np.ndarray, *, rotations: np.ndarray, shifts: np.ndarray,
             local_px: np.ndarray, level: str = "fine"):
     """Score rotations again on a sharper map level, each view searching ``local_px``
     (S, 2; px of a 1024-pixel image) around the rotation's own shift ``shifts`` (N, V, 2;
@@ -338,7 +338,7 @@ def shift_grid(radius_px: float, step_px: float) -> np.ndarray:
 
 
 # -- exact silhouettes and refinement on edges ---------------------------------------------------------
-def outline(mesh: PreparedMesh, R: np.ndarray, c: np.ndarray, view: View, spacing_px: float = 4.0):
+def outline(mesh: PreparedMesh, R: np.ndarray, c: np.ndarray, view: View, *, spacing_px: float = 4.0):
     """Outer outline of ``mesh`` with rotation R and centroid at c in ``view``: pixel
     points about ``spacing_px`` apart, their outward normals, and for each the model
     vertex (an end of a silhouette edge) nearest to it in the image, which is what the
@@ -369,7 +369,7 @@ def outline(mesh: PreparedMesh, R: np.ndarray, c: np.ndarray, view: View, spacin
     return pts, outward_normals(pts), mesh.vertices[ends[nearest]]
 
 
-def pose_edge_score(mesh: PreparedMesh, R, c, views, maps, level: str = "fine", hidden=None) -> list[float]:
+def pose_edge_score(mesh: PreparedMesh, R, c, views, *, maps, level: str = "fine", hidden=None) -> list[float]:
     """Per-view edge score of the exact outline at (R, centroid c); ``hidden`` (per view, a
     boolean image or None) leaves out the outline points another component covers."""
     out = []
@@ -398,7 +398,7 @@ def _skew(v: np.ndarray) -> np.ndarray:
                      np.stack([-v[:, 1], v[:, 0], z], 1)], 1)
 
 
-def refine_on_edges(mesh: PreparedMesh, views, maps, R: np.ndarray, c: np.ndarray,
+def refine_on_edges(mesh: PreparedMesh, views, maps, R: np.ndarray, *, c: np.ndarray,
                     radii_px=(20, 14, 10, 7, 5, 4, 3, 3), min_response: float = 0.15):
     """Gauss-Newton on exact silhouettes: every outline point is pulled to the strongest
     dark-inside edge along its normal within the current radius (px of a 1024-pixel
@@ -448,7 +448,7 @@ def refine_on_edges(mesh: PreparedMesh, views, maps, R: np.ndarray, c: np.ndarra
 
 
 # -- where to look -------------------------------------------------------------------------------------
-def dark_region_points(image: np.ndarray, fov: np.ndarray, n_levels: int = 14, min_area_px: float = 1500.0,
+def dark_region_points(image: np.ndarray, fov: np.ndarray, *, n_levels: int = 14, min_area_px: float = 1500.0,
                        max_area_px: float = 150000.0, merge_px: float = 12.0, min_radius_px: float = 24.0,
                        peak_px: int = 30, max_peaks: int = 4) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """Where dark things are, in full-resolution pixels: (region centroids, depth peaks).

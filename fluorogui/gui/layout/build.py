@@ -164,7 +164,7 @@ class _Items:
 
 
 def build_menus(window: QMainWindow, menus: Iterable[MenuSpec], specs: Iterable[ActionSpec],
-                actions: dict[str, QAction], presenters: SimpleNamespace, panel_toggles: Place,
+                actions: dict[str, QAction], *, presenters: SimpleNamespace, panel_toggles: Place,
                 toggles: Iterable[QAction]) -> dict[str, QMenu]:
     """The menu bar's menus and submenus with the actions the specs place in them, a
     separator between two groups; the panels' check boxes (``toggles``) go to

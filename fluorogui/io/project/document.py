@@ -253,7 +253,7 @@ def save_project(project: Project, path) -> None:
     journal.discard(path)  # what it held is in the file now
 
 
-def journal_frames(project: Project, path, poses, records, settings: bool = False) -> None:
+def journal_frames(project: Project, path, poses, records, *, settings: bool = False) -> None:
     """Append to the journal of the project file ``path`` the pose records ``poses`` and
     outline records ``records`` (keys) as the file would hold them, and the settings when
     ``settings`` (see ``io.project.journal``): a frame stored without rewriting the project."""
@@ -413,7 +413,7 @@ def project_from_document(document: dict, base: Path, consume: bool = False) -> 
     frames, components = set(doc.frames), [m.component for m in doc.models]
     records = {}
     for i, raw in _items(doc.records, consume):
-        item = _checked(RecordDocument, raw, "records", i, frames, components, len(views))
+        item = _checked(RecordDocument, raw, "records", i, frames=frames, components=components, views=len(views))
         key = (item.frame, item.view, item.component)
         if key in records:
             raise _Malformed(f"'records[{i}]' repeats the outline of frame {key[0]}, view {key[1]}, {key[2]}")
@@ -427,7 +427,7 @@ def project_from_document(document: dict, base: Path, consume: bool = False) -> 
         )
     poses = {}
     for i, raw in _items(doc.poses, consume):
-        item = _checked(PoseDocument, raw, "poses", i, frames, components, len(views))
+        item = _checked(PoseDocument, raw, "poses", i, frames=frames, components=components, views=len(views))
         key = (item.frame, item.component)
         if key in poses:
             raise _Malformed(f"'poses[{i}]' repeats the pose of frame {key[0]}, {key[1]}")
@@ -467,13 +467,13 @@ def _items(items: list, consume: bool):
         yield i, item
 
 
-def _checked(model, raw, kind: str, index: int, frames: set, components: list, views: int):
+def _checked(model, raw, kind: str, index: int, *, frames: set, components: list, views: int):
     """One record or pose checked by its schema and against its project."""
     try:
         item = model.model_validate(raw)
     except ValidationError as exc:
         raise _Malformed(describe(exc, f"{kind}[{index}]")) from None
-    problem = item_problem(kind, index, item, frames, components, views)
+    problem = item_problem(kind, index, item, frames, components=components, views=views)
     if problem:
         raise _Malformed(problem)
     return item

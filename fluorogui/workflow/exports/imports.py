@@ -85,6 +85,6 @@ def kinematics_of_poses(poses: dict[tuple[int, str], np.ndarray], side: str, fem
             out.append((frame, KneeKinematics.missing(), reason))
             continue
         values = knee_kinematics(pose_to_matrix(pose["femoral"]), pose_to_matrix(pose["tibial"]),
-                                 femoral_frame, tibial_frame, side)
+                                 femoral_frame, tibial_frame, side=side)
         out.append((frame, values, ""))
     return out

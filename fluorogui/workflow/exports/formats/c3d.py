@@ -17,7 +17,7 @@ def export_c3d(session, path, fps: float | None = None, include_unreviewed: bool
     path = check_output_file(path)
     rate = require_frame_rate(session, path, fps)
     labels, points, valid = marker_table(session, include_unreviewed)
-    write_c3d(path, labels, points, valid, rate, session.frames, marker_descriptions(labels))
+    write_c3d(path, labels, points, valid, fps=rate, frames=session.frames, descriptions=marker_descriptions(labels))
     return path
 
 

@@ -44,7 +44,7 @@ def export_mot(session, path, rows=None, fps: float | None = None, include_unrev
              "NaN where a component has no pose, or its pose was not matched or accepted"
              + (" (placed or flagged poses included)" if include_unreviewed else "")]
     write_mot(path, "knee_kinematics", list(MOT_COLUMNS), frame_times([r.frame for r in rows], rate),
-              mot_table(rows, include_unreviewed), notes)
+              table=mot_table(rows, include_unreviewed), notes=notes)
     return path
 
 

@@ -15,7 +15,7 @@ def export_trc(session, path, fps: float | None = None, include_unreviewed: bool
     path = check_output_file(path)
     rate = require_frame_rate(session, path, fps)
     labels, points, valid = marker_table(session, include_unreviewed)
-    write_trc(path, labels, session.frames, frame_times(session.frames, rate), points, valid, rate)
+    write_trc(path, labels, session.frames, frame_times(session.frames, rate), points=points, valid=valid, fps=rate)
     return path
 
 
