@@ -75,7 +75,7 @@ def record_sd(record: PoseRecord | None) -> np.ndarray:
     """The six pose SDs a match reported (mm, degrees), NaN where it reported none."""
     if record is None or record.match is None or not isinstance(record.match.quality, dict):
         return np.full(6, np.nan)
-    sd = record.match.quality.get("sd")  # where the matcher keeps it (``core.matching.MatchResult.sd``)
+    sd = record.match.quality.get("sd")  # where the matcher keeps it (``core.matching.problem.MatchResult.sd``)
     try:
         sd = np.asarray(sd, dtype=float).reshape(6)
     except (TypeError, ValueError):
