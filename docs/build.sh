@@ -46,8 +46,8 @@ say "doctests of the public API"
 cd "$REPO_ROOT"
 PYTHONPATH="$DOCS:$PYTHONPATH" "$PY" -m pytest -q -p no:cacheprovider -p doctest_setup --doctest-modules --rootdir="$REPO_ROOT" \
   --confcutdir="$DOCS" -o addopts="" -o testpaths="" \
-  fluorogui/__init__.py fluorogui/workflow/session.py fluorogui/workflow/work.py fluorogui/workflow/edits.py \
-  fluorogui/workflow/knee.py \
+  fluorogui/__init__.py fluorogui/workflow/session/reader.py fluorogui/workflow/session/session.py \
+  fluorogui/workflow/session/work.py fluorogui/workflow/session/edits.py fluorogui/workflow/session/knee.py \
   fluorogui/workflow/results.py fluorogui/workflow/settings.py fluorogui/core/search/find.py \
   fluorogui/core/matching/matcher.py fluorogui/core/matching/loop.py fluorogui/core/knee/kinematics.py
 

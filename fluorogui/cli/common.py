@@ -145,7 +145,7 @@ def add_rim_options(parser, what: str = "match") -> None:
     group = parser.add_mutually_exclusive_group()
     group.add_argument("--rim", dest="rim", action="store_const", const="on", default="auto",
                        help="automatic outlines: always move them to the boundary the metal's rim profile gives "
-                            f"(core.rim; default for this {what}: only in views whose edge is soft)")
+                            f"(core.outlines.rim; default for this {what}: only in views whose edge is soft)")
     group.add_argument("--no-rim", dest="rim", action="store_const", const="off",
                        help="automatic outlines: never refine them for the metal's rim (Canny's edges as found)")
 

@@ -78,7 +78,7 @@ def run(args) -> int:
              f"frames {project.frames[counts[short]]}..{project.frames[-1]} will be flagged when matched")
     _frame_rate(project, args.fps)
     if args.side:
-        from fluorogui.workflow.knee import KNEE_KEY
+        from fluorogui.workflow.session.knee import KNEE_KEY
 
         project.settings.setdefault(KNEE_KEY, {})["side"] = args.side
     save_project(project, out)

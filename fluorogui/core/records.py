@@ -6,7 +6,7 @@ them relative to itself). Keys:
 
 * ``records[(frame, view_index, component)]`` - the reviewed image outline of one
   component in one view of one frame;
-* ``poses[(frame, component)]`` - the pose (mm, degrees, DESIGN.md convention) with the
+* ``poses[(frame, component)]`` - the pose (mm, degrees, the convention of docs/developer/conventions.rst) with the
   record of the match that produced it and its status: ``matched`` (every quality check
   passed), ``needs_review`` (a check failed: never to be shown as matched), ``failed``
   (no pose could be found; the pose is the prediction, kept as a start for the user) or

@@ -4,7 +4,7 @@ The ``Session`` (``fluorogui.workflow``) owns the project, its caches, every und
 edit and the work; the command line and scripts use it exactly as the app does. This
 adapter only adds what a desktop app needs on top:
 
-* Qt signals for the session's events (``workflow.events.SessionEvent``: ``pose_changed``,
+* Qt signals for the session's events (``workflow.session.events.SessionEvent``: ``pose_changed``,
   ``outline_changed`` ...); frames
   are always frame numbers (the ``frame`` column of pairs.csv), never list positions;
 * the GUI's own state: the frame on screen and the component being edited;
@@ -24,9 +24,9 @@ from PySide6.QtCore import QObject, Signal
 from fluorogui.core.records import Project
 from fluorogui.io.errors import InputError
 from fluorogui.io.project.lock import ProjectLock, ProjectLocked
-from fluorogui.workflow.events import SessionEvent
-from fluorogui.workflow.history import Command
 from fluorogui.workflow.session import COMPONENT_ORDER, FrameState, Session
+from fluorogui.workflow.session.events import SessionEvent
+from fluorogui.workflow.session.history import Command
 
 PROGRAM = "fluorogui (desktop)"
 

@@ -4,7 +4,7 @@
   one row per frame: for each component its pose (x, y, z, alpha, beta, gamma), its 4×4
   (row by row), status, objective and per-view residuals, SDs; then the kinematics.
 * **Our poses CSV (long)**, what ``fluorogui kinematics --poses`` reads: columns
-  ``frame,component,x,y,z,alpha,beta,gamma`` (DESIGN.md's pose convention).
+  ``frame,component,x,y,z,alpha,beta,gamma`` (the pose convention, docs/developer/conventions.rst).
 * **Autoscoper ``.tra``.** One row per frame, per component 16 numbers (the 4×4 row by
   row; components in the order given), comma-separated, ``NaN`` where a frame has no pose.
 * **JointTrack ``.jts``.** ``JT_EULER_312``, a column-title line, one row per frame of

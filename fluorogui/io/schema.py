@@ -432,14 +432,6 @@ class PoseDocument(_Strict):
     reason: Text
 
 
-class SettingsDocument(_Strict):
-    """Free-form settings; the parts fluorogui reads must have the right kind."""
-
-    model_config = ConfigDict(strict=True, extra="allow")
-    gui: dict[str, Any] = Field(default_factory=dict)
-    workflow: dict[str, dict[str, Any]] = Field(default_factory=dict)
-
-
 class ProjectDocument(_Strict):
     """A project's top level. ``records`` and ``poses`` are only counted here: each item is
     checked by ``RecordDocument`` / ``PoseDocument`` and ``item_problem`` as it is turned into
@@ -520,38 +512,3 @@ def item_problem(kind: str, index: int, item, frames: set, *, components: list, 
         return (f"{where}.match.per_view_mean_mm has {len(item.match.per_view_mean_mm)} values for the "
                 f"project's {views} view{'s' if views != 1 else ''}")
     return None
-
-
-def check_settings(settings: dict) -> None:
-    """Raise ValidationError when the parts of ``settings`` fluorogui reads have the wrong kind."""
-    SettingsDocument.model_validate(settings)
-
-
-def check_typed_settings(values: dict, defaults: dict, where: str) -> None:
-    """Raise ValueError naming ``where.key`` when a stored setting does not have the kind of
-    its default (number, whole number, true/false, text, list of numbers), is not finite,
-    or is negative (every engine setting is a size, a count or a limit). Unknown keys pass."""
-    for key, default in defaults.items():
-        if key not in values:
-            continue
-        value, name = values[key], f"field '{where}.{key}'"
-        number = isinstance(value, (int, float)) and not isinstance(value, bool)
-        if isinstance(default, bool):
-            ok, kind = isinstance(value, bool), "true or false"
-        elif isinstance(default, int) or (default is None and key.endswith("points")):
-            ok = (value is None and default is None) or (isinstance(value, int) and not isinstance(value, bool)
-                                                          and 0 <= value <= 10**9)
-            kind = "a whole number from 0 to 10^9"
-        elif isinstance(default, float) or default is None:
-            ok = (value is None and default is None) or (number and math.isfinite(value) and 0 <= value <= 1e9)
-            kind = "a finite number from 0 to 10^9"
-        elif isinstance(default, str):
-            ok, kind = isinstance(value, str) and len(value) <= 100, "a short text"
-        elif isinstance(default, tuple):
-            ok = isinstance(value, list) and len(value) == len(default) and all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
-            kind = f"a list of {len(default)} numbers"
-        else:
-            continue
-        if not ok:
-            raise ValueError(f"{name} must be {kind}, not {_shown(value)}")

@@ -27,8 +27,8 @@ splines, point-to-curve residuals, Levenberg-Marquardt) fits outlines. This modu
 * a fit whose overlap with the evidence is under ``MIN_IOU`` in a view found too little
   of the component there to mean anything: it is refused (``LowOverlap``).
 
-Shared with the matcher: only the conventions (DESIGN.md: the pose ``X = R m + t``,
-``R = Ry(beta) Rz(gamma) Rx(alpha)``, and the view's numbers: source, plane normal,
+Shared with the matcher: only the conventions (docs/developer/conventions.rst: the pose
+``X = R m + t``, ``R = Ry(beta) Rz(gamma) Rx(alpha)``, and the view's numbers: source, plane normal,
 in-plane axes, distance, pitch, principal point), duck-typed like
 ``fluorogui.reference.xray``: rays and projections are computed here. The caller reads
 files (calibrations, images, meshes) with ``fluorogui.io``. Only numpy, scipy and OpenCV;
@@ -54,7 +54,7 @@ SETTLE_MOVE, SETTLE = 0.05, 2
 MIN_IOU = 0.5
 
 
-# -- conventions (DESIGN.md), written here -------------------------------------------------
+# -- conventions (docs/developer/conventions.rst), written here ----------------------------
 def rotation(alpha: float, beta: float, gamma: float) -> np.ndarray:
     """R = Ry(beta) Rz(gamma) Rx(alpha), degrees (intrinsic Y-Z-X)."""
     return Rotation.from_euler("YZX", [beta, gamma, alpha], degrees=True).as_matrix()

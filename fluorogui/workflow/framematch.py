@@ -134,7 +134,7 @@ class FrameMatcher:
         # find_near(images, component, mesh, pose or None (the whole image), cancel) -> pose, poses or None
         self.find_near = find_near
         self.live = live  # live(component, calls, objective_mm, pose) at every step of a match
-        # each component's rim models per view (core.rim): judged in its first matched frames, then
+        # each component's rim models per view (core.outlines.rim): judged in its first matched frames, then
         # reused; ``rim`` (component -> models per view) are ones judged before (kept in the project)
         self.rim_judgements: dict[str, RimJudgement] = {
             c: RimJudgement.settled_with(models) for c, models in (rim or {}).items()

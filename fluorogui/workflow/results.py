@@ -85,7 +85,7 @@ class FrameResult:
     kept: bool = False
     attempts: int = 0  # starts tried (1 when the prediction was right at once)
     recovered: str = ""  # how a lost frame was recovered ("last pose", "rotated start", "find near")
-    rim_models: list | None = field(default=None, repr=False)  # per view, the core.rim models it used
+    rim_models: list | None = field(default=None, repr=False)  # per view, the core.outlines.rim models it used
     #: per view, the component's rim models once its judgement has settled (the project keeps
     #: them, so later runs need not fit them again); None before
     rim_settled: list | None = field(default=None, repr=False)

@@ -1,5 +1,7 @@
 """The workflow's settings: matcher, segmentation loop, quality limits and tracking, kept in
-the project (``project.settings["workflow"]``) so a session reopens with what it used."""
+the project (``project.settings["workflow"]``) so a session reopens with what it used.
+Each part is a section of ``fluorogui.core.settings`` (``workflow.match`` ...), registered
+there with its record and its check, which is where a project file's values are checked."""
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, fields
@@ -7,62 +9,9 @@ from dataclasses import asdict, dataclass, field, fields
 from fluorogui.core.matching.loop import LoopSettings
 from fluorogui.core.matching.problem import MatchSettings
 from fluorogui.core.matching.quality import QualityThresholds
+from fluorogui.core.settings import TrackingSettings
 
 SETTINGS_KEY = "workflow"
-
-
-@dataclass
-class TrackingSettings:
-    """How tracking predicts, recovers and treats overlapping components.
-
-    Attributes
-    ----------
-    occlusion : bool
-        Mask the other component's projection out of segmentation and matching.
-    occlusion_margin_px : int
-        The mask grows by this much around the other's silhouette.
-    recover : bool
-        Try other starts when a frame fails its checks.
-    rotated_start_deg : float
-        Size of the turned starts tried in recovery.
-    find_near : bool
-        Last resort: search near the prediction (*find implants*).
-    typical_window : int
-        Matched frames whose residuals set the "typical" residual of the checks.
-    probe : bool
-        Without motion to go by, look for a second orientation that fits as well ...
-    probe_deg : float
-        ... this far either way about the least constrained axis ...
-    probe_ratio : float
-        ... and call the pose ambiguous when one fits within this factor.
-    max_seconds : float
-        When a component's first start in a frame fails its checks, recovery tries other
-        starts until this long after the match began: then it stops (a running start at its
-        next check) and the best result so far, flagged ``needs_review`` (or ``failed``),
-        says so in its reason; 0: no limit. The first start and the probe always run to
-        their end. A recovered real frame takes under a second; a start far off took
-        minutes (every recovery start fitting the rim models again).
-    """
-
-    occlusion: bool = True  # mask the other component's projection out of segmentation and matching
-    occlusion_margin_px: int = 3  # the mask grows by this much around the other's silhouette
-    recover: bool = True  # try other starts when a frame fails its checks
-    rotated_start_deg: float = 12.0  # size of the turned starts tried in recovery
-    find_near: bool = True  # last resort: search near the prediction (find implants)
-    typical_window: int = 15  # matched frames whose residuals set the "typical" residual
-    probe: bool = True  # without motion to go by, look for a second orientation that fits as well:
-    probe_deg: float = 20.0  # ... this far either way about the least constrained axis ...
-    probe_ratio: float = 1.5  # ... for another orientation fitting within this factor: ambiguous
-    max_seconds: float = 20.0  # recovery stops this long after a component's match began, flagged (0: none)
-
-    @classmethod
-    def from_dict(cls, d: dict | None) -> "TrackingSettings":
-        d = d or {}
-        out = cls()
-        for f in fields(cls):
-            if f.name in d:
-                setattr(out, f.name, type(getattr(out, f.name))(d[f.name]))
-        return out
 
 
 @dataclass
@@ -120,3 +69,5 @@ class WorkflowSettings:
         return cls(match, LoopSettings.from_dict(d.get("loop") if isinstance(d.get("loop"), dict) else None),
                    QualityThresholds.from_dict(d.get("quality") if isinstance(d.get("quality"), dict) else None),
                    TrackingSettings.from_dict(d.get("tracking") if isinstance(d.get("tracking"), dict) else None))
+
+__all__ = ["SETTINGS_KEY", "TrackingSettings", "WorkflowSettings"]

@@ -1,4 +1,4 @@
-"""The issue's bad input on images of the independent X-ray model (``validation.xray``,
+"""The issue's bad input on images of the independent X-ray model (``reference.xray``,
 which images a leg and a bone shaft whose edges Canny finds too): each gets a refusal or
 ``needs_review`` with its reason, never a converged wrong pose."""
 import json

@@ -1,4 +1,4 @@
-"""Procedural implant variants (``core.implant_variants`` via ``validation.mesh_variant``):
+"""Procedural implant variants (``simulation.implant_variants`` via ``simulation.protocols.mesh_variant``):
 closed meshes, shaped as their names say."""
 import numpy as np
 import pytest

@@ -1,5 +1,5 @@
 """Occlusion-aware segmentation and matching, outline repair and the quality checks, on
-rendered images (the scanline rasteriser of core.render, not the matcher's silhouette)."""
+rendered images (the scanline rasteriser of simulation.render, not the matcher's silhouette)."""
 import cv2
 import numpy as np
 import pytest

@@ -1,7 +1,7 @@
 """Outline point weights: where an outline was found precisely, it counts more in a match.
 
 The rim refinement finds the boundary three times less precisely where the metal thins
-gently than on a steep rim (``core.profile_fit.precision_weights``); the outline's spline carries
+gently than on a steep rim (``core.outlines.profile_fit.precision_weights``); the outline's spline carries
 each point's inverse variance (``OutlineSpline.weight_at``) and the fast matcher's
 residual blocks share their weight by it. The outlines here are made without the
 matcher's code (``fluorogui.reference.hull_outlines``: the convex hull of a bent ellipsoid's

@@ -1,4 +1,4 @@
-"""The rim refinement (core.rim) against the independent X-ray model: its path lengths
+"""The rim refinement (core.outlines.rim) against the independent X-ray model: its path lengths
 against the model's own ray casting, and its outline against the true silhouette of
 the rendered mesh (found from that model's path lengths, not from the matcher's
 silhouette code)."""
@@ -193,7 +193,7 @@ def _darken_outside(image, outline, stretch, reach_px=4.0):
 
 @pytest.mark.slow
 def test_a_stretch_pulled_by_another_edge_is_left_out(tray, monkeypatch):
-    # the stray rule on its own: the bone model (core.second_edge, tested apart) would take
+    # the stray rule on its own: the bone model (core.outlines.second_edge, tested apart) would take
     # this ramp for a bone's edge and keep up to 13 of its points, 0.3-0.66 px inside
     monkeypatch.setattr("fluorogui.core.outlines.rim.second_edges",
                         lambda image, points, *a: (np.full(len(points), np.nan),) * 2)

@@ -1,5 +1,5 @@
-"""The rim's 1-D profile fit (core.rim) against profiles made here by direct convolution,
-and the outline geometry it uses (core.profile_fit): a sloped background must not move
+"""The rim's 1-D profile fit (core.outlines.rim) against profiles made here by direct convolution,
+and the outline geometry it uses (core.outlines.profile_fit): a sloped background must not move
 the edge, and the outline's curvature must be that of a circle."""
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""A bone's edge beside the rim (core.second_edge): found where it is, and modelled by the
+"""A bone's edge beside the rim (core.outlines.second_edge): found where it is, and modelled by the
 rim fit so that it no longer pulls the outline. The bone is drawn here by hand (a
 cylinder's chord, exp(-k sqrt(x)), blurred), not by the code under test."""
 import cv2

@@ -42,7 +42,7 @@ def test_rotation_is_the_design_convention_and_angles_come_back():
     Rz = np.array([[np.cos(g), -np.sin(g), 0], [np.sin(g), np.cos(g), 0], [0, 0, 1]])
     R = rotation(20.0, -35.0, 50.0)
     np.testing.assert_allclose(R, Ry @ Rz @ Rx, atol=1e-12)
-    # DESIGN.md's corrected element (3,1) of the paper's Eq. (2), transposed: R[0, 2]
+    # docs/developer/conventions.rst: the corrected element (3,1) of the paper's Eq. (2), transposed: R[0, 2]
     assert R[0, 2] == pytest.approx(np.sin(a) * np.cos(b) * np.sin(g) + np.cos(a) * np.sin(b))
     np.testing.assert_allclose(angles(R), [20.0, -35.0, 50.0], atol=1e-10)
     np.testing.assert_allclose(pose_difference([0, 0, 0, 179, -179, 10], [0, 0, 0, -179, 179, 350]),

@@ -167,8 +167,7 @@ def test_match_with_a_missing_model_offers_locate_not_a_repeat(window, demo, mon
     offered = []
     monkeypatch.setattr(window.missing, "offer_locate", lambda name, error: offered.append((name, str(error))))
     (demo.parent / "models" / "tibial_component.stl").unlink()
-    window.controller.session._raw_meshes.clear()
-    window.controller.session._meshes.clear()
+    window.controller.session.cache.forget_mesh("tibial")
     window.controller.set_component("tibial")
     assert not window.run_match()
     assert offered and offered[0][0] == "tibial" and "tibial_component.stl" in offered[0][1]

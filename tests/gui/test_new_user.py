@@ -29,7 +29,7 @@ from PySide6.QtGui import QKeySequence
 from PySide6.QtTest import QTest
 from PySide6.QtWidgets import QApplication
 from fluorogui.gui.main_window import MainWindow
-from fluorogui.workflow.history import Command
+from fluorogui.workflow.session.history import Command
 app = QApplication([])
 window = MainWindow(settings=QSettings(sys.argv[1], QSettings.Format.IniFormat), with_3d=False)
 window.show()

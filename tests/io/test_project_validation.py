@@ -177,6 +177,9 @@ def test_list_arrays_of_older_files_are_checked_with_numpy(tmp_path):
     ("match", "restart_sd", [5.0], "must be a list of 2 numbers, not a list of 1"),
     ("loop", "max_passes", 2.5, "must be a whole number from 0 to 10^9, not 2.5"),
     ("quality", "max_view_mm", None, "must be a finite number from 0 to 10^9, not None"),
+    ("tracking", "occlusion_margin_px", "3", "must be a whole number from 0 to 10^9, not '3'"),
+    ("tracking", "probe", 1, "must be true or false, not 1"),
+    ("tracking", "max_seconds", -5.0, "must be a finite number from 0 to 10^9, not -5.0"),
 ])
 def test_engine_settings_of_the_wrong_kind_are_refused(tmp_path, section, key, value, problem):
     document = changed(lambda d: d["settings"].update(workflow={section: {key: value}}))

@@ -54,7 +54,7 @@ def built(tmp_path_factory, phantom_files):
 
 # -- independent projection ---------------------------------------------------------------
 def pinhole(view, points):
-    """Pinhole projection written out from the View fields (DESIGN.md), not View.project."""
+    """Pinhole projection written out from the View fields (docs/developer/conventions.rst), not View.project."""
     d = np.asarray(points, dtype=float) - view.source
     depth = d @ view.normal
     u = view.principal_point[0] + view.distance / view.pitch[0] * (d @ view.e_u) / depth

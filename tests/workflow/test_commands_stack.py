@@ -1,5 +1,5 @@
 """The plain undo history: push, undo, redo, macros, merging and the saved state."""
-from fluorogui.workflow.history import Command, CommandStack
+from fluorogui.workflow.session.history import Command, CommandStack
 
 
 def _stack():

@@ -1,6 +1,6 @@
 """The motion exports of a session against values computed here, independently of the code
 under test: anatomical markers from the demo's true poses (the rotation built with scipy
-from DESIGN.md's convention), the C3D read back with the ``c3d`` package, the .mot against
+from the convention in docs/developer/conventions.rst), the C3D read back with the ``c3d`` package, the .mot against
 the kinematics CSV of the same run, the .trc and XMALab CSV parsed as plain text; the time
 base (kept, undoable, overridden, refused when absent)."""
 from __future__ import annotations
@@ -30,7 +30,8 @@ COMPONENTS = ("femoral", "tibial")
 
 
 def independent_matrix(pose) -> np.ndarray:
-    """DESIGN.md: X = R m + t, R = Ry(beta) Rz(gamma) Rx(alpha), built with scipy (intrinsic Y-Z-X)."""
+    """docs/developer/conventions.rst: X = R m + t, R = Ry(beta) Rz(gamma) Rx(alpha), built with scipy
+    (intrinsic Y-Z-X)."""
     x, y, z, alpha, beta, gamma = pose
     matrix = np.eye(4)
     matrix[:3, :3] = Rotation.from_euler("YZX", [beta, gamma, alpha], degrees=True).as_matrix()

@@ -12,8 +12,9 @@ Steps (the paper rebuilds each view's projection from such a phantom):
    phantom bead lands on, and pairs whose residual stands out, are dropped.
 3. ``calibrate_view``: DLT (Hartley-normalised), decomposed into ``K [R | t]`` and refined
    as a zero-skew pinhole by least squares on the reprojection error; then converted to
-   DESIGN.md's view (source ``-R^T t``, normal ``R^T e_z``, ``l = f * pitch``). Reports the
-   reprojection error per bead and the source–intensifier distance.
+   the view of docs/developer/conventions.rst (source ``-R^T t``, normal ``R^T e_z``,
+   ``l = f * pitch``). Reports the reprojection error per bead and the source–intensifier
+   distance.
 
 Too few beads, a marker that cannot be told apart, an unmatched or mirrored phantom and a
 (nearly) coplanar phantom are refused with a one-line ``BeadError`` saying which.

@@ -1,4 +1,5 @@
-"""Pose convention of DESIGN.md: X = R m + t with R = Ry(beta) @ Rz(gamma) @ Rx(alpha).
+"""Pose convention (docs/developer/conventions.rst): X = R m + t with
+R = Ry(beta) @ Rz(gamma) @ Rx(alpha).
 
 A pose is (x, y, z, alpha, beta, gamma) in millimetres and degrees. The matrix is the
 transpose of the paper's Eq. (2) (written for row vectors), with the misprinted element

@@ -130,7 +130,7 @@ class Placement:
     """
 
     component: str
-    pose: np.ndarray | None  # mm, deg (DESIGN.md convention), refined on Canny outlines; None if nothing usable
+    pose: np.ndarray | None  # mm, deg (developer/conventions.rst), refined on Canny outlines; None if nothing usable
     found: bool  # True only when confident
     iou: list[float]  # per view: silhouette IoU with the region inside the image outline at `pose` (half resolution)
     objective_mm: float  # match objective on the Canny outlines at `pose` (sum over views of mean distance, mm) or nan

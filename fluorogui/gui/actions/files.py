@@ -25,7 +25,7 @@ from fluorogui.io.errors import InputError, collected_input_warnings
 from fluorogui.io.meshes.read import MESH_SUFFIXES
 from fluorogui.io.project.lock import ProjectLocked
 from fluorogui.logs import data_dir, log_exception
-from fluorogui.workflow.recovery import RecoveryJournal
+from fluorogui.workflow.session.recovery import RecoveryJournal
 
 PROJECT_FILTER = "fluorogui projects (*.fluoro);;All files (*)"
 MAX_RECENT = 8

@@ -1,4 +1,4 @@
-"""Undo and Redo bound to the session's own history (``fluorogui.workflow.history``).
+"""Undo and Redo bound to the session's own history (``fluorogui.workflow.session.history``).
 
 There is no second stack: the actions (declared in ``gui.layout.actions``, with their
 keys, and given to ``UndoActions``) call ``history.undo()`` / ``history.redo()``, and their enabled state and texts
@@ -11,8 +11,8 @@ from __future__ import annotations
 from PySide6.QtCore import QObject, Signal
 from PySide6.QtGui import QAction
 
-from fluorogui.workflow.events import HistoryEvent
-from fluorogui.workflow.history import CommandStack
+from fluorogui.workflow.session.events import HistoryEvent
+from fluorogui.workflow.session.history import CommandStack
 
 
 class UndoActions(QObject):

@@ -377,7 +377,7 @@ class ImportDialog(QDialog):
         if self.frame_rate.value() > 0:
             store_frame_rate(project.settings, self.frame_rate.value(), "user")
         if self.side.currentData():
-            from fluorogui.workflow.knee import KNEE_KEY
+            from fluorogui.workflow.session.knee import KNEE_KEY
 
             project.settings.setdefault(KNEE_KEY, {})["side"] = self.side.currentData()
         self.project = project

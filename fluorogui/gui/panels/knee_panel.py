@@ -1,7 +1,7 @@
 """The Kinematics panel: the current frame's six knee values, the side, and the curves
 across frames (matplotlib, embedded) where a click goes to that frame.
 
-It draws what it is given (``set_rows``: ``fluorogui.workflow.knee.KneeRow``s); the main
+It draws what it is given (``set_rows``: ``fluorogui.workflow.session.knee.KneeRow``s); the main
 window computes them from the session (the anatomical frames are edited in
 ``dialogs.anatomical_frame``). The curves keep a readable size (``PLOT_MIN_SIZE``) and
 scroll when the dock is smaller (a laptop screen), instead of being squeezed into strips;

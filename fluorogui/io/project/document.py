@@ -64,8 +64,6 @@ from fluorogui.io.schema import (
     PoseDocument,
     ProjectDocument,
     RecordDocument,
-    check_settings,
-    check_typed_settings,
     describe,
     item_problem,
     pack_array,
@@ -480,21 +478,14 @@ def _checked(model, raw, kind: str, index: int, *, frames: set, components: list
 
 
 def _check_settings(doc: ProjectDocument) -> None:
-    """The settings: finite, of the kinds the engine reads (``check_typed_settings``)."""
+    """The settings: finite, and every registered section (``core.settings.SECTIONS``) of a
+    kind its owner can use."""
+    from fluorogui.core.settings import check_sections  # the engine's settings records: loaded when needed
+
     if not _all_finite(doc.settings):
         raise _Malformed("'settings' holds a number too large to be finite")
     try:
-        check_settings(doc.settings)
-        for section, (cls, defaults) in _engine_settings().items():
-            stored = doc.settings.get("workflow", {}).get(section, {})
-            check_typed_settings(stored, defaults, f"settings.workflow.{section}")
-            if hasattr(cls, "from_dict"):  # the values the settings' own rules refuse (an unknown rim mode)
-                try:
-                    cls.from_dict(stored)
-                except ValueError as exc:
-                    raise ValueError(f"field 'settings.workflow.{section}': {exc}") from None
-    except ValidationError as exc:
-        raise _Malformed(describe(exc, "settings")) from None
+        check_sections(doc.settings)
     except ValueError as exc:
         raise _Malformed(str(exc)) from None
 
@@ -508,19 +499,6 @@ def _all_finite(value) -> bool:
     if isinstance(value, list):
         return all(_all_finite(v) for v in value)
     return True
-
-
-def _engine_settings() -> dict[str, tuple[type, dict]]:
-    """The engine settings a project stores (``settings.workflow``): their classes and their
-    defaults, which give each stored value the kind it must have."""
-    from dataclasses import fields
-
-    from fluorogui.core.matching.loop import LoopSettings
-    from fluorogui.core.matching.problem import MatchSettings
-    from fluorogui.core.matching.quality import QualityThresholds
-
-    return {name: (cls, {f.name: getattr(cls(), f.name) for f in fields(cls)})
-            for name, cls in (("match", MatchSettings), ("loop", LoopSettings), ("quality", QualityThresholds))}
 
 
 def _absolute(text: str, base: Path) -> Path:

@@ -12,7 +12,7 @@ from fluorogui.core.records import PoseRecord
 from fluorogui.core.status import Status
 from fluorogui.io.errors import InputError
 from fluorogui.io.pose_files import jointtrack_to_world_pose, read_jts, read_pose_csv, read_tra
-from fluorogui.workflow.knee import KNEE_COMPONENTS
+from fluorogui.workflow.session.knee import KNEE_COMPONENTS
 
 
 def read_poses_file(session, path, component: str | None = None, view: int = 0) -> dict[tuple[int, str], np.ndarray]:

@@ -20,7 +20,7 @@ from fluorogui.core.records import PoseRecord
 from fluorogui.core.status import Status
 from fluorogui.io.errors import InputError
 from fluorogui.io.pose_files import POSE_KEYS
-from fluorogui.workflow.knee import KNEE_COMPONENTS, KneeRow, record_sd
+from fluorogui.workflow.session.knee import KNEE_COMPONENTS, KneeRow, record_sd
 
 POSE_CONVENTION = ("pose x, y, z (mm), alpha, beta, gamma (deg) of the model in the calibration (world) frame: "
                    "X = R m + t, R = Ry(beta) Rz(gamma) Rx(alpha); m00..m33 the same pose as a 4x4 "

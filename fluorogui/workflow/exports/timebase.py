@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from fluorogui.io.errors import InputError
 from fluorogui.io.motion_files import store_frame_rate, stored_frame_rate
-from fluorogui.workflow.events import SessionEvent
-from fluorogui.workflow.history import Command
+from fluorogui.workflow.session.events import SessionEvent
+from fluorogui.workflow.session.history import Command
 
 
 def frame_rate(session) -> float | None:

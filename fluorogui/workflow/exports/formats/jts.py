@@ -8,7 +8,7 @@ from fluorogui.io.files import check_output_folder
 from fluorogui.io.pose_files import pose_to_jointtrack, write_jts
 from fluorogui.workflow.exports.registry import ExportFormat, register
 from fluorogui.workflow.exports.tables import in_statusless_files
-from fluorogui.workflow.knee import KNEE_COMPONENTS
+from fluorogui.workflow.session.knee import KNEE_COMPONENTS
 
 
 def export_jts(session, folder, view: int, include_unreviewed: bool = False) -> list[Path]:

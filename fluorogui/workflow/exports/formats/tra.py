@@ -7,7 +7,7 @@ from fluorogui.io.files import check_output_file
 from fluorogui.io.pose_files import write_tra
 from fluorogui.workflow.exports.registry import ExportFormat, register
 from fluorogui.workflow.exports.tables import in_statusless_files, pose_matrices
-from fluorogui.workflow.knee import KNEE_COMPONENTS
+from fluorogui.workflow.session.knee import KNEE_COMPONENTS
 
 
 def export_tra(session, path, include_unreviewed: bool = False) -> Path:

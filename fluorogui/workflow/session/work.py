@@ -7,24 +7,32 @@ the job and stores its results (``match``, ``find``, ``track``). The desktop app
 jobs in its worker thread and stores the results on the GUI thread; the command line and
 scripts call the methods. Same frame, same settings, same code: same pose. The images' rim
 models that the jobs start from are kept in the project (``rim_models``).
+
+``Work`` is a part of ``Session``: it is given the project, the history, the reader, the
+edits and the session's ``Storage`` (storing and saving results), each named in its
+constructor.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterator, Sequence
+from typing import Callable, Iterator, Protocol, Sequence
 
 import numpy as np
 
 from fluorogui.core.outlines.rim import RimModel
 from fluorogui.core.projection.geometry import View
 from fluorogui.core.projection.mesh import PreparedMesh
+from fluorogui.core.records import Project
 from fluorogui.core.search.find import Placement
 from fluorogui.io.errors import InputError
 from fluorogui.workflow.finding import find_in_frame, near_search
 from fluorogui.workflow.framematch import ComponentInput, FrameMatcher
 from fluorogui.workflow.results import FrameResult
-from fluorogui.workflow.settings import WorkflowSettings
+from fluorogui.workflow.session.edits import Edits
+from fluorogui.workflow.session.history import CommandStack
+from fluorogui.workflow.session.reader import Reader
+from fluorogui.workflow.settings import SETTINGS_KEY, WorkflowSettings
 from fluorogui.workflow.tracking import TrackJob, TrackProgress, frames_between, read_frame_images
 
 #: a tracking run with autosave saves the whole project this often (frames); in between it
@@ -72,12 +80,51 @@ class FindJob:
         return find_in_frame(self.frame, images, self.views, self.meshes, progress=progress, cancel=cancel)
 
 
-#: ``project.settings`` key of the components' rim models (``WorkMixin.rim_models``)
+#: ``project.settings`` key of the components' rim models (``Work.rim_models``)
 RIM_KEY = "rim_models"
 
 
-class WorkMixin:
-    """Match, find and track for ``Session`` (a mixin: uses its project and caches)."""
+class Storage(Protocol):
+    """What the work needs of the session that owns it: to store results and save them."""
+
+    path: Path | None
+    dirty_on_disk: bool
+
+    def store(self, results, text: str | None = None) -> None: ...
+
+    def save(self, path=None) -> Path: ...
+
+    def save_frames(self, results) -> None: ...
+
+
+class Work:
+    """Match, find and track: the jobs, and the methods that run them and store the results.
+
+    Parameters
+    ----------
+    project : fluorogui.core.records.Project
+        Its poses, frames and settings (the workflow's settings and the rim models).
+    history : CommandStack
+        Placing found components is one step of it.
+    reader : Reader
+        Frames, views, components, image paths, meshes and the poses' stand-ins.
+    edits : Edits
+        The reviewed outlines matching uses as they are, and placing found components.
+    storage : Storage
+        Where results go (``store``) and how they are saved as tracking goes.
+    """
+
+    def __init__(self, *, project: Project, history: CommandStack, reader: Reader, edits: Edits,
+                 storage: Storage) -> None:
+        self.project = project
+        self.history = history
+        self.reader = reader
+        self.edits = edits
+        self.storage = storage
+
+    @property
+    def _settings(self) -> WorkflowSettings:
+        return WorkflowSettings.from_dict(self.project.settings.get(SETTINGS_KEY))
 
     # -- the images' rim models -----------------------------------------------------------------
     def rim_models(self) -> dict[str, list[RimModel]]:
@@ -100,18 +147,18 @@ class WorkMixin:
                 out[component] = [RimModel(float(m["mu"]), float(m["sigma"])) for m in models]
             except (KeyError, TypeError, ValueError):
                 continue  # a damaged entry is judged again
-            if len(out[component]) != self.n_views:
+            if len(out[component]) != self.reader.n_views:
                 del out[component]
         return out
 
-    def _keep_rim_models(self, component: str, models: list) -> None:
+    def keep_rim_models(self, component: str, models: list) -> None:
         kept = [{"mu": round(float(m.mu), 6), "sigma": round(float(m.sigma), 6)} for m in models]
         if self.project.settings.get(RIM_KEY, {}).get(component) != kept:
             self.project.settings.setdefault(RIM_KEY, {})[component] = kept
 
     # -- helpers ---------------------------------------------------------------------------------
     def _components(self, components) -> list[str]:
-        names = self.components()
+        names = self.reader.components()
         if components is None or components == "both" or components == "all":
             return names
         wanted = [components] if isinstance(components, str) else list(components)
@@ -168,19 +215,21 @@ class WorkMixin:
         """
         frame = self._check_frame(frame)
         names = self._components(components)
-        settings = self.settings
-        inputs = [ComponentInput(c, self.mesh(c), self.pose(c, frame), None, self.given_splines(c, frame),
+        settings = self._settings
+        inputs = [ComponentInput(c, self.reader.mesh(c), self.reader.pose(c, frame), None,
+                                 self.edits.given_splines(c, frame),
                                  self._typical(self._residuals(c, None, settings.tracking.typical_window)),
                                  predicted=False)
                   for c in names]
         fixed = {}
-        for c in self.components():
+        for c in self.reader.components():
             if c not in names and (frame, c) in self.project.poses:
                 try:
-                    fixed[c] = (self.mesh(c), self.pose(c, frame))
+                    fixed[c] = (self.reader.mesh(c), self.reader.pose(c, frame))
                 except InputError:
                     pass
-        return MatchJob(self.views, frame, self.image_paths(frame), inputs, fixed, settings, self.rim_models())
+        return MatchJob(self.reader.views, frame, self.reader.image_paths(frame), inputs, fixed, settings,
+                        self.rim_models())
 
     def match(self, frame: int, components=None, live=None, cancel=None) -> list[FrameResult]:
         """Match components in one frame from their current poses, and store the results.
@@ -231,7 +280,7 @@ class WorkMixin:
         >>> session.history.undo()                  # the match was one undoable step
         """
         results = self.match_job(frame, components).run(live, cancel)
-        self.store(results)
+        self.storage.store(results)
         return results
 
     # -- find --------------------------------------------------------------------------------------
@@ -246,7 +295,7 @@ class WorkMixin:
             As for :meth:`match`; all by default.
         """
         return [c for c in self._components(components)
-                if (record := self.pose_record(c, frame)) is not None and record.is_matched]
+                if (record := self.reader.pose_record(c, frame)) is not None and record.is_matched]
 
     def find_job(self, frame: int, components=None, replace: bool = False) -> FindJob:
         """A job that finds components in ``frame`` with no start, to run anywhere.
@@ -257,8 +306,8 @@ class WorkMixin:
         """
         frame = self._check_frame(frame)
         kept = [] if replace else self.matched_in(frame, components)
-        meshes = {c: self.mesh(c) for c in self._components(components) if c not in kept}
-        return FindJob(self.views, frame, self.image_paths(frame), meshes)
+        meshes = {c: self.reader.mesh(c) for c in self._components(components) if c not in kept}
+        return FindJob(self.reader.views, frame, self.reader.image_paths(frame), meshes)
 
     def store_placements(self, placements: dict[str, Placement], replace: bool = False) -> None:
         """Put the confidently found components at their poses (status ``placed``), as one
@@ -279,7 +328,7 @@ class WorkMixin:
         self.history.begin_macro("Find implants")
         try:
             for p in found:
-                self.set_pose(p.component, p.frame, p.pose, text=f"Find {p.component}")
+                self.edits.set_pose(p.component, p.frame, p.pose, text=f"Find {p.component}")
         finally:
             self.history.end_macro()
 
@@ -345,7 +394,7 @@ class WorkMixin:
         if frames is None:
             frames = frames_between(self.project.frames, first, last)
         frames = [self._check_frame(f) for f in frames]
-        settings = self.settings
+        settings = self._settings
         window = settings.tracking.typical_window
         start_frame = frames[0] if frames else None
         anchors, starts, residuals = {}, {}, {}
@@ -368,14 +417,14 @@ class WorkMixin:
                             and record.match.settings.get("run") == run)
                 if record is not None and (record.reviewed or same_run or (not redo and record.is_matched)):
                     keep[(f, c)] = record
-                g = self.given_splines(c, f)
+                g = self.edits.given_splines(c, f)
                 if g is not None:
                     given[(f, c)] = g
-        meshes = {c: self.mesh(c) for c in names}
-        paths = {f: self.image_paths(f) for f in frames}
+        meshes = {c: self.reader.mesh(c) for c in names}
+        paths = {f: self.reader.image_paths(f) for f in frames}
         counts = [len(seq.paths) for seq in self.project.sequences]
-        return TrackJob(self.views, meshes, frames, paths, names, settings, anchors, keep, given, residuals, starts,
-                        image_counts=counts, rim=self.rim_models())
+        return TrackJob(self.reader.views, meshes, frames, paths, names, settings, anchors, keep, given, residuals,
+                        starts, image_counts=counts, rim=self.rim_models())
 
     def track(self, frames: Sequence[int] | None = None, components=None, redo: bool = False,
               progress: TrackProgress | None = None, cancel: Callable[[], bool] | None = None,
@@ -460,14 +509,14 @@ class WorkMixin:
                 for r in results:
                     if r.match is not None:
                         r.match.settings = dict(r.match.settings, run=run)
-            self.store(results, f"Track frame {frame}")
-            if autosave and self.path is not None and any(not r.kept for r in results):
+            self.storage.store(results, f"Track frame {frame}")
+            if autosave and self.storage.path is not None and any(not r.kept for r in results):
                 if done % FULL_SAVE_FRAMES == 0:
-                    self.save()
+                    self.storage.save()
                 else:
-                    self.save_frames(results)
+                    self.storage.save_frames(results)
             if workers > 1 and progress is not None:
                 progress(done, len(job.frames), frame, f"frame {frame} done")
             yield from results
-        if autosave and self.path is not None and self.dirty_on_disk:
-            self.save()
+        if autosave and self.storage.path is not None and self.storage.dirty_on_disk:
+            self.storage.save()

@@ -1,6 +1,8 @@
 """The knee of a session: its side, each component's anatomical frame and the joint
 kinematics frame by frame, from the stored poses. Qt-free; the app, the command line and
-scripts all read kinematics from here.
+scripts all read kinematics from here. ``Knee`` is a part of ``Session``: it is given the
+project, the history, the cache (the default frames), the reader (frames, meshes) and
+``notify``.
 
 Kept in ``project.settings["kinematics"]``::
 
@@ -14,6 +16,7 @@ until the user sets one.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -27,10 +30,12 @@ from fluorogui.core.knee.kinematics import (
     knee_kinematics,
 )
 from fluorogui.core.projection.pose import pose_to_matrix
-from fluorogui.core.records import PoseRecord
+from fluorogui.core.records import PoseRecord, Project
 from fluorogui.core.status import Status
-from fluorogui.workflow.events import SessionEvent
-from fluorogui.workflow.history import Command
+from fluorogui.workflow.session.cache import SessionCache
+from fluorogui.workflow.session.events import SessionEvent
+from fluorogui.workflow.session.history import Command, CommandStack
+from fluorogui.workflow.session.reader import Reader
 
 KNEE_KEY = "kinematics"
 KNEE_COMPONENTS = ("femoral", "tibial")
@@ -70,7 +75,7 @@ def record_sd(record: PoseRecord | None) -> np.ndarray:
     """The six pose SDs a match reported (mm, degrees), NaN where it reported none."""
     if record is None or record.match is None or not isinstance(record.match.quality, dict):
         return np.full(6, np.nan)
-    sd = record.match.quality.get("sd")  # where the matcher keeps it (``core.matching.MatchResult.sd``)
+    sd = record.match.quality.get("sd")  # where the matcher keeps it (``core.matching.problem.MatchResult.sd``)
     try:
         sd = np.asarray(sd, dtype=float).reshape(6)
     except (TypeError, ValueError):
@@ -98,8 +103,30 @@ def row_status(records: dict) -> tuple[str, str]:
     return Status.MATCHED, ""
 
 
-class KneeMixin:
-    """Kinematics methods of ``Session`` (a mixin; needs ``project`` and ``raw_mesh``)."""
+class Knee:
+    """The knee's side, anatomical frames and kinematics of a session.
+
+    Parameters
+    ----------
+    project : fluorogui.core.records.Project
+        Its ``settings["kinematics"]`` and poses.
+    history : CommandStack
+        Where a change of side or frame goes, as one ``Command``.
+    cache : SessionCache
+        Its ``anatomical_frames``: the default frame found on each mesh.
+    reader : Reader
+        The frame numbers and the meshes.
+    notify : callable
+        ``notify(event, what)`` after every change (``SessionEvent.KNEE``).
+    """
+
+    def __init__(self, *, project: Project, history: CommandStack, cache: SessionCache, reader: Reader,
+                 notify: Callable[[str, object], None]) -> None:
+        self.project = project
+        self.history = history
+        self.cache = cache
+        self.reader = reader
+        self.notify = notify
 
     def _knee(self, create: bool = False) -> dict:
         """The knee's settings (made in the project only when ``create``, for a change)."""
@@ -156,7 +183,7 @@ class KneeMixin:
             knee.get("frames", {}).pop(key, None)
         else:
             knee.setdefault("frames", {})[key] = value
-        self._notify(SessionEvent.KNEE, key)
+        self.notify(SessionEvent.KNEE, key)
 
     # -- anatomical frames ----------------------------------------------------------------------
     def anatomical_frame(self, component: str) -> np.ndarray:
@@ -189,9 +216,9 @@ class KneeMixin:
 
     def default_anatomical_frame(self, component: str) -> np.ndarray:
         """The frame ``fluorogui.core.knee.anatomy`` finds on the component's mesh (cached)."""
-        cache = self.__dict__.setdefault("_default_frames", {})
+        cache = self.cache.anatomical_frames
         if component not in cache:
-            vertices, faces = self.raw_mesh(component)
+            vertices, faces = self.reader.raw_mesh(component)
             cache[component] = default_frame(component, vertices, faces)
         return cache[component].copy()
 
@@ -253,7 +280,7 @@ class KneeMixin:
         absent = [c for c in KNEE_COMPONENTS if self.project.model(c) is None]
         anat = {c: self.anatomical_frame(c) for c in KNEE_COMPONENTS if c not in absent}
         rows = []
-        for frame in (self.frames if frames is None else frames):
+        for frame in (self.reader.frames if frames is None else frames):
             records = {c: self.project.poses.get((frame, c)) for c in KNEE_COMPONENTS}
             status, reason = row_status(records)
             if absent:  # a one-component session: poses export, kinematics are NaN
@@ -275,4 +302,4 @@ class KneeMixin:
         return self.knee_rows([frame])[0]
 
 
-__all__ = ["KNEE_COMPONENTS", "KNEE_KEY", "KneeMixin", "KneeRow", "row_status"]
+__all__ = ["KNEE_COMPONENTS", "KNEE_KEY", "Knee", "KneeRow", "record_sd", "row_status"]

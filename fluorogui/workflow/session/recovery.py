@@ -22,7 +22,7 @@ from typing import Callable
 from fluorogui.io.errors import InputError
 from fluorogui.io.project import journal
 from fluorogui.io.project.document import journal_frames, save_project
-from fluorogui.workflow.events import HistoryEvent, SessionEvent
+from fluorogui.workflow.session.events import HistoryEvent, SessionEvent
 
 #: history events that end a change (its records are journalled then, in one line)
 _CHANGE_ENDS = frozenset({HistoryEvent.PUSH, HistoryEvent.MERGE, HistoryEvent.UNDO, HistoryEvent.REDO})

@@ -1,17 +1,32 @@
 """The session's undoable edits: poses set by hand, placed from clicks or turned to a
-preset, review flags, and outlines. A part of ``Session`` (``session.py``), which supplies
-``project``, ``history``, ``mesh``, ``views``, ``_notify`` and the spline cache; every edit
-is one ``Command`` on ``history`` and tells the listeners what changed."""
+preset, review flags, outlines and a model's mesh file. A part of ``Session``: it is given
+the project, the history, the cache (for outline splines), the reader (the poses' stand-ins,
+meshes) and ``notify``; every edit is one ``Command`` on the history and tells the
+listeners what changed."""
 from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
 from fluorogui.core.outlines.spline import OutlineError, OutlineSpline
 from fluorogui.core.projection.geometry import triangulate
 from fluorogui.core.projection.pose import as_pose, rotation_matrix
-from fluorogui.core.records import OutlineRecord, PoseRecord
-from fluorogui.workflow.events import SessionEvent
-from fluorogui.workflow.history import Command
+from fluorogui.core.records import OutlineRecord, PoseRecord, Project
+from fluorogui.io.meshes.read import load_mesh
+from fluorogui.workflow.session.cache import SessionCache
+from fluorogui.workflow.session.events import SessionEvent
+from fluorogui.workflow.session.history import Command, CommandStack
+from fluorogui.workflow.session.reader import Reader
+
+ORIENTATION_PRESETS = (
+    ("Upright (all angles 0)", (0.0, 0.0, 0.0)),
+    ("Flexed 30°", (30.0, 0.0, 0.0)),
+    ("Flexed 60°", (60.0, 0.0, 0.0)),
+    ("Flexed 90°", (90.0, 0.0, 0.0)),
+    ("Turned 180° about y", (0.0, 180.0, 0.0)),
+)
 
 
 def fitted_outline(points: np.ndarray, weights: np.ndarray | None = None) -> OutlineSpline | None:
@@ -23,8 +38,29 @@ def fitted_outline(points: np.ndarray, weights: np.ndarray | None = None) -> Out
         return None
 
 
-class EditsMixin:
-    """Undoable edits of a session's poses, review flags and outlines."""
+class Edits:
+    """Undoable edits of a session's poses, review flags, outlines and mesh files.
+
+    Parameters
+    ----------
+    project : fluorogui.core.records.Project
+    history : CommandStack
+        Where every edit goes, as one ``Command``.
+    cache : SessionCache
+        Its ``splines`` (fitted once per outline record) and meshes (dropped on relinking).
+    reader : Reader
+        The poses' stand-ins and the meshes.
+    notify : callable
+        ``notify(event, what)`` after every change (``SessionEvent``).
+    """
+
+    def __init__(self, *, project: Project, history: CommandStack, cache: SessionCache, reader: Reader,
+                 notify: Callable[[str, object], None]) -> None:
+        self.project = project
+        self.history = history
+        self.cache = cache
+        self.reader = reader
+        self.notify = notify
 
     # -- poses ---------------------------------------------------------------------------------
     def set_pose(self, component: str, frame: int, pose, text: str = "Move model", mergeable: bool = False) -> None:
@@ -74,7 +110,7 @@ class EditsMixin:
         """
         before = self.project.poses.get((frame, component))
         if before is None:
-            after = PoseRecord(self.pose(component, frame), None, reviewed=reviewed)
+            after = PoseRecord(self.reader.pose(component, frame), None, reviewed=reviewed)
         else:
             after = PoseRecord(before.pose.copy(), before.match, reviewed=reviewed, status=before.status,
                                reason=before.reason)
@@ -100,16 +136,16 @@ class EditsMixin:
             the same point.
         """
         point, miss = triangulate(self.project.views[:2], [np.asarray(p, float) for p in pixels])
-        pose = self.pose(component, frame)
+        pose = self.reader.pose(component, frame)
         R = rotation_matrix(*pose[3:])
-        pose[:3] = point - R @ self.mesh(component).centroid
+        pose[:3] = point - R @ self.reader.mesh(component).centroid
         self.set_pose(component, frame, pose, text="Place model")
         return float(miss)
 
     def orient(self, component: str, frame: int, angles) -> None:
         """Give the model a preset orientation, turning it about its centroid."""
-        pose = self.pose(component, frame)
-        centroid = self.mesh(component).centroid
+        pose = self.reader.pose(component, frame)
+        centroid = self.reader.mesh(component).centroid
         world_centroid = rotation_matrix(*pose[3:]) @ centroid + pose[:3]
         angles = np.asarray(angles, dtype=float)
         pose[3:] = angles
@@ -127,7 +163,24 @@ class EditsMixin:
         else:
             self.project.poses[key] = PoseRecord(record.pose.copy(), record.match, reviewed=record.reviewed,
                                                  status=record.status, reason=record.reason)
-        self._notify(SessionEvent.POSE, key)
+        self.notify(SessionEvent.POSE, key)
+
+    # -- models ----------------------------------------------------------------------------------
+    def relink_mesh(self, component: str, path) -> None:
+        """Point a component at another mesh file (its file moved or is missing): the file
+        is loaded first (InputError if it cannot be), then the change is one undoable step."""
+        entry = self.project.model(component)
+        if entry is None:
+            raise KeyError(component)
+        path = Path(path)
+        load_mesh(path)
+        self.history.push(Command(f"Locate the {component} model", component, entry.mesh_path, path,
+                                  self._store_mesh_path))
+
+    def _store_mesh_path(self, component: str, path: Path) -> None:
+        self.project.model(component).mesh_path = Path(path)
+        self.cache.forget_mesh(component)
+        self.notify(SessionEvent.MODEL, component)
 
     # -- outlines ------------------------------------------------------------------------------
     def outline_record(self, key) -> OutlineRecord | None:
@@ -187,7 +240,7 @@ class EditsMixin:
             self.project.records.pop(key, None)
         else:
             self.project.records[key] = record
-        self._notify(SessionEvent.OUTLINE, key)
+        self.notify(SessionEvent.OUTLINE, key)
 
     def spline(self, key) -> OutlineSpline | None:
         """The spline of an outline record (fitted once per record), None if it cannot have one."""
@@ -195,16 +248,16 @@ class EditsMixin:
         record = self.project.records.get(key)
         if record is None or len(record.points) < 4:
             return None
-        cached = self._splines.get(key)
+        cached = self.cache.splines.get(key)
         if cached is None or cached[0] is not record:  # e.g. a record loaded from a file
-            cached = self._splines[key] = (record, fitted_outline(record.points, record.weights))
+            cached = self.cache.splines[key] = (record, fitted_outline(record.points, record.weights))
         return cached[1]
 
     def given_splines(self, component: str, frame: int) -> list[OutlineSpline | None] | None:
         """The reviewed outlines of a component per view (None where a view has none, and
         None overall when no view has one): matching uses them as they are."""
         out = []
-        for view in range(self.n_views):
+        for view in range(self.reader.n_views):
             record = self.project.records.get((frame, view, component))
             out.append(self.spline((frame, view, component)) if record is not None and record.reviewed else None)
         return out if any(s is not None for s in out) else None

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
-from fluorogui.workflow.events import HistoryEvent
+from fluorogui.workflow.session.events import HistoryEvent
 
 Setter = Callable[[Any, Any], None]  # setter(key, record or None)
 
@@ -54,7 +54,7 @@ class Macro:
 
 class CommandStack:
     """Linear undo history. ``listeners`` are called as ``listener(event, entry)`` with a
-    ``workflow.events.HistoryEvent`` after the change."""
+    ``workflow.session.events.HistoryEvent`` after the change."""
 
     def __init__(self) -> None:
         self._entries: list = []
