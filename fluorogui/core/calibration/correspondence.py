@@ -158,7 +158,7 @@ def _fits_a_pinhole(P, points3, points2) -> bool:
     right matches the two agree to 0.1 %; a two-plate grid matched a node over, seen
     obliquely, leaves 0.35 px against the DLT's 0.014 on a 6x6 grid at 6 degrees."""
     residual = np.linalg.norm(project(P, points3) - points2, axis=1)
-    K, R, t = refine(*decompose(P), points3, points2, square_pixels=False)
+    K, R, t = refine(*decompose(P), points3=points3, points2=points2, square_pixels=False)
     pinhole = np.linalg.norm(project(K @ np.column_stack([R, t]), points3) - points2, axis=1)
     rms = float(np.sqrt(np.mean(residual**2)))
     return float(np.sqrt(np.mean(pinhole**2))) <= PINHOLE_FACTOR * rms + PINHOLE_SLACK_PX
