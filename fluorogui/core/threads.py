@@ -11,10 +11,22 @@ keep every core busy do), and so does the environment variable
 ``FLUOROGUI_VIEW_THREADS=1`` (read at import; the default is two threads, or one on a
 one-core machine). A forked child starts without the parent's threads and makes its own
 when it needs them.
+
+The BLAS under numpy and SciPy (OpenBLAS in their wheels) starts threads of its own for
+every matrix product past a small size and keeps them spinning between products. Beside
+the view threads, other processes, or another BLAS thread, they only wait on each other:
+the rim fit's template products (``core.outlines.rim``) took 16-18 ms of CPU per product with
+OpenBLAS's threads and 1.5-1.8 ms with one (2 cores, other work on the machine). So the work
+here runs BLAS on one thread per caller (``single_threaded_blas``, called where the frame
+matcher and the view helpers start); ``FLUOROGUI_BLAS_THREADS=N`` leaves N. The products
+split rows and columns among BLAS threads, never a sum, so the numbers are the same.
 """
 from __future__ import annotations
 
+import ctypes
+import glob
 import os
+import sys
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from typing import Callable, Iterable, TypeVar
@@ -37,6 +49,52 @@ _local = threading.local()
 _PREFIX = "fluorogui-view"
 
 
+_blas_done: set[str] = set()  # the BLAS libraries already told
+
+
+def _blas_libraries() -> list[str]:
+    """The OpenBLAS libraries loaded in this process: from /proc/self/maps (Linux), else
+    from the numpy and SciPy wheels' library folders."""
+    try:
+        with open("/proc/self/maps") as maps:
+            return sorted({line.split()[-1] for line in maps if "openblas" in line.lower() and "/" in line})
+    except OSError:
+        found = []
+        for module in ("numpy", "scipy"):
+            loaded = sys.modules.get(module)
+            if loaded is not None and getattr(loaded, "__file__", None):
+                base = os.path.dirname(os.path.dirname(loaded.__file__))
+                for folder in (f"{module}.libs", os.path.join(module, ".dylibs")):
+                    found += glob.glob(os.path.join(base, folder, "*openblas*"))
+        return sorted(found)
+
+
+def single_threaded_blas() -> None:
+    """Run the loaded OpenBLAS libraries' products on one thread each (or on
+    ``FLUOROGUI_BLAS_THREADS``), once per library; other BLAS libraries are left as they are."""
+    try:
+        n = max(1, int(os.environ.get("FLUOROGUI_BLAS_THREADS", "1")))
+    except ValueError:
+        n = 1
+    for path in _blas_libraries():
+        if path in _blas_done:
+            continue
+        _blas_done.add(path)
+        try:
+            lib = ctypes.CDLL(path)
+        except OSError:
+            continue
+        for prefix in ("scipy_", ""):
+            for suffix in ("64_", "", "_"):
+                setter = getattr(lib, f"{prefix}openblas_set_num_threads{suffix}", None)
+                if setter is not None:
+                    setter(ctypes.c_int(n))
+                    break
+            else:
+                continue
+            break
+
+
 def set_threads(n: int) -> None:
     """Views run on up to ``n`` threads from now on (1: on the caller's thread only)."""
     global _threads, _pool
@@ -56,6 +114,8 @@ def each_view(fn: Callable[[T], R], items: Iterable[T]) -> list[R]:
     """``[fn(x) for x in items]``, the items after the first on helper threads while the
     caller's thread does the first."""
     items = list(items)
+    if not _blas_done:
+        single_threaded_blas()
     if _threads < 2 or len(items) < 2 or getattr(_local, "helper", False):
         return [fn(x) for x in items]  # (a helper waiting on helpers could wait forever)
     pool = _helpers()
@@ -88,4 +148,4 @@ def _forget_pool() -> None:  # in a forked child: the parent's threads are not t
 if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_forget_pool)
 
-__all__ = ["each_view", "is_view_thread_name", "set_threads"]
+__all__ = ["each_view", "is_view_thread_name", "set_threads", "single_threaded_blas"]

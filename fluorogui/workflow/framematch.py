@@ -39,7 +39,7 @@ from fluorogui.core.projection.mesh import PreparedMesh
 from fluorogui.core.projection.pose import angles_from_matrix, motion_between, rotation_matrix
 from fluorogui.core.projection.silhouette import projected_region
 from fluorogui.core.status import Status
-from fluorogui.core.threads import each_view
+from fluorogui.core.threads import each_view, single_threaded_blas
 from fluorogui.workflow import messages
 from fluorogui.workflow.results import FrameResult
 from fluorogui.workflow.settings import WorkflowSettings
@@ -129,6 +129,7 @@ class FrameMatcher:
     def __init__(self, views: Sequence[View], settings: WorkflowSettings | None = None,
                  find_near: Callable | None = None, live: Callable | None = None,
                  rim: dict[str, list] | None = None) -> None:
+        single_threaded_blas()  # (core.threads: BLAS's own threads only spin beside the views')
         self.views = list(views)
         self.settings = settings or WorkflowSettings()
         # find_near(images, component, mesh, pose or None (the whole image), cancel) -> pose, poses or None

@@ -211,3 +211,22 @@ def test_near_candidates_are_the_poses_a_canny_fit_would_start_from(scene):
         assert near_candidates(empty, views, meshes[name], start) == []
     with pytest.raises(ValueError, match="two views"):  # (single-plane recovery does not search)
         near_candidates(images[:1], views[:1], meshes["tibial"], truth["tibial"])
+
+
+def test_a_frames_edge_maps_are_made_once_and_searches_find_the_same(scene):
+    """Recovery searches each component of a frame on the same images: their edge maps are
+    made once per set of image arrays (``shape_search.edge_maps_of``), and a search gives the
+    same poses with them as with maps made afresh."""
+    images, views, meshes, truth, empty = scene
+    fovs, maps = ss.edge_maps_of(images)
+    again = ss.edge_maps_of(list(images))  # another list of the same arrays
+    assert all(a is b for a, b in zip(maps, again[1])) and all(a is b for a, b in zip(fovs, again[0]))
+    copies = [image.copy() for image in images]  # equal images, other arrays: made again
+    fresh = ss.edge_maps_of(copies)[1]
+    assert not any(a is b for a, b in zip(maps, fresh))
+    assert all(np.array_equal(a.levels["fine"][1], b.levels["fine"][1]) for a, b in zip(maps, fresh))
+    start = truth["tibial"] + np.array([2.0, -2.0, 1.0, 4.0, -3.0, 2.0])
+    cached = near_candidates(images, views, meshes["tibial"], start)  # (after copies: made again)
+    assert all(a is not b for a, b in zip(ss.edge_maps_of(images)[1], fresh))
+    twice = near_candidates(images, views, meshes["tibial"], start)
+    assert len(cached) >= 1 and all(np.array_equal(a, b) for a, b in zip(cached, twice))

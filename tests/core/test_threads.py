@@ -1,6 +1,7 @@
 """Per-view work side by side (``core.threads.each_view``): the plain loop's results in its
 order, its first error, nothing left running after a call, no helper waiting on helpers,
 and a match that comes out the same to the last bit with threads or without."""
+import json
 import os
 import subprocess
 import sys
@@ -87,3 +88,52 @@ def test_the_environment_can_turn_the_threads_off():
         env = dict(os.environ, FLUOROGUI_VIEW_THREADS=value)
         out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
         assert out.stdout.strip() == expected
+
+
+_BLAS_THREADS = """
+import ctypes, json
+import numpy, scipy.linalg
+from fluorogui.core import threads
+def counts():
+    out = []
+    for path in threads._blas_libraries():
+        lib = ctypes.CDLL(path)
+        for name in ("scipy_openblas_get_num_threads64_", "scipy_openblas_get_num_threads",
+                     "openblas_get_num_threads64_", "openblas_get_num_threads"):
+            if hasattr(lib, name):
+                out.append(getattr(lib, name)())
+                break
+    return out
+before = counts()
+threads.single_threaded_blas()
+print(json.dumps([before, counts()]))
+"""
+
+
+def test_blas_runs_on_one_thread_after_the_matcher_starts():
+    """OpenBLAS's own threads spin beside the view threads (10x the CPU per rim-fit
+    product): ``single_threaded_blas`` sets each loaded OpenBLAS to one thread, or to
+    ``FLUOROGUI_BLAS_THREADS``."""
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "2", "PYTHONPATH": os.getcwd()}
+    done = subprocess.run([sys.executable, "-c", _BLAS_THREADS], capture_output=True, text=True, env=env, timeout=60)
+    before, after = json.loads(done.stdout)
+    if not before:
+        pytest.skip("no OpenBLAS loaded (another BLAS is left as it is)")
+    assert before == [2] * len(before) and after == [1] * len(after)
+    env["FLUOROGUI_BLAS_THREADS"] = "2"
+    done = subprocess.run([sys.executable, "-c", _BLAS_THREADS], capture_output=True, text=True, env=env, timeout=60)
+    assert json.loads(done.stdout)[1] == [2] * len(before)
+
+
+def test_products_are_the_same_with_one_blas_thread_or_more():
+    """BLAS splits a product's rows and columns among its threads, not its sums: the rim
+    fit's templates come out the same to the last bit."""
+    code = ("import numpy as np, sys\nfrom fluorogui.core.outlines import rim\nfrom fluorogui.core import threads\n"
+            "L = np.cumsum(np.random.default_rng(0).random((300, len(rim._L_OFFSETS))), axis=1)\n"
+            "if sys.argv[1] == '1': threads.single_threaded_blas()\n"
+            "T = [rim._templates(L, mu, s) for mu in rim.MU_GRID[::3] for s in rim.SIGMA_GRID[::4]]\n"
+            "sys.stdout.write(np.concatenate(T).tobytes().hex())")
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "2", "PYTHONPATH": os.getcwd()}
+    outs = [subprocess.run([sys.executable, "-c", code, n], capture_output=True, text=True, env=env, timeout=60).stdout
+            for n in ("1", "2")]
+    assert outs[0] and outs[0] == outs[1]

@@ -56,7 +56,6 @@ import numpy as np
 
 from fluorogui.core.cancel import check_cancel
 from fluorogui.core.matching.loop import match_images
-from fluorogui.core.outlines.field import field_of_view
 from fluorogui.core.projection.geometry import View
 from fluorogui.core.projection.mesh import PreparedMesh
 from fluorogui.core.projection.pose import angles_from_matrix, rotation_matrix, rotvec_matrix
@@ -476,7 +475,7 @@ def near_candidates(images: Sequence[np.ndarray], views: Sequence[View], mesh: P
     if len(images) != 2 or len(views) != 2:
         raise ValueError("finding implants needs two images and two views")
     steps = _Steps(None, cancel, 1)
-    maps = [ss.EdgeMaps(image, field_of_view(image)) for image in images]
+    maps = ss.edge_maps_of(images)[1]
     cands = [c for c in _near(ss.shape_library(mesh), views, maps, mesh, pose, steps, 1.0)
              if c.score >= MIN_CANDIDATE_SCORE and min(c.scores) >= MIN_EDGE_SCORE]
     return [c.pose(mesh) for c in cands[:2] if c.score >= cands[0].score - CLOSE_SCORE]
@@ -571,8 +570,7 @@ def find_components(images: Sequence[np.ndarray], views: Sequence[View], meshes:
     steps = _Steps(progress, cancel, len(meshes))
     if progress is not None:
         progress(0.0, "preparing the images")
-    fovs = [field_of_view(image) for image in images]
-    maps = [ss.EdgeMaps(image, fov) for image, fov in zip(images, fovs)]
+    fovs, maps = ss.edge_maps_of(images)
     rounds = _Rounds(images, views, fovs) if any(name not in near for name in meshes) else []
     steps.check()
     out: dict[str, Placement] = {}
