@@ -99,6 +99,10 @@ VIEW_SPECS = (
              source_to_target_mm=960.0, pitch_mm=0.3, principal_offset_px=(-11.0, 17.5), roll_deg=2.0),
 )
 OVERLAP_VIEW = "cam1"
+#: ``overlap_at_start``: cam1 looks down at the knee from this elevation instead, so the femoral
+#: condyles cover the tray's far rim most at extension (with the real meshes ~7800 px of overlap
+#: at 1024 px in the first frames, ~1600 px at the end): the hardest frames come first
+START_OVERLAP_ELEVATION_DEG = -20.0
 SOFT_DOWNSAMPLE = 2  # background, tissue and bone on a 2x coarser grid (they are smooth)
 BAND_TILE_PX = 48  # tiles of the silhouette border rendered at full supersampling (metal_coverage)
 
@@ -114,11 +118,13 @@ TIBIA_START_MM = (0.0, -12.0, -16.0)  # tibial origin (tray top) at frame 0, wor
 # -- public API -------------------------------------------------------------------------------
 def build_knee_sequence(directory, femoral_mesh, tibial_mesh, *, frames: int = 100, image_size: int = 1024,
                         seed: int = 0, side: str = "right", start_frame: int = 0, bits: int = 8,
-                        workers: int = 1, drift_mm=(0.0, 0.0, 0.0)) -> Path:
+                        workers: int = 1, drift_mm=(0.0, 0.0, 0.0), overlap_at_start: bool = False) -> Path:
     """Write a generated two-view knee-bend sequence into `directory`; return the .fluoro project path.
 
     ``drift_mm`` (world x, y, z) moves the whole knee by that much over the sequence
-    (linearly in time), e.g. out of an intensifier's field of view.
+    (linearly in time), e.g. out of an intensifier's field of view. ``overlap_at_start``:
+    cam1 looks down from ``START_OVERLAP_ELEVATION_DEG`` so the components overlap most in
+    its first frames (tracking meets its hardest frames before it has any motion to go on).
     ``bits``: 8 or 16-bit PNG images. ``workers`` > 1 renders the frames in that many
     processes (the images are the same: each one has its own random stream). The workers
     are spawned, so a script that asks for them must call this under
@@ -141,7 +147,7 @@ def build_knee_sequence(directory, femoral_mesh, tibial_mesh, *, frames: int = 1
     except OSError as exc:
         raise InputError(directory, f"cannot create the sequence folder: {describe_os_error(exc)}") from None
 
-    views = sequence_views(image_size, side)
+    views = sequence_views(image_size, side, overlap_at_start=overlap_at_start)
     for view in views:
         save_view_json(view, directory / "calibration" / f"{view.name}.json")
     flexion = flexion_schedule(frames)
@@ -194,9 +200,10 @@ def build_knee_sequence(directory, femoral_mesh, tibial_mesh, *, frames: int = 1
                 "image_size": int(image_size),
                 "bits": int(bits),
                 "meshes": {c: {"path": str(mesh_paths[c]), "sha256": _sha256(mesh_paths[c])} for c in COMPONENTS},
-                "views": [_spec_summary(spec) for spec in _side_specs(side)],
+                "views": [_spec_summary(spec) for spec in _side_specs(side, overlap_at_start)],
                 "gap_mm": GAP_MM,
                 "drift_mm": [float(x) for x in drift],
+                "overlap_at_start": bool(overlap_at_start),
                 "flexion_deg": [float(x) for x in flexion],
                 "flexion_step_deg": [float(steps.min()), float(steps.max())],
                 "overlap_view": OVERLAP_VIEW,
@@ -210,9 +217,10 @@ def build_knee_sequence(directory, femoral_mesh, tibial_mesh, *, frames: int = 1
     return project_path
 
 
-def sequence_views(image_size: int = 1024, side: str = "right") -> list[View]:
-    """The two views of the sequence (``VIEW_SPECS``, mirrored for a left knee)."""
-    return views_from_specs(_side_specs(side), image_size)
+def sequence_views(image_size: int = 1024, side: str = "right", *, overlap_at_start: bool = False) -> list[View]:
+    """The two views of the sequence (``VIEW_SPECS``, mirrored for a left knee; cam1 looking
+    down from ``START_OVERLAP_ELEVATION_DEG`` with ``overlap_at_start``)."""
+    return views_from_specs(_side_specs(side, overlap_at_start), image_size)
 
 
 def flexion_schedule(frames: int) -> np.ndarray:
@@ -475,12 +483,14 @@ def _render_frames(indices) -> list:
     return stats
 
 
-def _side_specs(side: str) -> list[ViewSpec]:
+def _side_specs(side: str, overlap_at_start: bool = False) -> list[ViewSpec]:
+    specs = [dataclasses.replace(spec, elevation_deg=START_OVERLAP_ELEVATION_DEG)
+             if overlap_at_start and spec.name == OVERLAP_VIEW else spec for spec in VIEW_SPECS]
     if side == "right":
-        return list(VIEW_SPECS)
+        return specs
     # mirror x -> -x: the beam's azimuth theta becomes 180 - theta; the roll turns the other way
     return [dataclasses.replace(spec, azimuth_deg=180.0 - spec.azimuth_deg, roll_deg=-spec.roll_deg)
-            for spec in VIEW_SPECS]
+            for spec in specs]
 
 
 def _spec_summary(spec: ViewSpec) -> dict:

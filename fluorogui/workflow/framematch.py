@@ -30,7 +30,9 @@ from scipy.spatial.transform import Rotation
 
 from fluorogui.core.cancel import OutOfTime, check_cancel, with_deadline
 from fluorogui.core.matching.loop import SegmentationError, segment_and_match
-from fluorogui.core.matching.quality import assess, failed_checks
+from fluorogui.core.matching.problem import MatchProblem
+from fluorogui.core.matching.quality import assess, failed_checks, weak_view, weak_view_problem
+from fluorogui.core.matching.uncertainty import covariances, pose_sd
 from fluorogui.core.outlines.field import field_of_view
 from fluorogui.core.outlines.rim import MAYBE_SOFT_BELOW_MU
 from fluorogui.core.outlines.spline import OutlineSpline
@@ -209,6 +211,9 @@ class FrameMatcher:
                          max_jump_deg=s.quality.max_jump_deg * max(1, job.gap))
         problems = failed_checks(quality, limits, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))],
                                  result.message)
+        weak = weak_view(problems, quality, s.quality)
+        if weak is not None:  # one view's edges are weak, nothing else fails: judged by the others
+            problems = self._judged_without(weak, job, out, hidden, quality)
         status = Status.NEEDS_REVIEW if problems else Status.MATCHED
         reason = "; ".join(text for _, text in problems)
         failed = [name for name, _ in problems]
@@ -219,6 +224,21 @@ class FrameMatcher:
         return FrameResult(0, job.component, result.pose, status, reason, result, quality, out.image_outlines,
                            time.perf_counter() - t0, rim_models=rims, outline_weights=out.outline_weights,
                            failed=failed)
+
+    def _judged_without(self, weak: int, job: ComponentInput, out, hidden, quality) -> list[tuple[str, str]]:
+        """A pose whose view ``weak`` has weak edges, judged by the other views' outlines
+        alone (``quality.weak_view_problem``): passed when they pin it down, else flagged
+        (as ``edge_support``) naming the direction they leave loose."""
+        others = [k for k in range(len(self.views)) if k != weak]
+        problem = MatchProblem(job.mesh, [self.views[k] for k in others], [out.splines[k] for k in others],
+                               [hidden[k] for k in others])
+        try:
+            _, body = covariances(problem, out.pose, self.settings.match)
+        except ValueError:
+            body = np.full((6, 6), np.inf)
+        text = weak_view_problem(weak, self.views, body[:3, :3], pose_sd(body), quality.edge_support[weak],
+                                 self.settings.quality)
+        return [("edge_support", text)] if text else []
 
     # -- one component, with recovery ------------------------------------------------------------
     def match_component(self, frame: int, images, job: ComponentInput, occluded=None,

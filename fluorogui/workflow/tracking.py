@@ -100,8 +100,12 @@ class TrackJob:
                 if self._is_anchor(frame, results[c]):
                     self._anchor(c, results[c], motion, residuals)
                     if waiting[c]:  # it matches again: track back into its gap
-                        self._fill_back(c, frame, waiting[c], dict(held), matcher, motion, residuals, cancel)
+                        mended = self._fill_back(c, frame, waiting[c], dict(held), matcher, motion, residuals,
+                                                 cancel)
                         waiting[c] = []
+                        for f, o in mended:  # others matched once it was masked at its new pose there
+                            if f in waiting.get(o, []):
+                                waiting[o].remove(f)
                 elif not results[c].kept:
                     waiting[c].append(frame)
             while held and not any(held[0][0] in frames for frames in waiting.values()):
@@ -146,12 +150,15 @@ class TrackJob:
             residuals[c] = (residuals[c] + list(r.match.per_view_mean_mm))[-window:]
 
     def _fill_back(self, c: str, frame: int, gap: list[int], results: dict, matcher, motion, residuals,
-                   cancel) -> None:
+                   cancel) -> list[tuple[int, str]]:
         """Track ``c`` backward from its match in ``frame`` through the ``gap`` frames before
         it (where it failed), each predicted from the frames after it, with the other
         components masked at their poses there. A better result replaces the one tracked
         forward (in ``results``, frame -> component -> result); the first frame that does
-        not match backward either ends the fill (the forward result stands from there)."""
+        not match backward either ends the fill (the forward result stands from there). In
+        each frame it now matches, the other components left flagged are judged again
+        (``_judge_again``); returns the (frame, component) pairs that then matched."""
+        mended: list[tuple[int, str]] = []
         back = MotionModel(self.meshes[c].centroid)
         later = [f for f in motion[c].frames if f >= frame]
         for f in later[:2]:
@@ -178,6 +185,39 @@ class TrackJob:
                 break
             back.add(f, found.pose)
             self._anchor(c, found, motion, residuals)
+            mended += [(f, o) for o in self._judge_again(f, c, images, results[f], matcher, motion, residuals,
+                                                         cancel)]
+        return mended
+
+    def _judge_again(self, f: int, c: str, images, results: dict, matcher, motion, residuals,
+                     cancel) -> list[str]:
+        """``c`` now matches in frame ``f`` (tracked back): the other components left flagged
+        there were masked with its old pose (or none), so they are matched again with it
+        masked at its new one, from their own results; a better result replaces theirs.
+        Returns the components that now match."""
+        matched = []
+        for o, earlier in list(results.items()):
+            if o == c or earlier.kept or earlier.status == Status.MATCHED:
+                continue
+            others = {k: (self.meshes[k], r.pose) for k, r in results.items()
+                      if k != o and r.pose is not None and r.status != Status.FAILED}
+            start = motion[o].predict(f)
+            start = earlier.pose if start is None else start
+            if start is None:
+                continue
+            typical = float(np.median(residuals[o])) if len(residuals[o]) >= 2 else None
+            job = ComponentInput(o, self.meshes[o], np.asarray(start, float), motion[o].last(before=f),
+                                 self.given.get((f, o)), typical, None, 1, probe=False,
+                                 first=earlier.pose if earlier.pose is not None else None)
+            again = matcher.match_frame(f, images, [job], others, cancel)[o]
+            if better_result(again, earlier):
+                again.recovered = "judged again" + (f" ({again.recovered})" if again.recovered else "")
+                again.seconds += earlier.seconds
+                results[o] = again
+                if again.status == Status.MATCHED:
+                    self._anchor(o, again, motion, residuals)
+                    matched.append(o)
+        return matched
 
     def _frame(self, frame, matcher, motion, residuals, starts, cancel) -> dict[str, FrameResult]:
         t0 = time.perf_counter()
@@ -214,6 +254,10 @@ class TrackJob:
                                              f"{p.reason}", seconds=time.perf_counter() - t0, failed=["find"])
             todo = [c for c in todo if c not in results]
         fixed = {c: (self.meshes[c], r.pose) for c, r in results.items() if r.kept and r.pose is not None}
+        # a component find could not place is still masked where its closest miss lies: on
+        # overlapping views the other's outline behind it is not there to count as missing
+        fixed.update({c: (self.meshes[c], results[c].pose) for c in lost
+                      if c in results and results[c].pose is not None and "find" in results[c].failed})
         jobs = [self._input(c, frame, motion, residuals, starts, probe=c not in found_here, images=images)
                 for c in todo]
         found = matcher.match_frame(frame, images, jobs, fixed, cancel)

@@ -35,3 +35,37 @@ def test_too_little_visible_is_flagged_whatever_the_sd():
     status, reason = judge(_partial(1.0 - t.min_visible_share + 0.05, [0.01] * 6))
     assert status == Status.NEEDS_REVIEW and "is needed" in reason
     assert judge(_partial(0.01, None)) == (Status.MATCHED, "")  # 1 % beyond: taken as fully visible
+
+
+def _views():
+    from fluorogui.simulation.protocols import dual_orthogonal_views
+
+    return dual_orthogonal_views()
+
+
+def test_a_weak_view_is_named_only_when_its_edges_are_all_that_fails():
+    from fluorogui.core.matching.quality import weak_view
+
+    q = Quality(True, [0.1, 0.1], [0.6, 0.97], [0.99, 0.99])
+    assert weak_view(failed_checks(q), q) == 0
+    both = Quality(True, [0.1, 0.1], [0.6, 0.7], [0.99, 0.99])  # both views: not one weak view
+    assert weak_view(failed_checks(both), both) is None
+    also = Quality(True, [0.1, 0.1], [0.6, 0.97], [0.5, 0.99])  # the outline does not fit either
+    assert weak_view(failed_checks(also), also) is None
+
+
+def test_a_weak_view_flags_only_what_the_other_view_leaves_loose():
+    import numpy as np
+
+    from fluorogui.core.matching.quality import weak_view_problem
+
+    views = _views()
+    tight = np.eye(3) * 0.05 ** 2
+    assert weak_view_problem(0, views, tight, [0.05] * 3 + [0.1, 0.1, 0.1], 0.6) == ""  # pinned: passes
+    n = np.asarray(views[1].normal, float)
+    loose = tight + 0.6 ** 2 * np.outer(n, n)  # along view 2's beam, which view 2 cannot see
+    text = weak_view_problem(0, views, loose, [0.6] * 3 + [0.1, 0.1, 0.1], 0.6)
+    assert text == ("view 1 has little edge contrast (only 60 % of the model outline lies on image edges "
+                    "there); judged by the other view, its depth along view 2's axis is uncertain to ±0.6 mm")
+    turned = weak_view_problem(0, views, tight, [0.05] * 3 + [0.1, 0.9, 0.1], 0.6)
+    assert turned.endswith("its rotation about the model's y axis (beta) is uncertain to ±0.9 °")

@@ -15,7 +15,10 @@ The checks here look at the result from several sides:
   degrees), against what the motion so far makes plausible.
 
 ``judge`` turns these into a status, ``matched`` or ``needs_review``, and a reason in
-plain words. ``check_match`` is the matcher's own verdict on a single result, from what
+plain words. A view whose edges alone are weak (``weak_view``: its edge support is the only
+check that fails) is a view, not a verdict: ``weak_view_problem`` judges the pose by what
+the other views pin down alone, and names the direction they leave loose. ``check_match``
+is the matcher's own verdict on a single result, from what
 the match itself holds (residual per view, outline coverage both ways, the pose's
 standard deviations), applied to every match. Pure numpy / OpenCV.
 """
@@ -295,6 +298,49 @@ def failed_checks(quality: Quality, thresholds: QualityThresholds | None = None,
 _POSE_WORDS = ("translation along x", "translation along y", "translation along z",
                "rotation about the model's x axis (alpha)", "rotation about the model's y axis (beta)",
                "rotation about the model's z axis (gamma)")
+
+
+def weak_view(problems: Sequence[tuple[str, str]], quality: Quality,
+              thresholds: QualityThresholds | None = None) -> int | None:
+    """The index of the one view whose edges are weak, when that is all that fails: edge
+    support below the limit there and only there, every other check passed (so the pose
+    fits its outlines in every view and the other views' edges carry it); else None."""
+    t = thresholds or QualityThresholds()
+    if not problems or any(name != "edge_support" for name, _ in problems) or len(quality.edge_support) < 2:
+        return None
+    weak = [k for k, value in enumerate(quality.edge_support) if value < t.min_edge_support]
+    return weak[0] if len(weak) == 1 else None
+
+
+def weak_view_problem(weak: int, views: Sequence[View], centroid_cov: np.ndarray, sd_body: Sequence[float],
+                      edge: float, thresholds: QualityThresholds | None = None) -> str:
+    """Judge a pose whose view ``weak`` has weak edges by the other views alone:
+    ``centroid_cov`` (3 x 3, world mm^2) and ``sd_body`` (the turn about the model's axes,
+    deg, last three used) are the pose's uncertainty from those views' outlines. Empty when
+    they pin it down (within ``partial_sd_mm`` / ``partial_sd_deg``, the limits of a partly
+    visible component); else why not, naming the loosest direction (a translation along
+    another view's beam, which that view cannot see, or a turn)."""
+    t = thresholds or QualityThresholds()
+    names = [f"view {k + 1}" for k in range(len(views))]
+    C = np.asarray(centroid_cov, dtype=float)
+    loose = []  # (SD over its limit, words, SD, unit)
+    for k, view in enumerate(views):
+        if k == weak:
+            continue
+        n = np.asarray(view.normal, dtype=float)
+        var = float(n @ C @ n) if np.all(np.isfinite(C)) else np.inf
+        sd = float(np.sqrt(var)) if np.isfinite(var) and var >= 0 else np.inf
+        loose.append((sd / t.partial_sd_mm, f"depth along {names[k]}'s axis", sd, "mm"))
+    for j, sd in enumerate(np.asarray(sd_body, dtype=float)[3:]):
+        sd = float(sd) if np.isfinite(sd) else np.inf
+        loose.append((sd / t.partial_sd_deg, _POSE_WORDS[3 + j], sd, "°"))
+    ratio, words, sd, unit = max(loose, key=lambda x: x[0])
+    if ratio <= 1.0:
+        return ""
+    amount = f"uncertain to ±{sd:.2g} {unit}" if np.isfinite(sd) else "not determined"
+    by = "view" if len(views) == 2 else "views"
+    return (f"{names[weak]} has little edge contrast (only {100 * edge:.0f} % of the model outline lies on image "
+            f"edges there); judged by the other {by}, its {words} is {amount}")
 
 
 def _partly_visible(quality: Quality, t: QualityThresholds, names: Sequence[str]) -> list[str]:

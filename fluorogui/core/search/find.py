@@ -26,8 +26,13 @@ predicted one (tracking recovery), and say honestly when it could not.
    of those already found masked: in the edge maps (the pixels they cover score as a
    middling edge, ``MIN_EDGE_SCORE``, so an outline running behind them is neither
    rewarded nor punished), in its segmentation and fit, and in its verdict (the overlap
-   is judged on what they leave free). A component not found is searched again once the
-   others are.
+   is judged on what they leave free). One not found so is searched once more on the
+   unmasked edge maps (its fit and verdict still masked): a masked pixel scores for free,
+   so positions beside the others can outrank its own. A component not found is searched
+   again once the others are. When none is found (overlapping components can each hide the other's
+   outline), the surer miss (the best overlap, at least ``SURER_MIN_IOU``) is held where
+   it fitted and masked while the others are searched again; if one is then found, the
+   held one is searched again with it masked.
 5. *Verdict.* ``found`` only when both views fit: mean outline distance per view at most
    ``MAX_VIEW_PX``, IoU of silhouette and image-outline region at least ``MIN_IOU`` and
    edge score at least ``MIN_EDGE_SCORE`` in each view; and when no candidate turned by
@@ -584,6 +589,14 @@ def find_components(images: Sequence[np.ndarray], views: Sequence[View], meshes:
             steps.hidden = [projected_region(view, found_meshes, HIDE_MARGIN_PX) for view in views]
             seen = [m.with_hidden(h, MIN_EDGE_SCORE) for m, h in zip(maps, steps.hidden)]
         out[name] = p = _find_one(name, mesh, images, views, seen, rounds, near.get(name), steps, occupied)
+        if found_meshes and not p.found:
+            # the masked pixels score a middling edge for free, so positions beside the others
+            # can outrank the component's own (the real tray at mid flexion: 40 mm off, 75-85
+            # deg turned): its edges are scored once more unmasked, the others still left out
+            # of its fit and verdict
+            plain = _find_one(name, mesh, images, views, maps, rounds, near.get(name), steps, occupied)
+            if plain.found or (plain.pose is not None and (p.pose is None or plain.objective_mm < p.objective_mm)):
+                out[name] = p = plain
         steps.hidden = None
         if p.found:
             R = rotation_matrix(*p.pose[3:])
@@ -602,6 +615,35 @@ def find_components(images: Sequence[np.ndarray], views: Sequence[View], meshes:
             search(name, meshes[name])
             if not out[name].found and first.pose is not None and out[name].pose is None:
                 out[name] = first  # keep the closer miss to report
+    # none found (each hid the other): the surer miss is held where it fitted best and masked
+    # for the others; whichever is then found masks it in turn, and it is searched once more
+    surer = _surer_miss(out) if not found_meshes and len(meshes) > 1 else None
+    if surer is not None:
+        held = out[surer]
+        found_meshes.append((meshes[surer], rotation_matrix(*held.pose[3:]), held.pose[:3]))
+        for name in meshes:
+            if name != surer:
+                first = out[name]
+                search(name, meshes[name])
+                if not out[name].found and first.pose is not None and out[name].pose is None:
+                    out[name] = first
+        found_meshes.pop(0)
+        if found_meshes:
+            search(surer, meshes[surer])
+            if not out[surer].found and out[surer].pose is None:
+                out[surer] = held
     if progress is not None:
         progress(1.0, "done")
     return out
+
+
+#: a miss whose fit reached at least this overlap in every view is held for the others' search
+SURER_MIN_IOU = 0.85
+
+
+def _surer_miss(out: dict[str, "Placement"]) -> str | None:
+    """Of components none of which was found, the one whose closest miss fits best (the
+    highest lowest-view overlap, at least ``SURER_MIN_IOU``); None when none comes close."""
+    misses = [(min(p.iou), name) for name, p in out.items() if p.pose is not None and p.iou]
+    misses = [m for m in misses if m[0] >= SURER_MIN_IOU]
+    return max(misses)[1] if misses else None
