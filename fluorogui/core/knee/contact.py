@@ -54,6 +54,10 @@ INSERT_BAND_MM = 10.0
 #: vertices measured exactly to the insert: those whose rough distance is within this (and
 #: twice the insert's sampling cover) of the least
 PRUNE_MM = 0.5
+#: the insert's closest-point samples lie this far apart at most: coarse samples build fast and,
+#: for condyles millimetres away, fetch fewer candidates (the real tibial component as a
+#: stand-in insert: 0.13 s of set-up instead of 4.6 s, 0.7 s a frame instead of 1.7 s, loaded)
+INSERT_COVER_MM = 2.0
 LIFTOFF_CHOICES = ("none", "medial", "lateral", "both")
 CONTACT_SIGN_CONVENTIONS = (
     "points in the tibial component's anatomical frame, mm: x lateral + (the subject's right on a right knee; "
@@ -172,7 +176,7 @@ def place_insert(vertices, faces, tibial_frame, insert_to_tray=None) -> Insert:
     area = float(np.linalg.norm(cross, axis=1).sum())
     closed = float(np.linalg.norm(cross.sum(axis=0))) <= 1e-3 * area
     inward = np.einsum("ij,ij->", a - v.mean(axis=0), cross) < 0 if closed else cross[:, 2].sum() < 0
-    return Insert(TriangleSurface(v, f[:, ::-1] if inward else f))
+    return Insert(TriangleSurface(v, f[:, ::-1] if inward else f, cover=INSERT_COVER_MM))
 
 
 def _frame_axes(k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
