@@ -109,7 +109,7 @@ def test_gaps_to_a_plane_insert_and_a_tilted_insert_frame():
             errors += [abs(getattr(contact, name).gap_mm - height), abs(getattr(higher, name).gap_mm - (height - 3))]
             np.testing.assert_allclose(getattr(contact, name).insert_point[:2], analytic_lowest(pose, name)[:2],
                                        atol=0.01)
-    assert max(errors) < 0.002  # measured 0.0004 mm; the issue asks 0.01
+    assert max(errors) < 7e-6  # measured 3.4e-6 mm; the issue asks 0.01
 
 
 def test_gap_to_a_dish_insert():
@@ -182,7 +182,7 @@ def test_pivot_of_a_motion_about_a_known_vertical_axis():
     found = pivot(medial, lateral)
     want = axis[:2]
     assert found.frames_used == 25 and found.frames_ignored == 0
-    assert np.hypot(found.x_mm - want[0], found.y_mm - want[1]) < 0.05  # measured 0.0006 mm; the issue asks 0.5
+    assert np.hypot(found.x_mm - want[0], found.y_mm - want[1]) < 8e-6  # measured 3.8e-6 mm; the issue asks 0.5
     assert found.kind == "central"  # 40 % of the way: the middle third
 
 
@@ -223,12 +223,12 @@ def test_the_left_knee_is_the_mirror_image_of_the_right():
         a = condyle_contact(right, pose, tibia, tibial_frame=np.eye(4), side="right", insert=tray)
         b = condyle_contact(left, S @ pose @ S, S @ tibia @ S, tibial_frame=np.eye(4), side="left", insert=tray)
         for name in ("medial", "lateral"):
-            # equal up to the fit (a near tie of lowest vertices may start it one vertex over): measured 0.0012 mm
-            np.testing.assert_allclose(getattr(b, name).lowest, getattr(a, name).lowest, atol=0.003)
-            assert getattr(b, name).gap_mm == pytest.approx(getattr(a, name).gap_mm, abs=0.003)
+            # equal up to the fit (a near tie of lowest vertices may start it one vertex over): measured 0.0002 mm
+            np.testing.assert_allclose(getattr(b, name).lowest, getattr(a, name).lowest, atol=0.0005)
+            assert getattr(b, name).gap_mm == pytest.approx(getattr(a, name).gap_mm, abs=0.0005)
         assert a.medial.lowest[0] < 0 < a.lateral.lowest[0]
         wrong = condyle_contact(left, S @ pose @ S, S @ tibia @ S, tibial_frame=np.eye(4), side="right")
-        assert wrong.medial.lowest[0] == pytest.approx(-a.lateral.lowest[0], abs=0.003)  # read as right: swapped
+        assert wrong.medial.lowest[0] == pytest.approx(-a.lateral.lowest[0], abs=0.0005)  # read as right: swapped
 
 
 def test_a_missing_pose_gives_nan():
