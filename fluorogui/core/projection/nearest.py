@@ -161,6 +161,14 @@ class TriangleSurface:
         distance, index = self._tree.query(p)
         return distance, self._samples[index], self._owner[index]
 
+    def distance_to_faces(self, points, face) -> tuple[np.ndarray, np.ndarray]:
+        """The distance from each point to the given triangle of it (at least its distance to
+        the mesh) and the closest point of that triangle."""
+        p = np.asarray(points, dtype=float).reshape(-1, 3)
+        face = np.asarray(face, dtype=np.int64)
+        closest = closest_on_triangles(p, self._a[face], self._b[face], self._c[face])
+        return np.linalg.norm(closest - p, axis=1), closest
+
     def face_normals(self, face) -> np.ndarray:
         """Unit normals (by the faces' winding) of the given triangles."""
         face = np.asarray(face, dtype=np.int64)
