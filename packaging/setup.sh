@@ -12,7 +12,8 @@ die() { echo "setup: ERROR: $*" >&2; exit 1; }
 
 # Runtime libraries found with ldd/dlopen checks of PySide6 6.12 (xcb + offscreen
 # platforms, xcb GL integrations) and VTK 9 (dlopens libGL/libEGL, libX11, libXcursor),
-# plus Xvfb for tests and a font so Qt can draw text.
+# plus Xvfb for tests and a font so Qt can draw text; libGLU, libXft and libXinerama for
+# gmsh (STEP and IGES models, the cad extra, which the test extra includes).
 DEBIAN_PACKAGES=(
   xvfb xauth
   libgl1 libegl1 libglx-mesa0 libegl-mesa0 libgl1-mesa-dri
@@ -22,6 +23,7 @@ DEBIAN_PACKAGES=(
   libxcb-sync1 libxcb-util1 libxcb-xfixes0 libxcb-xkb1
   libwayland-client0 libwayland-cursor0 libwayland-egl1
   libdbus-1-3 libfontconfig1 libfreetype6 fonts-dejavu-core libglib2.0-0
+  libglu1-mesa libxft2 libxinerama1
 )
 
 PYTHON="${PYTHON:-python3}"

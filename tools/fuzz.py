@@ -19,7 +19,7 @@ saving child killed at random moments; ``--full-disk``: saves under ``RLIMIT_FSI
 limits; ``--large``: inputs near 100 MB (a long project, a project of 400,000 small
 outlines, a settings object of 7 million keys, a 1.8-million-triangle mesh, a large
 outline, a junk PNG) each loaded in its own process, and ``fluorogui match`` with the
-large mesh and with a 250,000-triangle model (the largest accepted), for the peak memory;
+large mesh and with a 250,000-triangle model (the largest matched unsimplified), for the peak memory;
 every one must stay under 1.5 GB. The quick versions of these run in ``tests/fuzz``. Exit
 status 1 when any count that must be zero is not.
 """
@@ -159,7 +159,7 @@ def make_large(folder: Path) -> None:
     stl["corners"] = rng.uniform(-40, 40, (triangles, 3, 3))
     with open(folder / "large.stl", "wb") as handle:
         handle.write(b"\0" * 80 + np.uint32(triangles).tobytes() + stl.tobytes())
-    # 250,000 triangles (the most accepted), closed
+    # 250,000 triangles (the most matched without simplifying), closed
     ball = pv.Sphere(radius=20.0, theta_resolution=500, phi_resolution=252)
     ball.save(folder / "ball_250k.stl")
     with open(folder / "large.csv", "w") as handle:

@@ -117,16 +117,22 @@ def draw_kinematics(figure: Figure, rows, side: str = "right", against: str = "f
 
 def save_kinematics_figure(rows, path, side: str = "right", against: str = "frame", title: str = "") -> None:
     """Write the figure as PNG, SVG or PDF (by the suffix), atomically."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    figure = Figure(figsize=(10, 8), dpi=120)
+    FigureCanvasAgg(figure)
+    draw_kinematics(figure, rows, side, against, title)
+    save_figure(figure, path)
+
+
+def save_figure(figure: Figure, path) -> None:
+    """Write a figure as PNG, SVG or PDF (by the suffix), atomically, as an ordinary new
+    file (mode by the umask)."""
     import os
     import tempfile
     from pathlib import Path
 
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
     path = Path(path)
-    figure = Figure(figsize=(10, 8), dpi=120)
-    FigureCanvasAgg(figure)
-    draw_kinematics(figure, rows, side, against, title)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
     os.close(fd)
     umask = os.umask(0)

@@ -97,17 +97,19 @@ def test_implausible_size(tmp_path, radius):
 
 @pytest.mark.parametrize("suffix, binary", [(".stl", True), (".stl", False), (".ply", True), (".obj", None),
                                             (".vtk", False), (".vtp", None)])
-def test_models_of_more_faces_than_the_matcher_takes_are_refused_before_reading(tmp_path, monkeypatch, suffix,
+def test_models_of_more_faces_than_can_be_simplified_are_refused_before_reading(tmp_path, monkeypatch, suffix,
                                                                                  binary):
     """The count comes from the header (or a count in the file), before VTK allocates."""
     sphere = pv.Sphere(radius=20.0, theta_resolution=12, phi_resolution=12)  # 240 triangles
     path = tmp_path / f"ball{suffix}"
     sphere.save(path, **({} if binary is None else {"binary": binary}))
-    monkeypatch.setattr("fluorogui.io.meshes.headers.MAX_MODEL_FACES", 239)
+    monkeypatch.setattr("fluorogui.io.meshes.headers.MAX_SIMPLIFIED_FACES", 239)
+    monkeypatch.setattr("fluorogui.io.meshes.headers.MAX_MODEL_FACES", 100)
     read = []
     monkeypatch.setattr("fluorogui.io.meshes.read._read_surface", lambda p: read.append(p))
     assert error_of(path) == (f"{path}: mesh too large: the model has 240 faces, more than the 239 fluorogui "
-                              "matches (an implant needs some 10^4 to 10^5, and each costs memory): decimate it first")
+                              "simplifies (to 100 or fewer for matching; an implant needs some 10^4 to 10^5, and each "
+                              "costs memory): decimate it first")
     assert read == []
 
 

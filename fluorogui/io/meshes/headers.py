@@ -6,11 +6,15 @@ reads only the header and refuses counts the file cannot hold (every element nee
 least number of bytes, in text or binary) or that exceed ``MAX_POINTS`` / ``MAX_CELLS``.
 Formats without counts (OBJ, ASCII STL) have their faces counted in a stream of the file.
 
-A model's faces are also limited to ``MAX_MODEL_FACES``: ``fluorogui match`` on the real
-biplane images peaked at 0.30 GB with the 73,000-triangle femoral component, 1.24 GB with a
-300,000-triangle one, 1.48 GB with 400,000 and 2.6 GB with 1.2 million (the matcher's edge
-adjacency, silhouettes and point clouds grow with the triangles). An implant model has some
-10^4 to 10^5 triangles; a larger one is refused with its size, to be decimated first.
+A model of more than ``MAX_MODEL_FACES`` faces is more than the matcher needs:
+``fluorogui match`` on the real biplane images peaked at 0.30 GB with the 73,000-triangle
+femoral component, 1.24 GB with a 300,000-triangle one, 1.48 GB with 400,000 and 2.6 GB with
+1.2 million (the matcher's edge adjacency, silhouettes and point clouds grow with the
+triangles). An implant model has some 10^4 to 10^5 triangles; a larger one is simplified
+when read (``simplify``). Reading, simplifying and measuring the error cost memory too (a
+model of 290,000 triangles peaked at 0.5 GB, 1.0 million at 1.1 GB, 2.0 million at 2.0 GB),
+so models of more than ``MAX_SIMPLIFIED_FACES`` are refused with their size, to be decimated
+first.
 """
 from __future__ import annotations
 
@@ -21,6 +25,7 @@ from pathlib import Path
 MAX_POINTS = 20_000_000  # an implant model has some 10^4-10^5
 MAX_CELLS = 40_000_000
 MAX_MODEL_FACES = 250_000
+MAX_SIMPLIFIED_FACES = 1_000_000
 _HEADER_BYTES = 65536
 _PLY_SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2, "int16": 2, "uint16": 2,
               "int": 4, "uint": 4, "int32": 4, "uint32": 4, "float": 4, "float32": 4, "double": 8, "float64": 8}
@@ -54,10 +59,11 @@ def check_mesh_header(path: Path) -> int:
 
 
 def check_model_faces(faces: int) -> None:
-    """Raise HeaderError when a model has more faces than ``MAX_MODEL_FACES``."""
-    if faces > MAX_MODEL_FACES:
-        raise HeaderError(f"the model has {faces:,} faces, more than the {MAX_MODEL_FACES:,} fluorogui matches "
-                          "(an implant needs some 10^4 to 10^5, and each costs memory): decimate it first")
+    """Raise HeaderError when a model has more faces than ``MAX_SIMPLIFIED_FACES``."""
+    if faces > MAX_SIMPLIFIED_FACES:
+        raise HeaderError(f"the model has {faces:,} faces, more than the {MAX_SIMPLIFIED_FACES:,} fluorogui "
+                          f"simplifies (to {MAX_MODEL_FACES:,} or fewer for matching; an implant needs some 10^4 to "
+                          "10^5, and each costs memory): decimate it first")
 
 
 def _count_in_stream(path: Path, word: bytes, chunk: int = 1 << 22) -> int:

@@ -1,11 +1,13 @@
-"""Load implant surface models (STL, PLY, OBJ, VTK, VTP) as triangle arrays in millimetres.
+"""Load implant surface models (STL, PLY, OBJ, VTK, VTP; STEP and IGES meshed by ``cad``) as
+triangle arrays in millimetres.
 
 The header is checked first (``headers``: counts the file cannot hold, and models of more
-faces than the matcher takes within 1.5 GB, are refused before VTK allocates for them). PLY
+faces than can be simplified within 1.5 GB, are refused before VTK allocates for them). PLY
 (plyfile) and legacy VTK (``vtk_legacy``) are parsed with numpy and their face indices
 checked, since VTK's readers crash on corrupt ones; the others are read through pyvista.
-The mesh is then reduced to its surface, triangulated and cleaned of duplicate points. The
-local coordinate system is the file's own.
+The mesh is then reduced to its surface, triangulated and cleaned of duplicate points. A
+model finer than the matcher needs is simplified, its surface error stated in an
+``InputWarning`` (``simplify``). The local coordinate system is the file's own.
 """
 from __future__ import annotations
 
@@ -14,23 +16,48 @@ from pathlib import Path
 
 import numpy as np
 
-from fluorogui.io.errors import InputError, describe_os_error
+from fluorogui.io.errors import InputError, describe_os_error, warn_input
 from fluorogui.io.files import check_input_file
+from fluorogui.io.meshes import headers
+from fluorogui.io.meshes.cad import CAD_SUFFIXES, DEFAULT_TOLERANCE_MM, mesh_cad
 from fluorogui.io.meshes.headers import HeaderError, check_mesh_header, check_model_faces
 from fluorogui.io.meshes.vtk_legacy import LegacyVtkError, read_legacy_polydata
 
+#: surface meshes (the folder importer looks for these); ``load_mesh`` also reads ``CAD_SUFFIXES``
 MESH_SUFFIXES = (".stl", ".ply", ".obj", ".vtk", ".vtp")
+MODEL_SUFFIXES = MESH_SUFFIXES + CAD_SUFFIXES
 MIN_DIAGONAL_MM = 1.0
 MAX_DIAGONAL_MM = 1000.0
 MAX_MESH_BYTES = 2_000_000_000
 
 
-def load_mesh(path) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (N, 3) float64 in mm and triangles (M, 3) int64 of a surface model file."""
+def load_mesh(path, tolerance_mm: float = DEFAULT_TOLERANCE_MM) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (N, 3) float64 in mm and triangles (M, 3) int64 of a surface model file.
+
+    A STEP or IGES model is meshed within ``tolerance_mm`` of its surfaces (``cad``); a
+    model of more than ``headers.MAX_MODEL_FACES`` triangles is simplified for matching, with an
+    ``InputWarning`` stating the surface error.
+    """
     path = check_input_file(path, "mesh file")
     suffix = path.suffix.lower()
-    if suffix not in MESH_SUFFIXES:
-        raise InputError(path, f"unsupported mesh type '{suffix or '(none)'}' (use STL, PLY, OBJ, VTK or VTP)")
+    if suffix not in MODEL_SUFFIXES:
+        raise InputError(path, f"unsupported mesh type '{suffix or '(none)'}' "
+                               "(use STL, PLY, OBJ, VTK, VTP, STEP or IGES)")
+    if suffix in CAD_SUFFIXES:
+        try:
+            size = path.stat().st_size
+        except OSError as exc:
+            raise InputError(path, f"cannot read the file: {describe_os_error(exc)}") from None
+        if size > MAX_MESH_BYTES:
+            raise InputError(path, f"model file is too large ({size / 1e6:.0f} MB; "
+                                   f"at most {MAX_MESH_BYTES / 1e6:.0f} MB)")
+        try:
+            meshed = mesh_cad(path, tolerance_mm)
+        except ValueError as exc:  # the tolerance
+            raise InputError(path, str(exc)) from None
+        warn_input(path, meshed.describe())
+        _check_size(path, len(meshed.faces))
+        return _checked(path, meshed.vertices, meshed.faces)
     try:
         size = path.stat().st_size
         if size == 0:
@@ -56,6 +83,11 @@ def load_mesh(path) -> tuple[np.ndarray, np.ndarray]:
     _check_size(path, len(faces))  # polygons and strips become more triangles than the header said
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise InputError(path, f"a face refers to a vertex beyond the {len(vertices)} the mesh has")
+    return _checked(path, vertices, faces)
+
+
+def _checked(path: Path, vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh when its size can be an implant in mm, simplified when finer than the matcher needs."""
     used = np.unique(faces)
     extent = vertices[used].max(axis=0) - vertices[used].min(axis=0)
     diagonal = float(np.linalg.norm(extent))
@@ -65,6 +97,11 @@ def load_mesh(path) -> tuple[np.ndarray, np.ndarray]:
             f"implausible size: bounding-box diagonal {diagonal:.4g} (expected {MIN_DIAGONAL_MM:g} to "
             f"{MAX_DIAGONAL_MM:g}); is the mesh in mm?",
         )
+    if len(faces) > headers.MAX_MODEL_FACES:
+        from fluorogui.io.meshes.simplify import SIMPLIFIED_FACES, simplify
+
+        vertices, faces, report = simplify(vertices, faces, min(SIMPLIFIED_FACES, headers.MAX_MODEL_FACES))
+        warn_input(path, report.describe())
     return vertices, faces
 
 
