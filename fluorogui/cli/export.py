@@ -32,6 +32,10 @@ def add_parser(sub):
     e.add_argument("project", metavar="PROJECT.fluoro")
     for fmt in formats():  # one option per registered format
         e.add_argument(f"--{fmt.name}", metavar=fmt.metavar, help=fmt.help)
+    for fmt in formats():  # and the formats' own options
+        for option in fmt.options:
+            e.add_argument(option.flag, dest=option.dest, metavar=option.metavar or None, default=option.default,
+                           type=_argparse_type(option), help=f"--{fmt.name}: {option.help}")
     e.add_argument("--view", type=int, metavar="K", help="the view (1 = first) whose camera frame "
                                                          f"{_options(f for f in formats() if f.needs_view)} uses")
     e.add_argument("--fps", type=fps_value, metavar="N", help="frame rate for this export (time = frame / N), "
@@ -47,6 +51,18 @@ def add_parser(sub):
     return e
 
 
+def _argparse_type(option):
+    """``option.parse`` as an argparse type: its ValueError is argparse's one-line usage error."""
+    def parse(text):
+        try:
+            return option.parse(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    parse.__name__ = option.metavar or option.dest
+    return parse
+
+
 def _options(chosen, joint: str = "/") -> str:
     return joint.join(f"--{f.name}" for f in chosen)
 
@@ -60,6 +76,10 @@ def run(args) -> int:
     if not chosen:
         every = [f"--{f.name}" for f in formats()]
         raise UsageError(f"fluorogui: export: say what to write ({', '.join(every[:-1])} or {every[-1]})")
+    for fmt in formats():  # a format's options without the format: a mistake
+        stray = [o.flag for o in fmt.options if fmt not in chosen and getattr(args, o.dest) != o.default]
+        if stray:
+            raise UsageError(f"fluorogui: export: {stray[0]} goes with --{fmt.name}")
     with_view = [f for f in formats() if f.needs_view]
     if any(f in chosen for f in with_view) != (args.view is not None):
         raise UsageError(f"fluorogui: export: {_options(with_view)} and --view go together")
@@ -86,8 +106,10 @@ def run(args) -> int:
     elif session.side is None and kinematic:
         warn("the project does not say which knee this is; right assumed (use --side)")
     rows = session.knee_rows() if kinematic else []
+    extra = {o.dest: getattr(args, o.dest) for fmt in chosen for o in fmt.options}
     options = ExportOptions(fps=args.fps, include_unreviewed=args.include_unreviewed,
-                            view=None if args.view is None else args.view - 1, against=args.against, rows=rows)
+                            view=None if args.view is None else args.view - 1, against=args.against, rows=rows,
+                            extra=extra)
     written = write_exports(session, {f.name: getattr(args, f.name) for f in chosen}, options)
     for poses, words in export_notes(session, [f.name for f in chosen], options, naming=lambda f: f"--{f.name}",
                                      remedy="accept them in the app, or --include-unreviewed"):

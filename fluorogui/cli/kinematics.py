@@ -11,6 +11,7 @@ from pathlib import Path
 
 from fluorogui.cli.common import UsageError, finite_float, warn
 from fluorogui.cli.export import frame_list
+from fluorogui.io.pose_files import read_frame_json
 
 PROG = "fluorogui kinematics"
 #: a lift-off threshold beyond this (mm) is a mistake: condyles are some 20 mm across
@@ -69,24 +70,7 @@ def add_parser(sub):
     return k
 
 
-def load_frame_json(path) -> "object":
-    """A frame JSON ``{"matrix": [[4 rows of 4]]}`` (anatomical → model), checked."""
-    from fluorogui.core.knee.kinematics import KinematicsError, check_frame
-    from fluorogui.io.errors import InputError
-    from fluorogui.io.pose_files import read_text_lines
-
-    path = Path(path)
-    text = "\n".join(read_text_lines(path))
-    try:
-        document = json.loads(text)
-    except (json.JSONDecodeError, RecursionError) as exc:
-        raise InputError(path, f"is not JSON ({getattr(exc, 'msg', 'too deeply nested')})") from None
-    if not isinstance(document, dict) or "matrix" not in document:
-        raise InputError(path, 'must be {"matrix": [[4 rows of 4 numbers]]}')
-    try:
-        return check_frame(document["matrix"])
-    except KinematicsError as exc:
-        raise InputError(path, f"'matrix': {exc}") from None
+load_frame_json = read_frame_json  # its old name
 
 
 def _given(args, names) -> list[str]:

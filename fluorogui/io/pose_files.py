@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import math
 from pathlib import Path
 
@@ -308,3 +309,22 @@ def read_reference_poses(path, component: str | None = None) -> list[tuple[int, 
     poses = read_long_poses(path, finite=True)
     return [(frame, name, pose) for (frame, name), pose in sorted(poses.items())
             if component is None or name == component]
+
+
+def read_frame_json(path) -> "object":
+    """A frame JSON ``{"matrix": [[4 rows of 4]]}`` (anatomical → model), checked."""
+    from fluorogui.core.knee.kinematics import KinematicsError, check_frame
+    from fluorogui.io.errors import InputError
+
+    path = Path(path)
+    text = "\n".join(read_text_lines(path))
+    try:
+        document = json.loads(text)
+    except (json.JSONDecodeError, RecursionError) as exc:
+        raise InputError(path, f"is not JSON ({getattr(exc, 'msg', 'too deeply nested')})") from None
+    if not isinstance(document, dict) or "matrix" not in document:
+        raise InputError(path, 'must be {"matrix": [[4 rows of 4 numbers]]}')
+    try:
+        return check_frame(document["matrix"])
+    except KinematicsError as exc:
+        raise InputError(path, f"'matrix': {exc}") from None

@@ -174,7 +174,7 @@ def contact_of_poses(poses: dict[tuple[int, str], np.ndarray], setup: ContactSet
             out.append(_row(frame, "missing", reason, None, setup, float("nan")))
             continue
         flexion = knee_kinematics(pose_to_matrix(pose[0]), pose_to_matrix(pose[1]), femoral_frame,
-                                  setup.tibial_frame, setup.side).flexion_deg
+                                  setup.tibial_frame, side=setup.side).flexion_deg
         out.append(_row(frame, Status.MATCHED, "", pose, setup, float(flexion)))
     return out
 

@@ -58,7 +58,7 @@ def project(tmp_path, capsys):
 
 def test_the_real_formats_are_declared_once_each():
     names = [f.name for f in formats()]
-    assert names == ["poses", "kinematics", "tra", "jts", "plot", "c3d", "trc", "mot", "xromm"]
+    assert names == ["poses", "kinematics", "tra", "jts", "plot", "contact", "c3d", "trc", "mot", "xromm"]
     assert [f.name for f in formats() if f.timed] == ["c3d", "trc", "mot"]
     with pytest.raises(ValueError, match="two export formats"):
         registry.register(ExportFormat(name="tra", label="", default_name="", metavar="", help="",
@@ -130,3 +130,44 @@ def test_the_docs_table_lists_a_toy_format(toy):
     text = publish_doctree(".. export-formats::\n").astext()
     assert "--toy OUT.jsonl" in text and "Toy poses (JSON lines)" in text and "a frame rate" in text
     assert text.index("--xromm") < text.index("--toy")
+
+
+def test_export_contact_is_what_kinematics_contact_gives_from_the_same_poses(project, tmp_path, capsys):
+    """``fluorogui export --contact`` (issue 47) through the registry, against the independent
+    path of ``fluorogui kinematics --contact`` on the project's poses written out."""
+    import csv
+
+    session = Session.open(project)
+    for frame in session.frames:  # every pose matched: both paths give every row's values
+        session.project.poses[(frame, "femoral")] = PoseRecord([1.0 + frame, 2, 3, 4, 5, 6], status="matched")
+        session.project.poses[(frame, "tibial")] = PoseRecord([0.0, 1, -40 + frame, 0, 3, 0], status="matched")
+    session.save(project)
+    poses = tmp_path / "poses.csv"
+    with open(poses, "w", newline="") as handle:
+        out = csv.writer(handle)
+        out.writerow(["frame", "component", "x", "y", "z", "alpha", "beta", "gamma"])
+        for frame in session.frames:
+            for c in ("femoral", "tibial"):
+                out.writerow([frame, c, *session.project.poses[(frame, c)].pose])
+    meshes = [str(session.project.model(c).mesh_path) for c in ("femoral", "tibial")]
+    assert main(["export", str(project), "--contact", str(tmp_path / "a.csv"), "--liftoff-mm", "2.5",
+                 "--side", "right"]) == 0
+    assert main(["kinematics", "--poses", str(poses), "--side", "right", "--femoral-mesh", meshes[0],
+                 "--tibial-mesh", meshes[1], "--contact", str(tmp_path / "b.csv"), "--liftoff-mm", "2.5"]) == 0
+    capsys.readouterr()
+
+    def table(name):
+        lines = [line for line in (tmp_path / name).read_text().splitlines() if not line.startswith("#")]
+        return list(csv.DictReader(lines))
+
+    a, b = table("a.csv"), table("b.csv")
+    assert [r["frame"] for r in a] == [r["frame"] for r in b] == ["0", "1"]
+    for ra, rb in zip(a, b):
+        for key in ("medial_x_mm", "medial_y_mm", "medial_z_mm", "lateral_x_mm", "lateral_y_mm", "lateral_z_mm"):
+            assert abs(float(ra[key]) - float(rb[key])) < 1e-6, key
+        assert ra["liftoff"] == rb["liftoff"]
+    # a contact option without --contact is a usage error, before any work
+    assert main(["export", str(project), "--poses", str(tmp_path / "p.csv"), "--liftoff-mm", "2"]) == 2
+    assert "--liftoff-mm goes with --contact" in capsys.readouterr().err
+    assert main(["export", str(project), "--contact", str(tmp_path / "c.csv"), "--liftoff-mm", "0"]) == 2
+    assert "out of range" in capsys.readouterr().err

@@ -13,7 +13,7 @@ import importlib
 import pkgutil
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable, Mapping
 
 from fluorogui.io.files import check_output_file, check_output_folder
 
@@ -29,6 +29,21 @@ class ExportOptions:
     view: int | None = None
     against: str = "frame"
     rows: list | None = None
+    #: the values of the formats' own options (``FormatOption.dest`` -> value; absent: default)
+    extra: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class FormatOption:
+    """An option of one format (the command line's ``flag``; the app uses its default).
+    ``parse(text)`` turns the text into its value, raising ValueError with the problem."""
+
+    flag: str
+    dest: str
+    help: str
+    metavar: str = ""
+    parse: Callable[[str], Any] = str
+    default: Any = None
 
 
 @dataclass(frozen=True)
@@ -53,6 +68,8 @@ class ExportFormat:
     statusless: bool = False  #: no status column: poses flagged for review are left out unless included
     motion: bool = False  #: a motion file: poses not matched or accepted are left out unless included
     checked: bool = False  #: ticked in the dialog by default
+    #: its own options (the command line's; shared flags are declared once)
+    options: tuple[FormatOption, ...] = ()
     #: ``caveat(session) -> str``: a warning about this session's file ("" when none)
     caveat: Callable | None = field(default=None, repr=False, compare=False)
 
@@ -78,6 +95,9 @@ def register(fmt: ExportFormat) -> ExportFormat:
         raise ValueError(f"an export format's name must be a word (letters, digits, _): {fmt.name!r}")
     if fmt.name in _REGISTRY and _REGISTRY[fmt.name] is not fmt:
         raise ValueError(f"two export formats are named {fmt.name!r}")
+    taken = {o.flag for f in _REGISTRY.values() if f.name != fmt.name for o in f.options}
+    if clash := [o.flag for o in fmt.options if o.flag in taken]:
+        raise ValueError(f"export format {fmt.name!r}: option {clash[0]} is another format's")
     _REGISTRY[fmt.name] = fmt
     return fmt
 
