@@ -177,7 +177,7 @@ def input_warnings_on_stderr():
     with warnings.catch_warnings():
         shown = warnings.showwarning
 
-        def show(message, category, filename, lineno, *, file=None, line=None):
+        def show(message, category, filename, lineno, file=None, line=None):  # warnings.showwarning's signature
             if issubclass(category, InputWarning):
                 print(f"fluorogui: warning: {message}", file=sys.stderr, flush=True)
             else:

@@ -72,7 +72,7 @@ def collected_input_warnings():
     with warnings.catch_warnings():
         shown = warnings.showwarning
 
-        def collect(message, category, filename, lineno, *, file=None, line=None):
+        def collect(message, category, filename, lineno, file=None, line=None):  # warnings.showwarning's signature
             if issubclass(category, InputWarning):
                 if str(message) not in notes:
                     notes.append(str(message))
