@@ -123,7 +123,7 @@ def main(argv=None) -> int:
     if args.figure:
         from fluorogui.workflow.contact_plot import save_contact_figure
 
-        save_contact_figure(rows, args.figure, side, source.split(" (")[0], pivot_of_rows(rows))
+        save_contact_figure(rows, args.figure, side=side, title=source.split(" (")[0], pivot=pivot_of_rows(rows))
         print(f"wrote {args.figure}")
     return 0
 

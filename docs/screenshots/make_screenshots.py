@@ -160,7 +160,7 @@ def main(argv=None) -> int:
         window.controller.set_project(import_folder(folder), None)
         session = window.controller.session
         for name, component in (("fem.jts", "femoral"), ("tib.jts", "tibial")):
-            exports.import_poses(session, folder / name, component, 0)
+            exports.import_poses(session, folder / name, component=component, view=0)
         window.controller.set_frame(session.frames[0])
         window.fit_images()
         window.pose_dock.raise_()

@@ -27,8 +27,9 @@ def run(args) -> int:
         raise UsageError("fluorogui: batch: give --workers or --scheduler, not both")
     rows = []
     bar = progress_bar(len(args.projects), "batch")
-    for row in run_batch(args.projects, args.workers, args.scheduler, args.frames, components_arg(args.component),
-                         args.redo):
+    for row in run_batch(args.projects, workers=args.workers, scheduler=args.scheduler, frames=args.frames,
+                         components=components_arg(args.component),
+                         redo=args.redo):
         rows.append(row)
         if args.json:
             emit_json(row.to_dict())

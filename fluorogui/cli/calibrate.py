@@ -42,7 +42,7 @@ def run_distortion(args) -> int:
         raise UsageError("fluorogui: calibrate distortion: --spacing must be positive")
     if not 2 <= args.degree <= 9:
         raise UsageError("fluorogui: calibrate distortion: --degree must be 2 to 9")
-    plate = fit_plates({0: args.plate}, args.spacing, args.grid, args.model, args.degree)[0]
+    plate = fit_plates({0: args.plate}, args.spacing, grid=args.grid, model=args.model, degree=args.degree)[0]
     save_correction(plate.fit, args.out, args.plate)
     s = plate.fit.summary()
     print(f"{args.plate}: {s['holes']} holes on a {args.grid} grid ({s['discarded']} blobs discarded), "
@@ -66,7 +66,7 @@ def run_geometry(args) -> int:
         raise UsageError(f"fluorogui: calibrate geometry: give one --correction per --image or none "
                          f"(got {len(args.correction)} for {len(args.image)})")
     corrections = {k: load_correction(p) for k, p in enumerate(args.correction or [])}
-    results = calibrate_views(dict(enumerate(args.image)), args.phantom, corrections, args.pitch)
+    results = calibrate_views(dict(enumerate(args.image)), args.phantom, corrections=corrections, pitch=args.pitch)
     written = write_views({k: r.view for k, r in results.items()}, args.out_dir)
     for k, r in sorted(results.items()):
         print(f"view {k + 1} ({r.path}): {r.calibration.used} of {r.phantom_beads} beads, reprojection RMS "

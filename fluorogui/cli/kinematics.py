@@ -205,7 +205,7 @@ def _write_contact(args, poses, frames, femoral_mesh, insert_to_tray) -> list[st
     if args.plot:
         from fluorogui.workflow.contact_plot import save_contact_figure
 
-        save_contact_figure(rows, args.plot, args.side, Path(args.poses).stem, found)
+        save_contact_figure(rows, args.plot, side=args.side, title=Path(args.poses).stem, pivot=found)
         said.append(f"wrote {args.plot}")
     if args.pivot:
         if not math.isfinite(found.x_mm):

@@ -239,11 +239,12 @@ def rim_refined_outlines(images, views, mesh: PreparedMesh, plain, *, start, set
     pose = match(MatchProblem(mesh, views, fit_splines(plain), occluded), start, settings).pose
     only, models = [k for k, p in enumerate(plain) if p is not None], None
     if mode == "auto":
-        only, models = soft_edge_views(images, views, mesh, pose, plain, occluded)
+        only, models = soft_edge_views(images, views, mesh, pose, outlines=plain, occluded=occluded)
         if not only:
             return list(plain), [], [None] * len(plain)
     for _ in range(2):
-        outlines, models, weights = refine_rims(images, views, mesh, pose, plain, occluded, models, only)
+        outlines, models, weights = refine_rims(images, views, mesh, pose, outlines=plain, occluded=occluded,
+                                                models=models, only=only)
         pose = match(MatchProblem(mesh, views, fit_splines(outlines, weights), occluded), pose, settings).pose
     return outlines, only, weights
 
@@ -282,7 +283,7 @@ def idealized_case(vertices, faces, flexion_deg: float, settings: MatchSettings,
         extra["occluded"] = [float(np.mean(mask_at(m, mesh_silhouette(mesh, R_m, truth[:3], v).points_px)))
                              for m, v in zip(occluded, views)]
     images = [(render or render_fluoro)(v, bodies, rng) for v in views]
-    outlines = segment_outlines(images, views, mesh, truth, occluded)
+    outlines = segment_outlines(images, views, mesh, truth, occluded=occluded)
     starts = perturbed_starts(truth, n_starts, rng, sd_fraction=start_sd_fraction)
     outlines, extra["rim_refined"], weights = rim_refined_outlines(images, views, mesh, outlines, start=starts[0],
                                                                    settings=settings,

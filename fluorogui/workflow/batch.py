@@ -44,7 +44,7 @@ class ProjectSummary:
         return asdict(self)
 
 
-def track_project(path: str, frames: str | None = None, components="both", redo: bool = False,
+def track_project(path: str, *, frames: str | None = None, components="both", redo: bool = False,
                   run: str | None = None, on_frame: Callable | None = None) -> ProjectSummary:
     """Track one project (a Dask task; also callable directly). ``frames`` is a frame spec
     ("A:B"); ``on_frame(path, frame)`` is called after each frame is saved."""
@@ -82,7 +82,8 @@ def track_project(path: str, frames: str | None = None, components="both", redo:
     return summary
 
 
-def run_batch(paths: Sequence[str], workers: int | None = None, scheduler: str | None = None, frames: str | None = None,
+def run_batch(paths: Sequence[str], *, workers: int | None = None, scheduler: str | None = None,
+              frames: str | None = None,
               components="both", redo: bool = False, on_frame: Callable | None = None,
               threads_per_worker: int = 1) -> Iterator[ProjectSummary]:
     """Track every project in ``paths`` on a Dask cluster; yields summaries as projects finish.

@@ -58,7 +58,7 @@ class ViewResult:
     phantom_beads: int  # beads in the phantom file
 
 
-def fit_plates(plates: dict[int, str], spacing_mm: float, grid: str = "square", model: str = "global",
+def fit_plates(plates: dict[int, str], spacing_mm: float, *, grid: str = "square", model: str = "global",
                degree: int = 5, progress: Progress | None = None,
                cancel: Callable[[], bool] | None = None) -> dict[int, PlateResult]:
     """A distortion correction per view (0-based) from its plate image."""
@@ -76,7 +76,7 @@ def fit_plates(plates: dict[int, str], spacing_mm: float, grid: str = "square", 
     return out
 
 
-def calibrate_views(images: dict[int, str], phantom_path, corrections: dict[int, dict] | None = None,
+def calibrate_views(images: dict[int, str], phantom_path, *, corrections: dict[int, dict] | None = None,
                     pitch: float | None = None, progress: Progress | None = None,
                     cancel: Callable[[], bool] | None = None) -> dict[int, ViewResult]:
     """The geometry of every view (0-based) from its bead image; ``corrections`` (per view,

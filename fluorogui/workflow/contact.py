@@ -126,7 +126,7 @@ class ContactRow:
     flexion_deg: float = float("nan")
 
 
-def _row(frame: int, status: str, reason: str, poses, setup: ContactSetup, flexion: float) -> ContactRow:
+def _row(frame: int, status: str, reason: str, poses, *, setup: ContactSetup, flexion: float) -> ContactRow:
     if status == "missing":
         return ContactRow(frame, Contact.missing(), status, reason, flexion)
     contact = condyle_contact(setup.femur, pose_to_matrix(poses[0]), pose_to_matrix(poses[1]),
@@ -155,7 +155,7 @@ def contact_rows(session, setup: ContactSetup | None = None, frames=None, knee_r
         poses = None
         if row.status != "missing":
             poses = (row.records["femoral"].pose, row.records["tibial"].pose)
-        out.append(_row(row.frame, row.status, row.reason, poses, setup, float(row.values.flexion_deg)))
+        out.append(_row(row.frame, row.status, row.reason, poses, setup=setup, flexion=float(row.values.flexion_deg)))
     return out
 
 
@@ -171,11 +171,11 @@ def contact_of_poses(poses: dict[tuple[int, str], np.ndarray], setup: ContactSet
         if lacking:
             reason = " and ".join(f"{c} pose {'missing' if p is None else 'is NaN'}"
                                   for c, p in zip(("femoral", "tibial"), pose) if c in lacking)
-            out.append(_row(frame, "missing", reason, None, setup, float("nan")))
+            out.append(_row(frame, "missing", reason, None, setup=setup, flexion=float("nan")))
             continue
         flexion = knee_kinematics(pose_to_matrix(pose[0]), pose_to_matrix(pose[1]), femoral_frame,
                                   setup.tibial_frame, side=setup.side).flexion_deg
-        out.append(_row(frame, Status.MATCHED, "", pose, setup, float(flexion)))
+        out.append(_row(frame, Status.MATCHED, "", pose, setup=setup, flexion=float(flexion)))
     return out
 
 

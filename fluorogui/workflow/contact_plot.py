@@ -30,7 +30,7 @@ def contact_arrays(rows) -> dict[str, np.ndarray]:
     return out
 
 
-def draw_contact(figure: Figure, rows, side: str = "right", title: str = "", pivot=None) -> list:
+def draw_contact(figure: Figure, rows, *, side: str = "right", title: str = "", pivot=None) -> list:
     """Draw on ``figure`` (cleared first); returns the two axes (AP against flexion, the
     tray from above). ``pivot``: a ``core.knee.contact.Pivot`` to mark on the tray."""
     figure.clear()
@@ -79,17 +79,17 @@ def draw_contact(figure: Figure, rows, side: str = "right", title: str = "", piv
     return [ap, tray]
 
 
-def save_contact_figure(rows, path, side: str = "right", title: str = "", pivot=None) -> None:
+def save_contact_figure(rows, path, *, side: str = "right", title: str = "", pivot=None) -> None:
     """Write the contact figure as PNG, SVG or PDF (by the suffix), atomically."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     figure = Figure(figsize=(10, 5), dpi=120)
     FigureCanvasAgg(figure)
-    draw_contact(figure, rows, side, title, pivot)
+    draw_contact(figure, rows, side=side, title=title, pivot=pivot)
     save_figure(figure, path)
 
 
-def draw_mean(figure: Figure, curves, labels, x_label: str, trial_names=(), title: str = "") -> list:
+def draw_mean(figure: Figure, curves, labels, x_label: str, *, trial_names=(), title: str = "") -> list:
     """Mean ± SD of averaged trials (``core.knee.averaging.MeanCurves``), one panel per
     quantity (``labels``), each trial's curve in grey beside it; returns the axes."""
     figure.clear()
@@ -119,11 +119,11 @@ def draw_mean(figure: Figure, curves, labels, x_label: str, trial_names=(), titl
     return axes
 
 
-def save_mean_figure(curves, labels, x_label: str, path, trial_names=()) -> None:
+def save_mean_figure(curves, labels, x_label: str, path, *, trial_names=()) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     rows = int(np.ceil(len(labels) / (3 if len(labels) > 4 else 2)))
     figure = Figure(figsize=(11, 2.6 * rows + 0.6), dpi=120)
     FigureCanvasAgg(figure)
-    draw_mean(figure, curves, labels, x_label, trial_names)
+    draw_mean(figure, curves, labels, x_label, trial_names=trial_names)
     save_figure(figure, path)

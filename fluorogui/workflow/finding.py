@@ -20,7 +20,7 @@ from fluorogui.core.search.find import Placement, find_components, near_candidat
 
 
 def find_in_frame(frame: int, images: Sequence[np.ndarray], views: Sequence[View], meshes: dict[str, PreparedMesh],
-                  near: dict[str, np.ndarray] | None = None, progress: Callable[[float, str], None] | None = None,
+                  *, near: dict[str, np.ndarray] | None = None, progress: Callable[[float, str], None] | None = None,
                   cancel: Callable[[], bool] | None = None) -> dict[str, Placement]:
     """Placements of ``meshes`` (name -> mesh) in one frame (``Placement.frame`` set);
     ``near`` limits the search to around predicted poses. Raises ``Cancelled`` when
@@ -52,7 +52,7 @@ def near_search(views: Sequence[View], settings=None):
     def find_near(images, component: str, mesh: PreparedMesh, pose, cancel=None):
         try:
             if pose is not None:
-                return near_candidates(list(images), list(views), mesh, pose, cancel) or None
+                return near_candidates(list(images), list(views), mesh, pose, cancel=cancel) or None
             found = find_components(list(images), list(views), {component: mesh}, cancel=cancel)
         except ValueError:  # Cancelled passes through to the caller
             return None

@@ -86,7 +86,7 @@ class ComponentInput:
 
 
 def occlusion_masks(views: Sequence[View], others: Sequence[tuple[PreparedMesh, np.ndarray]], near: np.ndarray | None,
-                    mesh: PreparedMesh | None, margin_px: int = 3) -> list[np.ndarray | None] | None:
+                    mesh: PreparedMesh | None, *, margin_px: int = 3) -> list[np.ndarray | None] | None:
     """Per view, where the other components (mesh, pose) project, grown by ``margin_px``;
     None for a view where they do not come near this component's projection at ``near``
     (and None overall when no view needs a mask)."""
@@ -129,7 +129,7 @@ class FrameMatcher:
     """Matches components in frames of one session set-up (views, settings, find)."""
 
     def __init__(self, views: Sequence[View], settings: WorkflowSettings | None = None,
-                 find_near: Callable | None = None, live: Callable | None = None,
+                 find_near: Callable | None = None, *, live: Callable | None = None,
                  rim: dict[str, list] | None = None) -> None:
         single_threaded_blas()  # (core.threads: BLAS's own threads only spin beside the views')
         self.views = list(views)
@@ -182,7 +182,7 @@ class FrameMatcher:
         return self.rim_judgements.setdefault(component, RimJudgement(len(self.views))).for_attempt()
 
     # -- one attempt ---------------------------------------------------------------------------
-    def attempt(self, images, job: ComponentInput, start, occluded, cancel, loop=None) -> FrameResult:
+    def attempt(self, images, job: ComponentInput, start, occluded, *, cancel, loop=None) -> FrameResult:
         """One segment -> match loop from ``start`` and the quality checks of its result."""
         s = self.settings
         t0 = time.perf_counter()
@@ -194,8 +194,9 @@ class FrameMatcher:
         hidden = self._hidden(images, occluded)
         try:
             rims = self._rims_for(images, job.component)
-            out = segment_and_match(images, self.views, job.mesh, start, s.match, loop, job.given, hidden,
-                                    step, cancel, rims, thresholds=s.quality)
+            out = segment_and_match(images, self.views, job.mesh, start, settings=s.match, loop=loop,
+                                    splines=job.given, occluded=hidden,
+                                    progress=step, cancel=cancel, rim_models=rims, thresholds=s.quality)
         except SegmentationError as exc:
             return FrameResult(0, job.component, None, Status.FAILED, messages.segmentation_failed(job.component, exc),
                                seconds=time.perf_counter() - t0, failed=["segmentation"])
@@ -204,16 +205,19 @@ class FrameMatcher:
                                seconds=time.perf_counter() - t0, failed=["match"])
         result = out
         outlines = [sp.sample(max(64, int(sp.length_px)), skip_gaps=True) for sp in out.splines]
-        quality = assess(images, self.views, job.mesh, result.pose, result.converged, result.per_view_mean_mm,
-                         outlines, job.start if job.predicted else None, hidden, s.quality.tol_px,
-                         self._fields(images), result.outlines_px, result.sd)
+        quality = assess(images, self.views, job.mesh, result.pose, converged=result.converged,
+                         per_view_mean_mm=result.per_view_mean_mm,
+                         image_outlines=outlines, predicted=job.start if job.predicted else None, occluded=hidden,
+                         tol_px=s.quality.tol_px,
+                         fields=self._fields(images), model_outlines=result.outlines_px, sd=result.sd)
         limits = replace(s.quality, max_jump_mm=s.quality.max_jump_mm * max(1, job.gap),
                          max_jump_deg=s.quality.max_jump_deg * max(1, job.gap))
-        problems = failed_checks(quality, limits, job.typical_view_mm, [f"view {k + 1}" for k in range(len(images))],
-                                 result.message)
+        problems = failed_checks(quality, thresholds=limits, typical_view_mm=job.typical_view_mm,
+                                 view_names=[f"view {k + 1}" for k in range(len(images))],
+                                 why_not_converged=result.message)
         weak = weak_view(problems, quality, s.quality)
         if weak is not None:  # one view's edges are weak, nothing else fails: judged by the others
-            problems = self._judged_without(weak, job, out, hidden, quality)
+            problems = self._judged_without(weak, job, out, hidden, quality=quality)
         status = Status.NEEDS_REVIEW if problems else Status.MATCHED
         reason = "; ".join(text for _, text in problems)
         failed = [name for name, _ in problems]
@@ -225,7 +229,7 @@ class FrameMatcher:
                            time.perf_counter() - t0, rim_models=rims, outline_weights=out.outline_weights,
                            failed=failed)
 
-    def _judged_without(self, weak: int, job: ComponentInput, out, hidden, quality) -> list[tuple[str, str]]:
+    def _judged_without(self, weak: int, job: ComponentInput, out, hidden, *, quality) -> list[tuple[str, str]]:
         """A pose whose view ``weak`` has weak edges, judged by the other views' outlines
         alone (``quality.weak_view_problem``): passed when they pin it down, else flagged
         (as ``edge_support``) naming the direction they leave loose."""
@@ -233,15 +237,15 @@ class FrameMatcher:
         problem = MatchProblem(job.mesh, [self.views[k] for k in others], [out.splines[k] for k in others],
                                [hidden[k] for k in others])
         try:
-            _, body = covariances(problem, out.pose, self.settings.match)
+            _, body = covariances(problem, out.pose, settings=self.settings.match)
         except ValueError:
             body = np.full((6, 6), np.inf)
-        text = weak_view_problem(weak, self.views, body[:3, :3], pose_sd(body), quality.edge_support[weak],
-                                 self.settings.quality)
+        text = weak_view_problem(weak, self.views, body[:3, :3], pose_sd(body), edge=quality.edge_support[weak],
+                                 thresholds=self.settings.quality)
         return [("edge_support", text)] if text else []
 
     # -- one component, with recovery ------------------------------------------------------------
-    def match_component(self, frame: int, images, job: ComponentInput, occluded=None,
+    def match_component(self, frame: int, images, job: ComponentInput, occluded=None, *,
                         cancel: Callable[[], bool] | None = None) -> FrameResult:
         """The best of the attempts from the prediction and, while none passes its checks,
         from the recovery starts; ``frame`` is only recorded in the result."""
@@ -262,8 +266,8 @@ class FrameMatcher:
                 # get a shorter one, most lead nowhere
                 whole = tried == 0 and not label and not jump
                 tried += 1  # (a start stopped at the time limit was tried too)
-                candidate = self.attempt(images, job, start, occluded, bounded if tried > 1 else cancel,
-                                         None if whole else light)
+                candidate = self.attempt(images, job, start, occluded, cancel=bounded if tried > 1 else cancel,
+                                         loop=None if whole else light)
                 if best is None or better_result(candidate, best):
                     best = candidate
                     best.recovered = label
@@ -276,7 +280,7 @@ class FrameMatcher:
         except OutOfTime:
             best = _out_of_time(job, best, time.perf_counter() - t0, limit)
         if best.status == Status.MATCHED and job.probe and self.settings.tracking.probe:
-            best, tried = self._probe(images, job, best, occluded, cancel, tried)
+            best, tried = self._probe(images, job, best, occluded, cancel=cancel, tried=tried)
         if best.status == Status.MATCHED:  # one vote per frame, from its best result only
             judgement = self.rim_judgements[job.component]
             judgement.add(best.rim_models)
@@ -287,7 +291,7 @@ class FrameMatcher:
             best.pose = np.asarray(job.start, dtype=float).copy()  # the prediction, as a start for the user
         return best
 
-    def _probe(self, images, job: ComponentInput, best: FrameResult, occluded, cancel, tried: int):
+    def _probe(self, images, job: ComponentInput, best: FrameResult, occluded, *, cancel, tried: int):
         """Is there a second orientation that fits as well? Starts turned by ``probe_deg``
         either way about the axis the outlines constrain least (a tibial tray about its
         stem, a symmetric part about its axis): a better fit replaces ``best``; a distinct
@@ -300,7 +304,7 @@ class FrameMatcher:
         start_pose = best.pose
         for sign in (1.0, -1.0):
             start = turned(start_pose, job.mesh.centroid, axis, sign * t.probe_deg)
-            other = self.attempt(images, job, start, occluded, cancel, light)
+            other = self.attempt(images, job, start, occluded, cancel=cancel, loop=light)
             tried += 1
             if other.status != Status.MATCHED:
                 continue
@@ -383,7 +387,7 @@ class FrameMatcher:
                 yield "turned start", turned(job.start, centroid, axis, sign * t.rotated_start_deg)
 
     # -- all components of a frame ----------------------------------------------------------------
-    def match_frame(self, frame: int, images, jobs: Sequence[ComponentInput], fixed: dict | None = None,
+    def match_frame(self, frame: int, images, jobs: Sequence[ComponentInput], *, fixed: dict | None = None,
                     cancel: Callable[[], bool] | None = None) -> dict[str, FrameResult]:
         """Match ``jobs`` in order, each with the others masked at their best known pose
         in this frame (``fixed``: component -> (mesh, pose) of components not matched here,
@@ -395,7 +399,8 @@ class FrameMatcher:
         results: dict[str, FrameResult] = {}
         masked_with: dict[str, dict[str, np.ndarray]] = {}
         for job in jobs:
-            results[job.component] = self._match_masked(frame, images, job, known, masked_with, cancel)
+            results[job.component] = self._match_masked(frame, images, job, known, masked_with=masked_with,
+                                                        cancel=cancel)
             if results[job.component].pose is not None and results[job.component].status != Status.FAILED:
                 known[job.component] = (job.mesh, results[job.component].pose)
         if self.settings.tracking.occlusion and len(jobs) > 1:
@@ -405,7 +410,8 @@ class FrameMatcher:
                     # from its own match with the old mask, if it had one: the best start there is
                     earlier = results[job.component]
                     again = replace(job, first=earlier.pose) if earlier.status == Status.MATCHED else job
-                    results[job.component] = self._match_masked(frame, images, again, known, masked_with, cancel)
+                    results[job.component] = self._match_masked(frame, images, again, known, masked_with=masked_with,
+                                                                cancel=cancel)
                     # the component's time and attempts in this frame: both rounds
                     results[job.component].seconds += earlier.seconds
                     results[job.component].attempts += earlier.attempts
@@ -413,15 +419,15 @@ class FrameMatcher:
                         known[job.component] = (job.mesh, results[job.component].pose)
         return results
 
-    def _match_masked(self, frame, images, job, known, masked_with, cancel) -> FrameResult:
+    def _match_masked(self, frame, images, job, known, *, masked_with, cancel) -> FrameResult:
         t = self.settings.tracking
         occluded = None
         if t.occlusion:
             others = [(m, p) for name, (m, p) in known.items() if name != job.component]
-            occluded = occlusion_masks(self.views, others, job.start, job.mesh, t.occlusion_margin_px)
+            occluded = occlusion_masks(self.views, others, job.start, job.mesh, margin_px=t.occlusion_margin_px)
             masked_with[job.component] = {name: p.copy() for name, (m, p) in known.items()
                                           if name != job.component} if occluded is not None else {}
-        return self.match_component(frame, images, job, occluded, cancel)
+        return self.match_component(frame, images, job, occluded, cancel=cancel)
 
 
 class RimJudgement:

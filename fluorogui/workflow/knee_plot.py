@@ -49,7 +49,7 @@ def _flagged(ax, x, y, trusted) -> None:
             ax.plot(x[mask], np.full(mask.sum(), edge), marker, color=REVIEW_COLOUR, ms=6, clip_on=False)
 
 
-def draw_kinematics(figure: Figure, rows, side: str = "right", against: str = "frame", title: str = "",
+def draw_kinematics(figure: Figure, rows, *, side: str = "right", against: str = "frame", title: str = "",
                     current_frame: int | None = None, colours: tuple[str, str, str] | None = None) -> list:
     """Draw on ``figure`` (cleared first); returns the seven axes (six values, residual).
 
@@ -115,13 +115,13 @@ def draw_kinematics(figure: Figure, rows, side: str = "right", against: str = "f
     return axes
 
 
-def save_kinematics_figure(rows, path, side: str = "right", against: str = "frame", title: str = "") -> None:
+def save_kinematics_figure(rows, path, *, side: str = "right", against: str = "frame", title: str = "") -> None:
     """Write the figure as PNG, SVG or PDF (by the suffix), atomically."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
     figure = Figure(figsize=(10, 8), dpi=120)
     FigureCanvasAgg(figure)
-    draw_kinematics(figure, rows, side, against, title)
+    draw_kinematics(figure, rows, side=side, against=against, title=title)
     save_figure(figure, path)
 
 

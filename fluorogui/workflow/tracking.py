@@ -100,8 +100,9 @@ class TrackJob:
                 if self._is_anchor(frame, results[c]):
                     self._anchor(c, results[c], motion, residuals)
                     if waiting[c]:  # it matches again: track back into its gap
-                        mended = self._fill_back(c, frame, waiting[c], dict(held), matcher, motion, residuals,
-                                                 cancel)
+                        mended = self._fill_back(c, frame, waiting[c], dict(held), matcher=matcher, motion=motion,
+                                                 residuals=residuals,
+                                                 cancel=cancel)
                         waiting[c] = []
                         for f, o in mended:  # others matched once it was masked at its new pose there
                             if f in waiting.get(o, []):
@@ -149,7 +150,7 @@ class TrackJob:
             window = 2 * self.settings.tracking.typical_window
             residuals[c] = (residuals[c] + list(r.match.per_view_mean_mm))[-window:]
 
-    def _fill_back(self, c: str, frame: int, gap: list[int], results: dict, matcher, motion, residuals,
+    def _fill_back(self, c: str, frame: int, gap: list[int], results: dict, *, matcher, motion, residuals,
                    cancel) -> list[tuple[int, str]]:
         """Track ``c`` backward from its match in ``frame`` through the ``gap`` frames before
         it (where it failed), each predicted from the frames after it, with the other
@@ -174,7 +175,7 @@ class TrackJob:
             typical = float(np.median(residuals[c])) if len(residuals[c]) >= 2 else None
             job = ComponentInput(c, self.meshes[c], back.predict(f), back.poses[0].copy(), self.given.get((f, c)),
                                  typical, None, back.frames[0] - f, probe=False, search=False)
-            found = matcher.match_frame(f, images, [job], others, cancel)[c]
+            found = matcher.match_frame(f, images, [job], fixed=others, cancel=cancel)[c]
             if not better_result(found, results[f][c]):
                 if found.status != Status.MATCHED:
                     break
@@ -185,11 +186,12 @@ class TrackJob:
                 break
             back.add(f, found.pose)
             self._anchor(c, found, motion, residuals)
-            mended += [(f, o) for o in self._judge_again(f, c, images, results[f], matcher, motion, residuals,
-                                                         cancel)]
+            mended += [(f, o) for o in self._judge_again(f, c, images, results[f], matcher=matcher, motion=motion,
+                                                         residuals=residuals,
+                                                         cancel=cancel)]
         return mended
 
-    def _judge_again(self, f: int, c: str, images, results: dict, matcher, motion, residuals,
+    def _judge_again(self, f: int, c: str, images, results: dict, *, matcher, motion, residuals,
                      cancel) -> list[str]:
         """``c`` now matches in frame ``f`` (tracked back): the other components left flagged
         there were masked with its old pose (or none), so they are matched again with it
@@ -209,7 +211,7 @@ class TrackJob:
             job = ComponentInput(o, self.meshes[o], np.asarray(start, float), motion[o].last(before=f),
                                  self.given.get((f, o)), typical, None, 1, probe=False,
                                  first=earlier.pose if earlier.pose is not None else None)
-            again = matcher.match_frame(f, images, [job], others, cancel)[o]
+            again = matcher.match_frame(f, images, [job], fixed=others, cancel=cancel)[o]
             if better_result(again, earlier):
                 again.recovered = "judged again" + (f" ({again.recovered})" if again.recovered else "")
                 again.seconds += earlier.seconds
@@ -258,9 +260,9 @@ class TrackJob:
         # overlapping views the other's outline behind it is not there to count as missing
         fixed.update({c: (self.meshes[c], results[c].pose) for c in lost
                       if c in results and results[c].pose is not None and "find" in results[c].failed})
-        jobs = [self._input(c, frame, motion, residuals, starts, probe=c not in found_here, images=images)
+        jobs = [self._input(c, frame, motion, residuals, starts=starts, probe=c not in found_here, images=images)
                 for c in todo]
-        found = matcher.match_frame(frame, images, jobs, fixed, cancel)
+        found = matcher.match_frame(frame, images, jobs, fixed=fixed, cancel=cancel)
         for c in todo:
             results[c] = found[c]
             starts.pop(c, None)  # a start is used once; afterwards the motion predicts
@@ -270,7 +272,7 @@ class TrackJob:
         """The frame's images; the latest three frames' are kept (a jump compares the last matched one's)."""
         if frame not in self._recent:
             self._recent[frame] = read_frame_images(frame, self.image_paths.get(frame, []), len(self.views),
-                                                    self.image_counts, self.views)
+                                                    counts=self.image_counts, views=self.views)
             while len(self._recent) > 3:
                 self._recent.pop(next(iter(self._recent)))
         return self._recent[frame]
@@ -279,7 +281,7 @@ class TrackJob:
         p = motion[c].predict(frame)
         return p if p is not None else starts.get(c)
 
-    def _input(self, c, frame, motion, residuals, starts, probe: bool = True, images=None) -> ComponentInput:
+    def _input(self, c, frame, motion, residuals, *, starts, probe: bool = True, images=None) -> ComponentInput:
         m = motion[c]
         start = starts.get(c) if len(m) == 0 else m.predict(frame)
         last = m.last(before=frame)
@@ -292,11 +294,11 @@ class TrackJob:
         # find implants checks its own placements for one; a start placed by hand is probed
         located = None
         if images is not None and before and gap > NEAR_FIRST_GAP:
-            located = self._located(c, before[-1], last, start, images)
+            located = self._located(c, before[-1], last, start, images=images)
         return ComponentInput(c, self.meshes[c], np.asarray(start, float), last, self.given.get((frame, c)),
                               typical, _recent_axis(m, frame), gap, probe=probe and not before, located=located)
 
-    def _located(self, c: str, last_frame: int, last_pose, start, images) -> np.ndarray | None:
+    def _located(self, c: str, last_frame: int, last_pose, start, *, images) -> np.ndarray | None:
         """The prediction ``start`` moved to where ``c``'s image in ``last_frame`` (matched
         at ``last_pose``) lies in ``images``; None when the images do not tell."""
         try:
@@ -308,7 +310,7 @@ class TrackJob:
 
 
 def read_frame_images(frame: int, paths: Sequence[Path | None], n_views: int,
-                      counts: Sequence[int] = (), views: Sequence | None = None) -> list[np.ndarray]:
+                      *, counts: Sequence[int] = (), views: Sequence | None = None) -> list[np.ndarray]:
     """The images of a frame, one per view (corrected for each view's distortion when
     ``views`` are given), to be matched; raises InputError naming the view (and how many
     images its camera has) when one is missing, or the file when it cannot be read or is

@@ -154,5 +154,5 @@ def save_mean_plot(path, averaged: Averaged) -> Path:
     path = check_output_file(path)
     x_label = "% of the activity" if averaged.axis == "percent" else "flexion (°)"
     save_mean_figure(averaged.curves, [QUANTITY_LABELS.get(q, q) for q in averaged.quantities], x_label, path,
-                     averaged.names)
+                     trial_names=averaged.names)
     return path

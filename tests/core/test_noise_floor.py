@@ -47,7 +47,7 @@ def bowl(monkeypatch):
 def _match(problem, floor, monkeypatch):
     monkeypatch.setattr(fast, "NOISE_FLOOR", floor)
     settings = MatchSettings(centre_first=False)
-    return fast.match_fast(problem, np.array([0.3, -0.2, 0.1, 0.4, -0.3, 0.2]), settings, None, None)
+    return fast.match_fast(problem, np.array([0.3, -0.2, 0.1, 0.4, -0.3, 0.2]), settings, None, cancel=None)
 
 
 def test_a_step_promising_less_than_the_noise_ends_the_match(bowl, monkeypatch):

@@ -66,12 +66,13 @@ def test_occluded_outline_is_ignored_and_matters(scene):
 def test_quality_passes_the_right_pose_and_flags_a_wrong_one(scene):
     mesh, views, images, masks = scene
     right = segment_and_match(images, views, mesh, TRUTH + 0.5, occluded=masks)
-    q = assess(images, views, mesh, right.pose, right.converged, right.per_view_mean_mm,
-               right.image_outlines, TRUTH + 0.5, masks)
+    q = assess(images, views, mesh, right.pose, converged=right.converged, per_view_mean_mm=right.per_view_mean_mm,
+               image_outlines=right.image_outlines, predicted=TRUTH + 0.5, occluded=masks)
     assert min(q.edge_support) == 1.0 and min(q.outline_support) == 1.0, q  # measured: every point
     assert judge(q) == (Status.MATCHED, "")
     wrong = TRUTH + np.array([0.0, 0.0, 0.0, 12.0, 0.0, 0.0])  # a pose turned 12 degrees off
-    q_wrong = assess(images, views, mesh, wrong, True, [0.15, 0.15], None, TRUTH, masks)
+    q_wrong = assess(images, views, mesh, wrong, converged=True, per_view_mean_mm=[0.15, 0.15], image_outlines=None,
+                     predicted=TRUTH, occluded=masks)
     assert max(q_wrong.edge_support) < 0.5, q_wrong  # measured 0.42
     status, reason = judge(q_wrong)
     assert status == Status.NEEDS_REVIEW and "image edges" in reason and "predicted pose" not in reason

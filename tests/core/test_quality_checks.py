@@ -7,7 +7,7 @@ from fluorogui.core.status import Status
 
 def test_failed_checks_are_named():
     q = Quality(False, [0.9, 0.12], [0.97, 0.6], [0.5, 0.95], jump_mm=30.0, jump_deg=3.0)
-    names = [name for name, _ in failed_checks(q, QualityThresholds(), typical_view_mm=0.12)]
+    names = [name for name, _ in failed_checks(q, thresholds=QualityThresholds(), typical_view_mm=0.12)]
     assert names == ["converged", "residual", "edge_support", "outline_support", "jump"]
     assert set(names) <= set(CHECKS)
     assert failed_checks(Quality(True, [0.1, 0.1], [0.99, 0.99], [0.99, 0.99])) == []
@@ -61,11 +61,11 @@ def test_a_weak_view_flags_only_what_the_other_view_leaves_loose():
 
     views = _views()
     tight = np.eye(3) * 0.05 ** 2
-    assert weak_view_problem(0, views, tight, [0.05] * 3 + [0.1, 0.1, 0.1], 0.6) == ""  # pinned: passes
+    assert weak_view_problem(0, views, tight, [0.05] * 3 + [0.1, 0.1, 0.1], edge=0.6) == ""  # pinned: passes
     n = np.asarray(views[1].normal, float)
     loose = tight + 0.6 ** 2 * np.outer(n, n)  # along view 2's beam, which view 2 cannot see
-    text = weak_view_problem(0, views, loose, [0.6] * 3 + [0.1, 0.1, 0.1], 0.6)
+    text = weak_view_problem(0, views, loose, [0.6] * 3 + [0.1, 0.1, 0.1], edge=0.6)
     assert text == ("view 1 has little edge contrast (only 60 % of the model outline lies on image edges "
                     "there); judged by the other view, its depth along view 2's axis is uncertain to ±0.6 mm")
-    turned = weak_view_problem(0, views, tight, [0.05] * 3 + [0.1, 0.9, 0.1], 0.6)
+    turned = weak_view_problem(0, views, tight, [0.05] * 3 + [0.1, 0.9, 0.1], edge=0.6)
     assert turned.endswith("its rotation about the model's y axis (beta) is uncertain to ±0.9 °")

@@ -91,7 +91,7 @@ def test_mot_against_the_kinematics_csv_of_the_same_run(demo, truth, tmp_path):
     set_frame_rate(session, 25.0)
     rows = session.knee_rows()
     export_kinematics_csv(session, tmp_path / "k.csv", rows)
-    export_mot(session, tmp_path / "k.mot", rows)
+    export_mot(session, tmp_path / "k.mot", rows=rows)
     header, columns, table = parse_mot(tmp_path / "k.mot")
     assert columns == ["time", "knee_flexion", "knee_varus", "knee_internal_rotation", "knee_medial_translation",
                        "knee_anterior_translation", "knee_distraction"]

@@ -205,8 +205,8 @@ def test_tracking_locates_a_component_after_a_jump_only(monkeypatch):
         motion["tibial"].add(frame, np.array([float(frame), 0, 0, 0, 0, 0]))
         job._images(frame)
     residuals = {"tibial": []}
-    near = job._input("tibial", 2, motion, residuals, {}, images=job._images(2))
-    far = job._input("tibial", 20, motion, residuals, {}, images=job._images(20))
+    near = job._input("tibial", 2, motion, residuals, starts={}, images=job._images(2))
+    far = job._input("tibial", 20, motion, residuals, starts={}, images=job._images(20))
     assert near.located is None and far.located is not None
     np.testing.assert_allclose(far.located, [10.0, 20.0, 30.0, 0.0, 0.0, 0.0])  # the prediction's turn kept
     assert compared == [(1.0, 20.0)]  # the last matched frame's images against this one's

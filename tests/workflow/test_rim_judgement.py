@@ -49,7 +49,8 @@ def test_frame_matcher_reuses_the_models_only_after_three_matched_frames(monkeyp
     handed: dict[int, list] = {}
     state = {"frame": 0}
 
-    def fake_loop(images, views, mesh, start, settings, loop, given, occluded, step, cancel, rims, **_):
+    def fake_loop(images, views, mesh, start, *, rim_models, **_):
+        rims = rim_models
         frame = state["frame"]
         handed[frame] = list(rims)
         for k in range(len(rims)):
@@ -84,7 +85,8 @@ def test_the_attempts_of_a_frame_after_a_matched_one_start_from_its_models(monke
     handed: list[list] = []
     statuses = iter([Status.NEEDS_REVIEW] + [Status.MATCHED] * 6)
 
-    def fake_loop(images, views, mesh, start, settings, loop, given, occluded, step, cancel, rims, **_):
+    def fake_loop(images, views, mesh, start, *, rim_models, **_):
+        rims = rim_models
         handed.append(list(rims))
         for k in range(len(rims)):
             if rims[k] is None:

@@ -76,8 +76,8 @@ class _FastEvaluation:
         self.where: list[np.ndarray | None] = []
 
         def one(k: int) -> tuple:  # a view's measures, on its own (the views run side by side)
-            return _view_residuals(problem, k, R, t, settings, image_samples[k],
-                                   None if image_params is None else image_params[k])
+            return _view_residuals(problem, k, R, t, settings=settings, g=image_samples[k],
+                                   image_params=None if image_params is None else image_params[k])
 
         views = range(min(len(problem.views), len(problem.splines), len(image_samples)))
         for k, (mm, sil, blocks) in enumerate(each_view(one, views)):
@@ -85,12 +85,12 @@ class _FastEvaluation:
             self.outlines_px.append(sil.points_px)
             self.outline_model_points.append(sil.model_points)
             for r, nJ, X, weights, where in blocks:
-                self._add(r, nJ, X, c, rho, weights)
+                self._add(r, nJ, X, c, rho=rho, weights=weights)
                 self.view_of.append(k)
                 self.where.append(where)
         self.objective_mm = float(sum(self.per_view_mm))
 
-    def _add(self, r: np.ndarray, nJ: np.ndarray, X: np.ndarray, c: np.ndarray, rho: float,
+    def _add(self, r: np.ndarray, nJ: np.ndarray, X: np.ndarray, c: np.ndarray, *, rho: float,
              weights: np.ndarray | None = None) -> None:
         """Residual rows with d/d(delta_c [mm], omega*rho [mm]) for X' = exp(w)(X - c) + c + delta;
         each block (one view, one direction) sums to weight 1, shared by the outline's
@@ -120,7 +120,7 @@ class _FastEvaluation:
         return H, g
 
 
-def _view_residuals(problem: MatchProblem, k: int, R, t, settings: MatchSettings, g, image_params) -> tuple:
+def _view_residuals(problem: MatchProblem, k: int, R, t, *, settings: MatchSettings, g, image_params) -> tuple:
     """One view's part of ``_FastEvaluation``: its mean outline distance (mm), its silhouette
     and its residual blocks (signed distances, their Jacobian along the normal, the model
     points, weights, where along the image outline)."""
@@ -158,7 +158,7 @@ def _view_residuals(problem: MatchProblem, k: int, R, t, settings: MatchSettings
     return float(np.mean(dist)) * view.mm_per_px(), sil, blocks
 
 
-def _initial_translation(problem: MatchProblem, R, c, image_samples, iterations: int = 3) -> np.ndarray:
+def _initial_translation(problem: MatchProblem, R, c, image_samples, *, iterations: int = 3) -> np.ndarray:
     """Shift the centroid so the silhouette centroids meet the image-outline centroids."""
     mesh = problem.mesh
     for _ in range(iterations):
@@ -213,7 +213,7 @@ def _samples_and_params(problem: MatchProblem, settings: MatchSettings):
     return samples, kept
 
 
-def match_fast(problem, start, settings, progress, cancel) -> MatchResult:
+def match_fast(problem, start, settings, progress, *, cancel) -> MatchResult:
     mesh = problem.mesh
     R, c = _to_state(start, mesh.centroid)
     if settings.centre_first:  # whole outlines: centroids of closed curves
@@ -269,6 +269,8 @@ def match_fast(problem, start, settings, progress, cancel) -> MatchResult:
                 converged = bool(np.all(np.abs(step) < 10 * settings.xtol))
                 break
     pose = _to_pose(R, c, mesh.centroid)
-    return MatchResult(pose, ev.objective_mm, ev.per_view_mm, calls, 0.0, converged,
-                       "fast", settings.to_dict(), "" if converged else "did not converge", history,
-                       ev.normal_equations(huber)[0], ev.outlines_px, _evaluation=(pose, ev))
+    return MatchResult(pose=pose, objective_mm=ev.objective_mm, per_view_mean_mm=ev.per_view_mm, calls=calls,
+                       seconds=0.0, converged=converged, method="fast", settings=settings.to_dict(),
+                       message="" if converged else "did not converge", history=history,
+                       normal_matrix=ev.normal_equations(huber)[0], outlines_px=ev.outlines_px,
+                       evaluation=(pose, ev))

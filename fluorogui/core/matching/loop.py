@@ -93,7 +93,7 @@ class LoopSettings:
 RIM_MODES = ("auto", "on", "off")
 
 
-def outline_change_px(mesh: PreparedMesh, views: Sequence[View], before, after, outline_points=None) -> float:
+def outline_change_px(mesh: PreparedMesh, views: Sequence[View], before, after, *, outline_points=None) -> float:
     """How far (pixels, the largest over views) the model outline at ``after`` lies from where
     the same model points are at ``before``, once each view's median shift is taken out: the
     change of shape that a translation of the prediction (which segmentation searches for)
@@ -115,7 +115,7 @@ def outline_change_px(mesh: PreparedMesh, views: Sequence[View], before, after, 
 
 def _outline_points(result: MatchResult) -> list | None:
     """Per view, the model points on the outline at the result's pose, where its evaluation kept them."""
-    evaluation = result._evaluation
+    evaluation = result.evaluation
     return getattr(evaluation[1], "outline_model_points", None) if evaluation is not None else None
 
 
@@ -126,7 +126,7 @@ def predicted_outline(mesh: PreparedMesh, pose, view: View, spacing_px: float = 
 
 
 def segment_outlines(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMesh, pose,
-                     occluded: Sequence | None = None, search_px: int = 60,
+                     *, occluded: Sequence | None = None, search_px: int = 60,
                      only: Sequence[int] | None = None) -> list[np.ndarray | None]:
     """Ordered sub-pixel outline of the component in every image (or only in the views
     ``only``; None for the others), chosen along ``pose``. Raises SegmentationError naming
@@ -144,7 +144,7 @@ def segment_outlines(images: Sequence[np.ndarray], views: Sequence[View], mesh: 
     return each_view(one, range(min(len(images), len(views))))  # the views side by side
 
 
-def refine_rims(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.ndarray | None], occluded=None,
+def refine_rims(images, views, mesh: PreparedMesh, pose, *, outlines: Sequence[np.ndarray | None], occluded=None,
                 models: list[RimModel | None] | None = None,
                 only: Sequence[int] | None = None) -> tuple[list[np.ndarray | None], list[RimModel | None], list]:
     """Automatic outlines moved to the boundary the metal's rim profile gives at ``pose``
@@ -168,7 +168,7 @@ def refine_rims(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.n
     return refined, models, weights
 
 
-def soft_edge_views(images, views, mesh: PreparedMesh, pose, outlines: Sequence[np.ndarray | None],
+def soft_edge_views(images, views, mesh: PreparedMesh, pose, *, outlines: Sequence[np.ndarray | None],
                     occluded=None, models: list[RimModel | None] | None = None,
                     cancel=None) -> tuple[list[int], list]:
     """The views (with an outline) whose edge is a soft rim (``core.outlines.rim.is_soft``), judged
@@ -220,11 +220,11 @@ def fit_splines(outlines: Sequence[np.ndarray | None], weights: Sequence | None 
     return splines
 
 
-def splines_from_images(images, views, mesh, pose, occluded=None, search_px: int = 60) -> list[OutlineSpline]:
-    return fit_splines(segment_outlines(images, views, mesh, pose, occluded, search_px))
+def splines_from_images(images, views, mesh, pose, *, occluded=None, search_px: int = 60) -> list[OutlineSpline]:
+    return fit_splines(segment_outlines(images, views, mesh, pose, occluded=occluded, search_px=search_px))
 
 
-def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchSettings | None = None,
+def segment_and_match(images, views, mesh: PreparedMesh, start, *, settings: MatchSettings | None = None,
                       loop: LoopSettings | None = None, splines: Sequence[OutlineSpline | None] | None = None,
                       occluded: Sequence | None = None, progress=None, cancel=None,
                       rim_models: list[RimModel | None] | None = None,
@@ -336,20 +336,23 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
         check_cancel(cancel)
         if missing:
             try:
-                new_outlines = segment_outlines(images, views, mesh, pose, occluded,
-                                                loop.search_px if k == 0 else loop.later_search_px, missing)
+                new_outlines = segment_outlines(images, views, mesh, pose, occluded=occluded,
+                                                search_px=loop.search_px if k == 0 else loop.later_search_px,
+                                                only=missing)
                 weights = None  # the refined outlines' point weights, per view
                 if use_rim and k > 0:  # the pose is a matched one: its rim profiles are the image's
                     if rim_views is None:
-                        rim_views, judged = soft_edge_views(images, views, mesh, pose, new_outlines, occluded,
-                                                            rim_models, cancel)
+                        rim_views, judged = soft_edge_views(images, views, mesh, pose, outlines=new_outlines,
+                                                            occluded=occluded,
+                                                            models=rim_models, cancel=cancel)
                         rim_models[:] = judged
                     if rim_views and not refined:
                         trial = (new_outlines, fit_splines(new_outlines))
                     if rim_views:
                         check_cancel(cancel)
-                        new_outlines, fitted, weights = refine_rims(images, views, mesh, pose, new_outlines,
-                                                                    occluded, rim_models, rim_views)
+                        new_outlines, fitted, weights = refine_rims(images, views, mesh, pose, outlines=new_outlines,
+                                                                    occluded=occluded, models=rim_models,
+                                                                    only=rim_views)
                         rim_models[:] = fitted
                         refined = True
                 new_splines = fit_splines(new_outlines, weights)
@@ -364,13 +367,13 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
         previous = pose
         # each pass's result is judged (checks, uncertainty) only once the loop has kept it
         problem = MatchProblem(mesh, views, current, occluded)
-        result = match(problem, pose, pass_settings, progress, cancel, judge=False)
+        result = match(problem, pose, pass_settings, progress=progress, cancel=cancel, judge=False)
         if trial is not None:
             # keep the rim's outlines only where they fit the model better than Canny's own:
             # on an image the rim model does not describe, they would only add noise
             plain = [g if g is not None else n for g, n in zip(given, trial[1])]
             plain_problem = MatchProblem(mesh, views, plain, occluded)
-            other = match(plain_problem, pose, pass_settings, progress, cancel, judge=False)
+            other = match(plain_problem, pose, pass_settings, progress=progress, cancel=cancel, judge=False)
             total_calls += other.calls
             total_seconds += other.seconds
             if other.objective_mm <= result.objective_mm:
@@ -388,22 +391,22 @@ def segment_and_match(images, views, mesh: PreparedMesh, start, settings: MatchS
             break
         if passes == 1 and not rim_pending and (
                 moved < loop.settled_first
-                or outline_change_px(mesh, views, previous, pose, _outline_points(result)) < loop.settled_first_px):
+                or outline_change_px(mesh, views, previous, pose,
+                                     outline_points=_outline_points(result)) < loop.settled_first_px):
             # the start was within a fraction of a pixel: segmenting along the result would
             # pick the same edges (the search band is several pixels wide)
             break
     t_judge = time.perf_counter()
-    judge_match(problem, result, pass_settings, thresholds)
+    result = judge_match(problem, result, pass_settings, thresholds)
     total_seconds += time.perf_counter() - t_judge
-    result.calls, result.seconds, result.history = total_calls, total_seconds, history
-    result.settings = dict(result.settings, loop=loop.to_dict(), passes=passes,
-                           rim_refined=[k in (rim_views or []) and refined and use_rim for k in range(len(views))])
-    result.splines, result.image_outlines, result.outline_weights = list(current), outlines, outline_weights
-    result.passes = passes
-    return result
+    return replace(result, calls=total_calls, seconds=total_seconds, history=history,
+                   settings=dict(result.settings, loop=loop.to_dict(), passes=passes,
+                                 rim_refined=[k in (rim_views or []) and refined and use_rim
+                                              for k in range(len(views))]),
+                   splines=list(current), image_outlines=outlines, outline_weights=outline_weights, passes=passes)
 
 
-def match_images(images, views, mesh: PreparedMesh, start, settings: MatchSettings | None = None,
+def match_images(images, views, mesh: PreparedMesh, start, *, settings: MatchSettings | None = None,
                  passes: int | None = None, progress=None, cancel=None,
                  occluded=None) -> tuple[MatchResult, list[OutlineSpline]]:
     """``segment_and_match`` on automatic outlines, returning (result, splines); ``passes``
@@ -412,5 +415,6 @@ def match_images(images, views, mesh: PreparedMesh, start, settings: MatchSettin
     if passes is not None:
         loop.max_passes = max(1, int(passes))
         loop.min_passes = min(loop.min_passes, loop.max_passes)
-    out = segment_and_match(images, views, mesh, start, settings, loop, None, occluded, progress, cancel)
+    out = segment_and_match(images, views, mesh, start, settings=settings, loop=loop, splines=None,
+                            occluded=occluded, progress=progress, cancel=cancel)
     return out, out.splines

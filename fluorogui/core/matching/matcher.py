@@ -13,6 +13,7 @@ on the intensifier plane (pixels times pixel pitch), as in the paper.
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from typing import Callable
 
 import numpy as np
@@ -25,7 +26,7 @@ from fluorogui.core.matching.uncertainty import covariances, pose_sd
 from fluorogui.core.projection.pose import as_pose
 
 
-def match(problem: MatchProblem, start, settings: MatchSettings | None = None,
+def match(problem: MatchProblem, start, settings: MatchSettings | None = None, *,
           progress: ProgressCallback | None = None, cancel: Callable[[], bool] | None = None,
           judge: bool = True, thresholds: QualityThresholds | None = None) -> MatchResult:
     """The pose of one component from its outlines in one or two views (Eq. 4-6).
@@ -104,32 +105,32 @@ def match(problem: MatchProblem, start, settings: MatchSettings | None = None,
         if k > 0:
             s[:3] += rng.normal(0, settings.restart_sd[0], 3)
             s[3:] += rng.normal(0, settings.restart_sd[1], 3)
-        res = runner(problem, s, settings, progress, cancel)
+        res = runner(problem, s, settings, progress=progress, cancel=cancel)
         total_calls += res.calls
         if best is None or res.objective_mm < best.objective_mm:
             best = res
-    best.calls = total_calls
-    best.optimiser_converged = best.converged
+    best = replace(best, calls=total_calls, optimiser_converged=best.converged)
     if judge:
-        judge_match(problem, best, settings, thresholds)
-    best.seconds = time.perf_counter() - t0
-    return best
+        best = judge_match(problem, best, settings, thresholds)
+    return replace(best, seconds=time.perf_counter() - t0)
 
 
 def judge_match(problem: MatchProblem, result: MatchResult, settings: MatchSettings | None = None,
-                thresholds: QualityThresholds | None = None) -> None:
-    """The result's uncertainty and its own evidence (``core.matching.quality.match_checks``,
-    against ``thresholds``: the project's or the command line's, the defaults when None): a
-    result that fails a check is not converged, says why in ``message`` and names the checks
-    in ``failed``."""
+                thresholds: QualityThresholds | None = None) -> MatchResult:
+    """The verdict: ``result`` judged, as a copy with its uncertainty and its own evidence
+    (``core.matching.quality.match_checks``, against ``thresholds``: the project's or the
+    command line's, the defaults when None). A result that fails a check comes back not
+    converged, saying why in ``message`` and naming the checks in ``failed``; ``result``
+    itself is never changed (a ``MatchResult`` is frozen)."""
     settings = settings or MatchSettings()
     try:
-        pose_cov, body_cov = covariances(problem, result.pose, settings, evaluation=result._evaluation)
-        result.sd, result.sd_body = pose_sd(pose_cov), pose_sd(body_cov)
+        pose_cov, body_cov = covariances(problem, result.pose, settings=settings, evaluation=result.evaluation)
+        judged = replace(result, sd=pose_sd(pose_cov), sd_body=pose_sd(body_cov))
     except ValueError:  # the model behind a source at this pose
-        result.sd = result.sd_body = [float("inf")] * 6
-    problems = match_checks(problem, result, thresholds)
-    result.failed = [name for name, _ in problems]
+        judged = replace(result, sd=[float("inf")] * 6, sd_body=[float("inf")] * 6)
+    problems = match_checks(problem, judged, thresholds)
+    judged = replace(judged, failed=[name for name, _ in problems])
     if problems:
-        result.converged = False
-        result.message = "; ".join(([result.message] if result.message else []) + [text for _, text in problems])
+        judged = replace(judged, converged=False, message="; ".join(
+            ([result.message] if result.message else []) + [text for _, text in problems]))
+    return judged

@@ -44,7 +44,7 @@ def paper_view_distances(problem: MatchProblem, pose: np.ndarray, settings: Matc
     return out
 
 
-def match_paper(problem, start, settings, progress, cancel) -> MatchResult:
+def match_paper(problem, start, settings, progress, *, cancel) -> MatchResult:
     centroid = problem.mesh.centroid
     _, c0 = _to_state(start, centroid)
     x0 = np.array([*c0, *start[3:]])
@@ -90,5 +90,6 @@ def match_paper(problem, start, settings, progress, cancel) -> MatchResult:
     _, x_best, per_view = best
     if per_view is None:
         per_view = [float(v.mean()) for v in paper_view_distances(problem, pose_of(x_best), settings)]
-    return MatchResult(pose_of(x_best), float(sum(per_view)), per_view, calls[0], 0.0,
-                       converged[0], "paper", settings.to_dict(), "" if converged[0] else message, history)
+    return MatchResult(pose=pose_of(x_best), objective_mm=float(sum(per_view)), per_view_mean_mm=per_view,
+                       calls=calls[0], seconds=0.0, converged=converged[0], method="paper",
+                       settings=settings.to_dict(), message="" if converged[0] else message, history=history)

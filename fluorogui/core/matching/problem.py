@@ -60,9 +60,7 @@ class MatchSettings:
 MIN_OUTLINE_POINTS = 8
 
 
-@dataclass
-
-
+@dataclass(frozen=True, kw_only=True)
 class MatchResult:
     pose: np.ndarray
     objective_mm: float
@@ -90,8 +88,8 @@ class MatchResult:
     optimiser_converged: bool = False
     #: the checks of its own evidence it failed (``quality.MATCH_CHECKS`` names; ``judge_match``)
     failed: list[str] = field(default_factory=list)
-    #: fast method: (pose, evaluation) at the result, reused by the covariance
-    _evaluation: tuple | None = field(default=None, repr=False, compare=False)
+    #: fast method: (pose, evaluation) at the result, reused by the covariance and the loop
+    evaluation: tuple | None = field(default=None, repr=False, compare=False)
     #: from images (``matching.loop.segment_and_match``): the outline splines the result
     #: was matched on, per view ...
     splines: list | None = field(default=None, repr=False)

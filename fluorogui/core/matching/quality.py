@@ -112,7 +112,7 @@ def model_outline(mesh: PreparedMesh, pose, view: View, spacing_px: float = 2.0)
     return sil.points_px
 
 
-def edge_support(image: np.ndarray, outline_px: np.ndarray, occluded: np.ndarray | None = None,
+def edge_support(image: np.ndarray, outline_px: np.ndarray, *, occluded: np.ndarray | None = None,
                  tol_px: float = 1.5, thresholds: tuple[float, float] = (0.04, 0.12), sigma: float = 1.0) -> float:
     """Share of the (visible) outline points lying within ``tol_px`` of a Canny edge of
     ``image``, with Canny run on a crop around the outline."""
@@ -162,7 +162,7 @@ def pose_jump(mesh: PreparedMesh, pose, predicted) -> tuple[float, float]:
     return motion_between(pose, predicted, mesh.centroid)
 
 
-def assess(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMesh, pose, converged: bool,
+def assess(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMesh, pose, *, converged: bool,
            per_view_mean_mm: Sequence[float], image_outlines: Sequence[np.ndarray] | None,
            predicted=None, occluded: Sequence | None = None, tol_px: float = 1.5,
            fields: Sequence[np.ndarray] | None = None, model_outlines: Sequence[np.ndarray] | None = None,
@@ -176,7 +176,7 @@ def assess(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMe
     for k, (image, view) in enumerate(zip(images, views)):
         mask = occluded[k] if occluded is not None and k < len(occluded) else None
         model = model_outlines[k] if model_outlines is not None else model_outline(mesh, pose, view)
-        edge.append(edge_support(image, model, mask, tol_px))
+        edge.append(edge_support(image, model, occluded=mask, tol_px=tol_px))
         if image_outlines is not None:
             support.append(outline_support(image_outlines[k], model, mask, tol_px))
         if fields is not None and k < len(fields) and fields[k] is not None:
@@ -254,7 +254,7 @@ def judge(quality: Quality, thresholds: QualityThresholds | None = None,
           typical_view_mm: float | None = None, view_names: Sequence[str] | None = None) -> tuple[str, str]:
     """(status, reason): ``matched`` with an empty reason when every check passes, else
     ``needs_review`` with every failed check in plain words."""
-    problems = failed_checks(quality, thresholds, typical_view_mm, view_names)
+    problems = failed_checks(quality, thresholds=thresholds, typical_view_mm=typical_view_mm, view_names=view_names)
     return (Status.NEEDS_REVIEW, "; ".join(text for _, text in problems)) if problems else (Status.MATCHED, "")
 
 
@@ -262,7 +262,7 @@ def judge(quality: Quality, thresholds: QualityThresholds | None = None,
 CHECKS = ("converged", "residual", "edge_support", "outline_support", "visible", "jump")
 
 
-def failed_checks(quality: Quality, thresholds: QualityThresholds | None = None,
+def failed_checks(quality: Quality, *, thresholds: QualityThresholds | None = None,
                   typical_view_mm: float | None = None, view_names: Sequence[str] | None = None,
                   why_not_converged: str = "") -> list[tuple[str, str]]:
     """The checks (``CHECKS``) a pose fails, each with its reason in plain words (empty:
@@ -313,7 +313,7 @@ def weak_view(problems: Sequence[tuple[str, str]], quality: Quality,
 
 
 def weak_view_problem(weak: int, views: Sequence[View], centroid_cov: np.ndarray, sd_body: Sequence[float],
-                      edge: float, thresholds: QualityThresholds | None = None) -> str:
+                      *, edge: float, thresholds: QualityThresholds | None = None) -> str:
     """Judge a pose whose view ``weak`` has weak edges by the other views alone:
     ``centroid_cov`` (3 x 3, world mm^2) and ``sd_body`` (the turn about the model's axes,
     deg, last three used) are the pose's uncertainty from those views' outlines. Empty when

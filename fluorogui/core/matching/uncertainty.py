@@ -21,14 +21,14 @@ CLUSTER_PX = 48.0
 MIN_STRETCHES = 8
 
 
-def pose_covariance(problem: MatchProblem, pose, settings: MatchSettings | None = None,
+def pose_covariance(problem: MatchProblem, pose, *, settings: MatchSettings | None = None,
                     cluster_px: float = CLUSTER_PX, evaluation: tuple | None = None) -> np.ndarray:
     """Covariance (6x6; mm and degrees) of the pose variables x, y, z, alpha, beta, gamma
     (``covariances`` gives it together with the body's)."""
-    return covariances(problem, pose, settings, cluster_px, evaluation)[0]
+    return covariances(problem, pose, settings=settings, cluster_px=cluster_px, evaluation=evaluation)[0]
 
 
-def covariances(problem: MatchProblem, pose, settings: MatchSettings | None = None,
+def covariances(problem: MatchProblem, pose, *, settings: MatchSettings | None = None,
                 cluster_px: float = CLUSTER_PX, evaluation: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Covariances (6x6; mm and degrees) of the pose variables x, y, z, alpha, beta, gamma,
     and of the body's own motion: its centroid (world x, y, z) and its turn about its own

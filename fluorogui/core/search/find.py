@@ -288,7 +288,7 @@ def _candidates(lib, views, maps, centres, rotations, shifts, keep: int, steps: 
     return distinct
 
 
-def _rank_hypotheses(lib, views, maps, hypotheses, steps: _Steps, at: float, span: float) -> list[np.ndarray]:
+def _rank_hypotheses(lib, views, maps, hypotheses, *, steps: _Steps, at: float, span: float) -> list[np.ndarray]:
     """The one or two most promising positions. A very quick scan (100 orientations, all
     hypotheses in one batch) keeps eight, a quick one (600) keeps the best 20 orientations
     of each, and those are scored again on the sharp maps: blurred maps let a tibial
@@ -333,7 +333,7 @@ def _rank_hypotheses(lib, views, maps, hypotheses, steps: _Steps, at: float, spa
 
 
 # -- the final fit and the verdict ---------------------------------------------------------------
-def _outline_iou(mesh, pose, view: View, spline, shape, hidden: np.ndarray | None = None) -> float:
+def _outline_iou(mesh, pose, view: View, spline, *, shape, hidden: np.ndarray | None = None) -> float:
     """IoU at half resolution of the silhouette at ``pose`` and the region inside ``spline``,
     on the part of the image ``hidden`` (another component's projection) leaves free."""
     h, w = shape[0] // 2, shape[1] // 2
@@ -363,13 +363,14 @@ def _fit(images, views, mesh, pose, steps: _Steps):
     return res, splines
 
 
-def _assess(images, views, mesh, lib, maps, res, splines, hidden=None):
+def _assess(images, views, mesh, lib, *, maps, res, splines, hidden=None):
     """Per-view IoU of silhouette and outline region, and edge scores, at ``res.pose``, on
     what the components found before (``hidden``, per view) leave free."""
     pose = res.pose
     R = rotation_matrix(*pose[3:])
     hidden = hidden or [None] * len(views)
-    iou = [_outline_iou(mesh, pose, v, s, img.shape[:2], m) for v, s, img, m in zip(views, splines, images, hidden)]
+    iou = [_outline_iou(mesh, pose, v, s, shape=img.shape[:2], hidden=m) for v, s, img, m in zip(views, splines,
+                                                                                                 images, hidden)]
     return iou, ss.pose_edge_score(lib.coarse, R, R @ mesh.centroid + pose[:3], views, maps=maps, hidden=hidden)
 
 
@@ -394,7 +395,7 @@ def _verdict(res, iou, edge, views, maps) -> str:
     return ""
 
 
-def _conclude(name, mesh, lib, images, views, maps, cands, steps: _Steps, t0: float, where: str = "") -> Placement:
+def _conclude(name, mesh, lib, images, *, views, maps, cands, steps: _Steps, t0: float, where: str = "") -> Placement:
     """Fit the best candidates on Canny outlines and judge the result (``where`` qualifies
     the reason when nothing fits, e.g. " near the predicted pose")."""
     alternatives = [(c.score, c.pose(mesh)) for c in cands]
@@ -422,13 +423,14 @@ def _conclude(name, mesh, lib, images, views, maps, cands, steps: _Steps, t0: fl
     if max(_pose_change(mesh, start, first.pose)) > SETTLED:
         # the outline was segmented along a pose that then moved: once more along the fit
         res, splines = _fit(images, views, mesh, first.pose, steps) or fits[0][:2]
-    iou, edge = _assess(images, views, mesh, lib, maps, res, splines, steps.hidden)
+    iou, edge = _assess(images, views, mesh, lib, maps=maps, res=res, splines=splines, hidden=steps.hidden)
     reason = _verdict(res, iou, edge, views, maps)
     if not reason and len(fits) > 1:
         other, other_splines, _ = fits[1]
         apart = _angle_deg(rotation_matrix(*first.pose[3:]), rotation_matrix(*other.pose[3:]))
         if (apart > 20.0 and _objective_px(other, views, maps) - _objective_px(first, views, maps) < CLEAR_OBJECTIVE_PX
-                and not _verdict(other, *_assess(images, views, mesh, lib, maps, other, other_splines, steps.hidden),
+                and not _verdict(other, *_assess(images, views, mesh, lib, maps=maps, res=other,
+                                                 splines=other_splines, hidden=steps.hidden),
                                  views, maps)):
             reason = f"two orientations {apart:.0f}° apart fit equally well"
     steps.report(1.0, f"{name}: done")
@@ -462,7 +464,7 @@ class _Rounds:
         return self._rounds[k]
 
 
-def _near(lib, views, maps, mesh, pose, steps: _Steps, span: float) -> list[_Candidate]:
+def _near(lib, views, maps, mesh, *, pose, steps: _Steps, span: float) -> list[_Candidate]:
     """The candidates about a predicted ``pose``: orientations within ``NEAR_DEG``, 64 px either way."""
     pose = np.asarray(pose, float)
     R0 = rotation_matrix(*pose[3:])
@@ -471,7 +473,7 @@ def _near(lib, views, maps, mesh, pose, steps: _Steps, span: float) -> list[_Can
 
 
 def near_candidates(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMesh, pose,
-                    cancel: Callable[[], bool] | None = None) -> list[np.ndarray]:
+                    *, cancel: Callable[[], bool] | None = None) -> list[np.ndarray]:
     """Tracking recovery's search near a predicted ``pose``: the poses ``find_components``
     would fit on Canny outlines (the best candidate whose edges fit, and a runner-up within
     ``CLOSE_SCORE``), best first, without that fit and its verdict - recovery matches from
@@ -481,12 +483,12 @@ def near_candidates(images: Sequence[np.ndarray], views: Sequence[View], mesh: P
         raise ValueError("finding implants needs two images and two views")
     steps = _Steps(None, cancel, 1)
     maps = ss.edge_maps_of(images)[1]
-    cands = [c for c in _near(ss.shape_library(mesh), views, maps, mesh, pose, steps, 1.0)
+    cands = [c for c in _near(ss.shape_library(mesh), views, maps, mesh, pose=pose, steps=steps, span=1.0)
              if c.score >= MIN_CANDIDATE_SCORE and min(c.scores) >= MIN_EDGE_SCORE]
     return [c.pose(mesh) for c in cands[:2] if c.score >= cands[0].score - CLOSE_SCORE]
 
 
-def _find_one(name, mesh, images, views, maps, rounds, near_pose, steps: _Steps, occupied) -> Placement:
+def _find_one(name, mesh, images, views, *, maps, rounds, near_pose, steps: _Steps, occupied) -> Placement:
     """Near a predicted pose, or from the position hypotheses: ``rounds`` are lists of
     hypotheses tried in turn until the component is found; hypotheses closer than half
     the summed radii to an ``occupied`` (centroid, radius) of a component already found
@@ -494,8 +496,9 @@ def _find_one(name, mesh, images, views, maps, rounds, near_pose, steps: _Steps,
     t0 = time.perf_counter()
     lib = ss.shape_library(mesh)
     if near_pose is not None:
-        cands = _near(lib, views, maps, mesh, near_pose, steps, 0.5)
-        return _conclude(name, mesh, lib, images, views, maps, cands, steps, t0, " near the predicted pose")
+        cands = _near(lib, views, maps, mesh, pose=near_pose, steps=steps, span=0.5)
+        return _conclude(name, mesh, lib, images, views=views, maps=maps, cands=cands, steps=steps, t0=t0,
+                         where=" near the predicted pose")
     best, seen = None, False
     for r, hypotheses in enumerate(rounds):
         seen = seen or bool(hypotheses)
@@ -504,9 +507,10 @@ def _find_one(name, mesh, images, views, maps, rounds, near_pose, steps: _Steps,
         if not hypotheses:
             continue
         steps.span = (0.0, 0.7) if r == 0 else (0.7, 1.0)
-        centres = _rank_hypotheses(lib, views, maps, hypotheses, steps, 0.0, 0.25)
+        centres = _rank_hypotheses(lib, views, maps, hypotheses, steps=steps, at=0.0, span=0.25)
         cands = _candidates(lib, views, maps, centres, _grid(4000), ss.shift_grid(48, 16), KEEP, steps, 0.25, 0.35)
-        placement = _conclude(name, mesh, lib, images, views, maps, cands, steps, t0, " in the images")
+        placement = _conclude(name, mesh, lib, images, views=views, maps=maps, cands=cands, steps=steps, t0=t0,
+                              where=" in the images")
         if placement.found:
             return placement
         closer = best is not None and placement.pose is not None and (
@@ -521,7 +525,7 @@ def _find_one(name, mesh, images, views, maps, rounds, near_pose, steps: _Steps,
     return best
 
 
-def find_components(images: Sequence[np.ndarray], views: Sequence[View], meshes: dict[str, PreparedMesh],
+def find_components(images: Sequence[np.ndarray], views: Sequence[View], meshes: dict[str, PreparedMesh], *,
                     near: dict[str, np.ndarray] | None = None, progress: ProgressFn | None = None,
                     cancel: Callable[[], bool] | None = None) -> dict[str, Placement]:
     """Locate every component in an image pair with no start pose (*find implants*).
@@ -588,13 +592,15 @@ def find_components(images: Sequence[np.ndarray], views: Sequence[View], meshes:
         if found_meshes:
             steps.hidden = [projected_region(view, found_meshes, HIDE_MARGIN_PX) for view in views]
             seen = [m.with_hidden(h, MIN_EDGE_SCORE) for m, h in zip(maps, steps.hidden)]
-        out[name] = p = _find_one(name, mesh, images, views, seen, rounds, near.get(name), steps, occupied)
+        out[name] = p = _find_one(name, mesh, images, views, maps=seen, rounds=rounds, near_pose=near.get(name),
+                                  steps=steps, occupied=occupied)
         if found_meshes and not p.found:
             # the masked pixels score a middling edge for free, so positions beside the others
             # can outrank the component's own (the real tray at mid flexion: 40 mm off, 75-85
             # deg turned): its edges are scored once more unmasked, the others still left out
             # of its fit and verdict
-            plain = _find_one(name, mesh, images, views, maps, rounds, near.get(name), steps, occupied)
+            plain = _find_one(name, mesh, images, views, maps=maps, rounds=rounds, near_pose=near.get(name),
+                              steps=steps, occupied=occupied)
             if plain.found or (plain.pose is not None and (p.pose is None or plain.objective_mm < p.objective_mm)):
                 out[name] = p = plain
         steps.hidden = None

@@ -118,12 +118,12 @@ class KneeActions(QObject):
         kept: list = []
         try:
             with collected_input_warnings() as notes:
-                count = exports.import_poses(session, path, component, view or 0, kept=kept)
+                count = exports.import_poses(session, path, component=component, view=view or 0, kept=kept)
                 if kept and self.window.ask(
                         "Import poses", f"{len(kept)} pose{'s' if len(kept) > 1 else ''} in {Path(path).name} "
                         f"would replace matched or accepted ones (frame {frame_list(f for f, _ in kept)}). "
                         "Replace them too?"):
-                    count = exports.import_poses(session, path, component, view or 0, replace=True)
+                    count = exports.import_poses(session, path, component=component, view=view or 0, replace=True)
                     kept = []
         except (InputError, KinematicsError, ValueError) as exc:
             self.window.warn("Import poses failed", str(exc))

@@ -62,7 +62,8 @@ def plate_task(plates: dict[int, str], spacing_mm: float, grid: str, model: str)
         from fluorogui.core.calibration.distortion import residual_picture
         from fluorogui.workflow.calibration import fit_plates
 
-        fits = fit_plates(plates, spacing_mm, grid, model, progress=lambda text: reporter.report(text, force=True),
+        fits = fit_plates(plates, spacing_mm, grid=grid, model=model, progress=lambda text: reporter.report(text,
+                                                                                                            force=True),
                           cancel=reporter.cancelled)
         return [PlateOutcome(view, r.fit.summary(), r.correction, residual_picture(r.image, r.fit))
                 for view, r in sorted(fits.items())]
@@ -77,7 +78,7 @@ def bead_task(images: dict[int, str], phantom_csv: str, corrections: dict[int, d
         from fluorogui.io.beads import read_phantom_csv
         from fluorogui.workflow.calibration import calibrate_views
 
-        found = calibrate_views(images, phantom_csv, corrections, pitch,
+        found = calibrate_views(images, phantom_csv, corrections=corrections, pitch=pitch,
                                 progress=lambda text: reporter.report(text, force=True), cancel=reporter.cancelled)
         beads = read_phantom_csv(phantom_csv)
         out = []

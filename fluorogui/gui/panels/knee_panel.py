@@ -220,12 +220,12 @@ class KneePanel(QWidget):
         palette = self.palette()  # the theme's colours (light or dark)
         colours = tuple(palette.color(role).name() for role in (
             QPalette.ColorRole.Window, QPalette.ColorRole.Base, QPalette.ColorRole.Text))
-        self.axes = draw_kinematics(self.figure, self.rows, side, self.against.currentData(),
+        self.axes = draw_kinematics(self.figure, self.rows, side=side, against=self.against.currentData(),
                                     current_frame=self.current_frame, colours=colours)
         self.canvas.draw_idle()
         window = self.curves_window
         if window is not None and window.isVisible():
-            window.axes = draw_kinematics(window.figure, self.rows, side, self.against.currentData(),
+            window.axes = draw_kinematics(window.figure, self.rows, side=side, against=self.against.currentData(),
                                           current_frame=self.current_frame, colours=colours)
             window.canvas.draw_idle()
 

@@ -48,7 +48,7 @@ def _check_row_count(path: Path, rows: int, frames: list[int]) -> None:
         raise InputError(path, f"has {rows} rows but the session has {len(frames)} frames")
 
 
-def import_poses(session, path, component: str | None = None, view: int = 0, replace: bool = False,
+def import_poses(session, path, *, component: str | None = None, view: int = 0, replace: bool = False,
                  kept: list | None = None) -> int:
     """Read poses from another tool into the session (status ``placed``, reason naming the
     file, so they are reviewed before use) as one undoable step; returns how many. Poses

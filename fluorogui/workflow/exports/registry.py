@@ -136,7 +136,7 @@ def write_exports(session, targets: dict[str, Path], options: ExportOptions | No
 
 
 def export_notes(session, names, options: ExportOptions, naming: Callable[[ExportFormat], str],
-                 remedy: str) -> list[tuple[list, str]]:
+                 *, remedy: str) -> list[tuple[list, str]]:
     """What the exports ``names`` leave out, or write although unchecked, each as (poses or
     frames concerned, the words): poses flagged for review in the files without a status,
     poses not matched or accepted in the motion files, and each format's own caveat (a C3D

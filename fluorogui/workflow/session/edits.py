@@ -63,7 +63,8 @@ class Edits:
         self.notify = notify
 
     # -- poses ---------------------------------------------------------------------------------
-    def set_pose(self, component: str, frame: int, pose, text: str = "Move model", mergeable: bool = False) -> None:
+    def set_pose(self, component: str, frame: int, pose, text: str = "Move model", *,
+                 mergeable: bool = False) -> None:
         """Set a pose by hand (status ``placed``), as one undoable edit.
 
         Parameters
@@ -89,11 +90,11 @@ class Edits:
         >>> session.pose_record("femoral", 1) is None
         True
         """
-        self._push_pose(component, frame, PoseRecord(as_pose(pose)), text, "move" if mergeable else None)
+        self._push_pose(component, frame, PoseRecord(as_pose(pose)), text, merge_id="move" if mergeable else None)
 
     def set_record(self, component: str, frame: int, record: PoseRecord | None, text: str) -> None:
         """Store a whole pose record (a match result) through the history."""
-        self._push_pose(component, frame, record, text, None)
+        self._push_pose(component, frame, record, text, merge_id=None)
 
     def set_reviewed(self, component: str, frame: int, reviewed: bool = True) -> None:
         """Accept (or reopen) a component's pose in a frame, as one undoable edit.
@@ -114,7 +115,7 @@ class Edits:
         else:
             after = PoseRecord(before.pose.copy(), before.match, reviewed=reviewed, status=before.status,
                                reason=before.reason)
-        self._push_pose(component, frame, after, "Accept pose" if reviewed else "Reopen pose", None)
+        self._push_pose(component, frame, after, "Accept pose" if reviewed else "Reopen pose", merge_id=None)
 
     def place_at(self, component: str, frame: int, pixels) -> float:
         """Point-and-click placement in two views, keeping the model's orientation.
@@ -152,7 +153,7 @@ class Edits:
         pose[:3] = world_centroid - rotation_matrix(*angles) @ centroid
         self.set_pose(component, frame, pose, text="Orientation preset")
 
-    def _push_pose(self, component, frame, after, text, merge_id) -> None:
+    def _push_pose(self, component, frame, after, text, *, merge_id) -> None:
         key = (int(frame), component)
         before = self.project.poses.get(key)
         self.history.push(Command(text, key, before, after, self._store_pose, merge_id))
@@ -197,7 +198,7 @@ class Edits:
         record = self.project.records.get(tuple(key))
         return None if record is None else record.points.copy()
 
-    def set_outline(self, key, points, text: str = "Edit outline", reviewed: bool | None = True,
+    def set_outline(self, key, points, text: str = "Edit outline", *, reviewed: bool | None = True,
                     weights: np.ndarray | None = None) -> None:
         """Change an outline, as one undoable edit.
 

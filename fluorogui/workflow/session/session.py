@@ -422,8 +422,9 @@ class Session:
 
     # -- undoable edits (the edits) --------------------------------------------------------------
     @_as(Edits.set_pose)
-    def set_pose(self, component: str, frame: int, pose, text: str = "Move model", mergeable: bool = False) -> None:
-        self.edits.set_pose(component, frame, pose, text, mergeable)
+    def set_pose(self, component: str, frame: int, pose, text: str = "Move model", *,
+                 mergeable: bool = False) -> None:
+        self.edits.set_pose(component, frame, pose, text, mergeable=mergeable)
 
     @_as(Edits.set_record)
     def set_record(self, component: str, frame: int, record: PoseRecord | None, text: str) -> None:
@@ -454,9 +455,9 @@ class Session:
         return self.edits.outline_points(key)
 
     @_as(Edits.set_outline)
-    def set_outline(self, key, points, text: str = "Edit outline", reviewed: bool | None = True,
+    def set_outline(self, key, points, text: str = "Edit outline", *, reviewed: bool | None = True,
                     weights: np.ndarray | None = None) -> None:
-        self.edits.set_outline(key, points, text, reviewed, weights)
+        self.edits.set_outline(key, points, text, reviewed=reviewed, weights=weights)
 
     @_as(Edits.spline)
     def spline(self, key) -> OutlineSpline | None:
@@ -492,21 +493,21 @@ class Session:
         self.work.store_placements(placements, replace)
 
     @_as(Work.find)
-    def find(self, frame: int, components=None, progress=None, cancel=None,
+    def find(self, frame: int, components=None, *, progress=None, cancel=None,
              replace: bool = False) -> dict[str, Placement]:
-        return self.work.find(frame, components, progress, cancel, replace)
+        return self.work.find(frame, components, progress=progress, cancel=cancel, replace=replace)
 
     @_as(Work.track_job)
-    def track_job(self, frames: Sequence[int] | None = None, components=None, redo: bool = False,
+    def track_job(self, frames: Sequence[int] | None = None, components=None, *, redo: bool = False,
                   first: int | None = None, last: int | None = None, run: str | None = None) -> TrackJob:
-        return self.work.track_job(frames, components, redo, first, last, run)
+        return self.work.track_job(frames, components, redo=redo, first=first, last=last, run=run)
 
     @_as(Work.track)
-    def track(self, frames: Sequence[int] | None = None, components=None, redo: bool = False,
+    def track(self, frames: Sequence[int] | None = None, components=None, *, redo: bool = False,
               progress: TrackProgress | None = None, cancel: Callable[[], bool] | None = None,
               autosave: bool = False, first: int | None = None, last: int | None = None,
               run: str | None = None, workers: int = 1) -> Iterator[FrameResult]:
-        return self.work.track(frames, components, redo, progress=progress, cancel=cancel, autosave=autosave,
+        return self.work.track(frames, components, redo=redo, progress=progress, cancel=cancel, autosave=autosave,
                                first=first, last=last, run=run, workers=workers)
 
     # -- the knee (its side, anatomical frames, kinematics) --------------------------------------

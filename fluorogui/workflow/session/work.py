@@ -14,7 +14,7 @@ constructor.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Iterator, Protocol, Sequence
 
@@ -57,8 +57,9 @@ class MatchJob:
         follows every step of the matcher. Raises InputError for a missing image and
         ``Cancelled`` when ``cancel()`` turns true."""
         images = read_frame_images(self.frame, self.image_paths, len(self.views), views=self.views)
-        matcher = FrameMatcher(self.views, self.settings, near_search(self.views, self.settings), live, self.rim)
-        found = matcher.match_frame(self.frame, images, self.inputs, self.fixed, cancel)
+        matcher = FrameMatcher(self.views, self.settings, near_search(self.views, self.settings), live=live,
+                              rim=self.rim)
+        found = matcher.match_frame(self.frame, images, self.inputs, fixed=self.fixed, cancel=cancel)
         return [found[j.component] for j in self.inputs]
 
 
@@ -332,7 +333,7 @@ class Work:
         finally:
             self.history.end_macro()
 
-    def find(self, frame: int, components=None, progress=None, cancel=None,
+    def find(self, frame: int, components=None, *, progress=None, cancel=None,
              replace: bool = False) -> dict[str, Placement]:
         """Find the components in a frame with no start pose (*find implants*).
 
@@ -374,7 +375,7 @@ class Work:
         return placements
 
     # -- track -------------------------------------------------------------------------------------
-    def track_job(self, frames: Sequence[int] | None = None, components=None, redo: bool = False,
+    def track_job(self, frames: Sequence[int] | None = None, components=None, *, redo: bool = False,
                   first: int | None = None, last: int | None = None, run: str | None = None) -> TrackJob:
         """A tracking job, to run anywhere (see :meth:`track` for the parameters).
 
@@ -426,7 +427,7 @@ class Work:
         return TrackJob(self.reader.views, meshes, frames, paths, names, settings, anchors, keep, given, residuals,
                         starts, image_counts=counts, rim=self.rim_models())
 
-    def track(self, frames: Sequence[int] | None = None, components=None, redo: bool = False,
+    def track(self, frames: Sequence[int] | None = None, components=None, *, redo: bool = False,
               progress: TrackProgress | None = None, cancel: Callable[[], bool] | None = None,
               autosave: bool = False, first: int | None = None, last: int | None = None,
               run: str | None = None, workers: int = 1) -> Iterator[FrameResult]:
@@ -494,7 +495,7 @@ class Work:
         >>> session.frame_state(1).name
         'OUTLINED'
         """
-        job = self.track_job(frames, components, redo, first, last, run)
+        job = self.track_job(frames, components, redo=redo, first=first, last=last, run=run)
         if workers > 1 and len(job.frames) >= 4:
             from fluorogui.workflow.tracking import run_parallel
 
@@ -508,7 +509,7 @@ class Work:
             if run is not None:
                 for r in results:
                     if r.match is not None:
-                        r.match.settings = dict(r.match.settings, run=run)
+                        r.match = replace(r.match, settings=dict(r.match.settings, run=run))
             self.storage.store(results, f"Track frame {frame}")
             if autosave and self.storage.path is not None and any(not r.kept for r in results):
                 if done % FULL_SAVE_FRAMES == 0:

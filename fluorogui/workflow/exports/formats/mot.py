@@ -29,7 +29,7 @@ def mot_table(rows, include_unreviewed: bool = False) -> np.ndarray:
     return table
 
 
-def export_mot(session, path, rows=None, fps: float | None = None, include_unreviewed: bool = False) -> Path:
+def export_mot(session, path, *, rows=None, fps: float | None = None, include_unreviewed: bool = False) -> Path:
     """OpenSim Storage: ``time`` and the six knee values named ``MOT_COLUMNS``."""
     path = check_output_file(path)
     rate = require_frame_rate(session, path, fps)
@@ -52,5 +52,5 @@ FORMAT = register(ExportFormat(
     name="mot", order=80, label="Kinematics for OpenSim (.mot)", default_name="{stem}_knee.mot", metavar="OUT.mot",
     help="OpenSim motion: time and the six knee values (degrees, metres)", short=".mot", timed=True,
     kinematic=True, motion=True,
-    write=lambda session, path, options: [export_mot(session, path, options.rows, options.fps,
-                                                     options.include_unreviewed)]))
+    write=lambda session, path, options: [export_mot(session, path, rows=options.rows, fps=options.fps,
+                                                     include_unreviewed=options.include_unreviewed)]))
