@@ -94,7 +94,7 @@ class TrackJob:
         waiting: dict[str, list[int]] = {c: [] for c in self.components}  # failed frames, per component
         for done, frame in enumerate(self.frames):
             check_cancel(cancel)
-            results = self._frame(frame, matcher, motion, residuals, starts, cancel)
+            results = self._frame(frame, matcher, motion, residuals, starts=starts, cancel=cancel)
             held.append((frame, results))
             for c in self.components:
                 if self._is_anchor(frame, results[c]):
@@ -221,7 +221,7 @@ class TrackJob:
                     matched.append(o)
         return matched
 
-    def _frame(self, frame, matcher, motion, residuals, starts, cancel) -> dict[str, FrameResult]:
+    def _frame(self, frame, matcher, motion, residuals, *, starts, cancel) -> dict[str, FrameResult]:
         t0 = time.perf_counter()
         results: dict[str, FrameResult] = {}
         todo = []

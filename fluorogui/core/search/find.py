@@ -246,7 +246,7 @@ def _grid(n: int) -> np.ndarray:
     return _GRIDS[n]
 
 
-def _candidates(lib, views, maps, centres, rotations, shifts, keep: int, steps: _Steps, at: float, span: float,
+def _candidates(lib, views, maps, centres, *, rotations, shifts, keep: int, steps: _Steps, at: float, span: float,
                 final: int = 3):
     """Scan ``rotations`` at every centre and keep the best ``keep`` distinct ones over all
     centres; screen them with a short refinement on the image edges, finish the best
@@ -469,7 +469,8 @@ def _near(lib, views, maps, mesh, *, pose, steps: _Steps, span: float) -> list[_
     pose = np.asarray(pose, float)
     R0 = rotation_matrix(*pose[3:])
     centre = R0 @ mesh.centroid + pose[:3]
-    return _candidates(lib, views, maps, [centre], near_rotations(R0), ss.shift_grid(64, 16), 4, steps, 0.0, span)
+    return _candidates(lib, views, maps, [centre], rotations=near_rotations(R0), shifts=ss.shift_grid(64, 16), keep=4,
+                       steps=steps, at=0.0, span=span)
 
 
 def near_candidates(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMesh, pose,
@@ -508,7 +509,8 @@ def _find_one(name, mesh, images, views, *, maps, rounds, near_pose, steps: _Ste
             continue
         steps.span = (0.0, 0.7) if r == 0 else (0.7, 1.0)
         centres = _rank_hypotheses(lib, views, maps, hypotheses, steps=steps, at=0.0, span=0.25)
-        cands = _candidates(lib, views, maps, centres, _grid(4000), ss.shift_grid(48, 16), KEEP, steps, 0.25, 0.35)
+        cands = _candidates(lib, views, maps, centres, rotations=_grid(4000), shifts=ss.shift_grid(48, 16), keep=KEEP,
+                            steps=steps, at=0.25, span=0.35)
         placement = _conclude(name, mesh, lib, images, views=views, maps=maps, cands=cands, steps=steps, t0=t0,
                               where=" in the images")
         if placement.found:
