@@ -104,8 +104,9 @@ def run_batch(paths: Sequence[str], *, workers: int | None = None, scheduler: st
                                dashboard_address=None, silence_logs=logging.CRITICAL)
         client = Client(cluster)
     try:
-        futures = {client.submit(track_project, str(Path(p).absolute()), frames, components, redo, run, on_frame,
-                                 key=f"track-{run}-{i}", pure=False): p for i, p in enumerate(paths)}
+        futures = {client.submit(track_project, str(Path(p).absolute()), frames=frames, components=components,
+                                 redo=redo, run=run, on_frame=on_frame, key=f"track-{run}-{i}", pure=False): p
+                   for i, p in enumerate(paths)}
         for future in as_completed(futures):
             try:
                 yield future.result()
