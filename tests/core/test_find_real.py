@@ -55,19 +55,22 @@ def test_recovery_near_a_perturbed_pose(real):
 
 #: the tray's pose where tracking matched it (frames without a reference pose; issue 48)
 TRACKED_TRAY = {"140": np.array([-25.248421, -57.999871, -172.788656, -154.746157, -171.81999, 73.314748]),
-                "200": np.array([-127.288107, -33.207598, -130.232902, -154.812794, 174.669362, 64.18959])}
+                "200": np.array([-127.288107, -33.207598, -130.232902, -154.812794, 174.669362, 64.18959]),
+                "220": np.array([-162.883217, -42.574249, -118.879491, -157.823845, 172.510816, 64.310883])}
 
 
-def test_the_tray_at_mid_flexion_is_not_lost_beside_the_femur(real):
+def test_the_tray_at_mid_flexion_is_found_beside_the_femur(real):
     # with the femoral component found first and masked, its masked pixels scored for free and
     # the tray's search went to positions beside it: frame 140 declined (1.5 px in view 2),
-    # frame 200's best candidate 40 mm / 80 deg off. Measured now: 140 found, 0.01 mm / 0.03
-    # deg from tracking's pose; 200 at 0.00 mm / 0.00 deg (declined still: overlap 0.93 in view 1)
+    # frame 200's best candidate 40 mm / 80 deg off. Then 200 and 220 were placed right but
+    # declined, "best overlap 0.93 / 0.69 in view 1": the image outline closed its faint stem
+    # by a chord across the gap (200: bulging beside it; 220: cutting across it), and the
+    # region the chord enclosed counted as a misfit. Measured now: found, 0.00-0.02 mm /
+    # 0.03-0.06 deg from tracking's pose, overlap 0.975-0.993
     views, images, _, meshes = real
     for frame, tracked in TRACKED_TRAY.items():
         p = find_components(images(frame), views, meshes)["tibial"]
-        assert p.pose is not None, (frame, p.reason)
+        assert p.found, (frame, p.reason)
         mm, deg = _errors(p.pose, tracked)
         assert mm < 0.05 and deg < 0.1, (frame, mm, deg)
-        if frame == "140":
-            assert p.found, p.reason
+        assert min(p.iou) > 0.965, (frame, p.iou)

@@ -43,7 +43,8 @@ predicted one (tracking recovery), and say honestly when it could not.
 ``Placement.iou`` is the silhouette IoU with the region enclosed by the image outline
 segmented at the pose (half resolution), not with a thresholded dark region: those are
 too poor (a tibial tray is lost, a femoral component merges with soft tissue) and only
-propose positions here.
+propose positions here. Regions the outline only closes by a chord across a gap (a faint
+stem) are left out where the silhouette lies on image edges (``outline_overlap``).
 
 Measured on the real biplane data (benchmarks/bench_find.py, 2 shared cores): both
 components right and found in every frame with a reference (26 femoral, 27 tibial), none
@@ -56,7 +57,6 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
-import cv2
 import numpy as np
 
 from fluorogui.core.cancel import check_cancel
@@ -67,6 +67,7 @@ from fluorogui.core.projection.pose import angles_from_matrix, rotation_matrix, 
 from fluorogui.core.projection.silhouette import projected_region
 from fluorogui.core.search import shape_search as ss
 from fluorogui.core.search.orientation import orientation_grid
+from fluorogui.core.search.outline_overlap import outline_iou
 
 #: per-view mean outline distance above which a fit is not accepted, in px of a 1024-pixel image
 #: (right on the real data: 0.35-0.7 px = 0.11-0.21 mm; wrong: >= 1.4 px). Pixels, not mm: a
@@ -333,25 +334,6 @@ def _rank_hypotheses(lib, views, maps, hypotheses, *, steps: _Steps, at: float, 
 
 
 # -- the final fit and the verdict ---------------------------------------------------------------
-def _outline_iou(mesh, pose, view: View, spline, *, shape, hidden: np.ndarray | None = None) -> float:
-    """IoU at half resolution of the silhouette at ``pose`` and the region inside ``spline``,
-    on the part of the image ``hidden`` (another component's projection) leaves free."""
-    h, w = shape[0] // 2, shape[1] // 2
-    a = np.zeros((h, w), np.uint8)
-    b = np.zeros((h, w), np.uint8)
-    sil = ss.outline(mesh, rotation_matrix(*pose[3:]), rotation_matrix(*pose[3:]) @ mesh.centroid + pose[:3],
-                     view, spacing_px=1.0)[0]
-    ring = spline.sample(max(64, int(spline.length_px)))
-    for canvas, pts in ((a, sil), (b, ring)):
-        cv2.fillPoly(canvas, [np.round((pts * 0.5 - 0.25) * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
-    if hidden is not None:
-        free = cv2.resize(np.asarray(hidden, np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) == 0
-        a &= free
-        b &= free
-    union = np.count_nonzero(a | b)
-    return float(np.count_nonzero(a & b) / union) if union else 0.0
-
-
 def _fit(images, views, mesh, pose, steps: _Steps):
     """One segment-and-match pass on Canny outlines from ``pose``, with the components found
     before masked (``steps.hidden``): (result, splines), or None when no usable outline is
@@ -369,8 +351,8 @@ def _assess(images, views, mesh, lib, *, maps, res, splines, hidden=None):
     pose = res.pose
     R = rotation_matrix(*pose[3:])
     hidden = hidden or [None] * len(views)
-    iou = [_outline_iou(mesh, pose, v, s, shape=img.shape[:2], hidden=m) for v, s, img, m in zip(views, splines,
-                                                                                                 images, hidden)]
+    iou = [outline_iou(mesh, pose, v, s, shape=img.shape[:2], hidden=m, image=img)
+           for v, s, img, m in zip(views, splines, images, hidden)]
     return iou, ss.pose_edge_score(lib.coarse, R, R @ mesh.centroid + pose[:3], views, maps=maps, hidden=hidden)
 
 
