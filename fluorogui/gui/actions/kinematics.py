@@ -1,25 +1,33 @@
 """The Kinematics panel's presenter: the panel's rows kept in step with the session (the
 frame on screen, the side, the poses as they change), its figure saved, the side and the
 anatomical frames set. The rows come from ``Session.knee_rows`` and the figure from
-``fluorogui.workflow.exports``; this only asks the user and shows the result."""
+``fluorogui.workflow.exports``; this only asks the user and shows the result.
+
+The contact rows (``workflow.contact``, ~8 ms a frame) are computed off the GUI thread, in a
+runner of their own (never blocking a match), when the contact plot is shown and the
+poses changed; a change during the computation starts another once it ends."""
 from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
 
-from PySide6.QtCore import QObject, QTimer
+from PySide6.QtCore import QObject, QTimer, Signal
 from PySide6.QtWidgets import QDialog, QFileDialog
 
 from fluorogui.core.knee.kinematics import KinematicsError
 from fluorogui.gui.dialogs.anatomical_frame import AnatomicalFrameDialog
 from fluorogui.gui.notices import Notices
 from fluorogui.gui.panels.knee_panel import KneePanel
+from fluorogui.gui.worker import TaskRunner
 from fluorogui.io.errors import InputError
 from fluorogui.workflow import exports
+from fluorogui.workflow.contact import session_contact_job
 
 
 class KinematicsPresenter(QObject):
     """The Kinematics panel (a ``KneePanel``) of a main window."""
+
+    contact_changed = Signal()  # new contact rows (``contact_rows``)
 
     def __init__(self, controller, panel: KneePanel, notices: Notices, *,
                  export_folder: Callable[[], Path]) -> None:
@@ -33,6 +41,14 @@ class KinematicsPresenter(QObject):
         panel.side_chosen.connect(lambda side: c.session.set_side(side))
         panel.export_figure_requested.connect(self.export_figure)
         panel.edit_frames_requested.connect(self.edit_anatomical_frames)
+        panel.plot_changed.connect(lambda _plot: self.refresh_contact())
+        self.contact_rows: list = []  # of the poses when last computed
+        self.contact_stale = True
+        self.contact_wanted = False  # by the 3D scene's condyle points, besides the plot
+        self._poses_seen = 0  # counts refreshes: a result of older poses is dropped
+        self.contact_runner = TaskRunner(self)
+        self.contact_runner.finished.connect(self._contact_done)
+        self.contact_runner.failed.connect(self._contact_failed)
         # poses change in bursts (a tracked frame stores two; an import hundreds): recompute
         # once the burst is over, off the path of the frame the user is looking at
         self.refresh_timer = QTimer(self)
@@ -51,17 +67,62 @@ class KinematicsPresenter(QObject):
     def refresh_knee(self) -> None:
         """Recompute the rows from the session (cheap) and hand them to the panel."""
         session = self.session
+        self.contact_stale = True
+        self._poses_seen += 1
         if not session.frames:
             self.panel.set_rows([], None)
+            self._no_contact("No frames.")
             return
         try:
             rows = session.knee_rows()
         except (InputError, KinematicsError, KeyError) as exc:
             self.panel.set_rows([], None)
             self.panel.status.setText(f"No kinematics: {exc}")
+            self._no_contact(f"No contact: {exc}")
             return
         self.panel.set_side(session.side)
         self.panel.set_rows(rows, self.controller.frame)
+        self.refresh_contact()
+
+    # -- contact ----------------------------------------------------------------------------------
+    def refresh_contact(self) -> None:
+        """Start computing the contact rows if they are out of date and shown (or
+        ``contact_wanted``: the 3D scene's condyle points)."""
+        if not self.contact_stale or not (self.contact_wanted or self.panel.shows_contact()) or not self.panel.rows:
+            return
+        if self.contact_runner.is_running():
+            return  # _contact_done starts the next
+        try:
+            job = session_contact_job(self.session, knee_rows=self.panel.rows)
+        except (InputError, KinematicsError, KeyError) as exc:
+            self._no_contact(f"No contact: {exc}")
+            return
+        self.contact_stale = False
+        if not self.panel.contact_rows:
+            self.panel.set_contact([], None, "Computing the contact…")
+        seen = self._poses_seen
+        self.contact_runner.start(lambda _reporter: (seen, *job()), "contact")
+
+    def _contact_done(self, result) -> None:
+        seen, rows, pivot = result
+        if seen == self._poses_seen:
+            self.contact_rows = rows
+            self.panel.set_contact(rows, pivot)
+            self.contact_changed.emit()
+        self.refresh_contact()
+
+    def _contact_failed(self, message: str) -> None:
+        self._no_contact(f"No contact: {message}")
+        self.refresh_contact()
+
+    def _no_contact(self, note: str) -> None:
+        self.contact_rows = []
+        self.panel.set_contact([], None, note)
+        self.contact_changed.emit()
+
+    def close(self) -> None:
+        """Wait for a contact computation (the window is closing)."""
+        self.contact_runner.wait()
 
     def export_figure(self) -> None:
         if not self.session.frames:
