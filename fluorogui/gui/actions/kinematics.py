@@ -5,7 +5,9 @@ anatomical frames set. The rows come from ``Session.knee_rows`` and the figure f
 
 The contact rows (``workflow.contact``, ~8 ms a frame) are computed off the GUI thread, in a
 runner of their own (never blocking a match), when the contact plot is shown and the
-poses changed; a change during the computation starts another once it ends."""
+poses changed; a change during the computation starts another once it ends. With *View →
+Condyle contact points* the 3D scene shows the current frame's points on the tray (placed
+by the tray's pose as it is now, so they follow it at once)."""
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -21,7 +23,7 @@ from fluorogui.gui.panels.knee_panel import KneePanel
 from fluorogui.gui.worker import TaskRunner
 from fluorogui.io.errors import InputError
 from fluorogui.workflow import exports
-from fluorogui.workflow.contact import session_contact_job
+from fluorogui.workflow.contact import contact_world_points, session_contact_job
 
 
 class KinematicsPresenter(QObject):
@@ -30,13 +32,17 @@ class KinematicsPresenter(QObject):
     contact_changed = Signal()  # new contact rows (``contact_rows``)
 
     def __init__(self, controller, panel: KneePanel, notices: Notices, *,
-                 export_folder: Callable[[], Path]) -> None:
-        """``export_folder``: where a saved figure goes by default (the export folder)."""
+                 export_folder: Callable[[], Path], scene=None, points_action=None) -> None:
+        """``export_folder``: where a saved figure goes by default (the export folder);
+        ``scene``: the 3D scene widget (None without one); ``points_action``: the checkable
+        *Condyle contact points* action."""
         super().__init__(notices.parent_widget)
         self.controller = c = controller
         self.panel = panel
         self.notices = notices
         self._export_folder = export_folder
+        self.scene = scene
+        self.points_action = points_action
         panel.frame_selected.connect(c.set_frame)
         panel.side_chosen.connect(lambda side: c.session.set_side(side))
         panel.export_figure_requested.connect(self.export_figure)
@@ -59,6 +65,9 @@ class KinematicsPresenter(QObject):
         c.pose_changed.connect(lambda _f, _c: self.refresh_timer.start())
         c.knee_changed.connect(lambda _what: self.refresh_knee())
         c.frame_changed.connect(lambda frame: panel.set_current(frame))
+        c.frame_changed.connect(lambda _frame: self.show_contact_points())
+        c.pose_changed.connect(lambda _f, component: component == "tibial" and self.show_contact_points())
+        self.contact_changed.connect(self.show_contact_points)
 
     @property
     def session(self):
@@ -119,6 +128,33 @@ class KinematicsPresenter(QObject):
         self.contact_rows = []
         self.panel.set_contact([], None, note)
         self.contact_changed.emit()
+
+    def toggle_contact_points(self, on: bool | None = None) -> None:
+        """Show or hide the condyles' points in the 3D scene (by default as the action says)."""
+        if on is None:
+            on = self.points_action.isChecked() if self.points_action is not None else not self.contact_wanted
+        if self.points_action is not None:
+            self.points_action.setChecked(on)
+        self.contact_wanted = bool(on)
+        self.refresh_contact()
+        self.show_contact_points()
+
+    def show_contact_points(self) -> None:
+        """The current frame's points in the scene, from the last contact rows and the
+        tray's pose now; hidden when off, missing or not computed yet."""
+        if self.scene is None:
+            return
+        points = None
+        frame = self.controller.frame
+        row = next((r for r in self.contact_rows if r.frame == frame), None) if self.contact_wanted else None
+        record = self.session.pose_record("tibial", frame) if row is not None else None
+        if record is not None and row.status != "missing":
+            try:
+                points = contact_world_points(row, record.pose, self.session.anatomical_frame("tibial"),
+                                              self.session.side or "right")
+            except (InputError, KinematicsError, KeyError):
+                points = None
+        self.scene.scene.set_contact_points(points)
 
     def close(self) -> None:
         """Wait for a contact computation (the window is closing)."""
