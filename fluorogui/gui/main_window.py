@@ -273,6 +273,7 @@ class MainWindow(QMainWindow):
         if self.runner.is_running():
             self.runner.cancel()
             self.runner.wait(5000)
+        self.presenters.kinematics.close()  # its contact computation
         self._save_layout()
         self.files.recovery.discard()
         self.controller.close()

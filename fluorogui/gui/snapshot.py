@@ -5,7 +5,8 @@ are made by ``docs/screenshots/make_screenshots.py``)::
 
     python -m fluorogui.gui.snapshot OUT.png [--project FILE | --import-folder DIR]
         [--size 1280x800] [--frame N] [--find] [--match | --match-both] [--track-both]
-        [--show-frame N] [--component NAME] [--theme light|dark] [--dock matcher|pose|session] [--edges]
+        [--show-frame N] [--component NAME] [--theme light|dark] [--dock matcher|pose|session|kinematics] [--edges]
+        [--contact]
 
 Frames are frame numbers. The steps run in this order: find, match, track (from
 ``--frame`` through the following frames), then ``--show-frame`` picks the frame on
@@ -38,8 +39,11 @@ def main(argv=None) -> int:
     parser.add_argument("--show-frame", type=int, help="frame number on screen for the picture")
     parser.add_argument("--component")
     parser.add_argument("--theme", default="system")
-    parser.add_argument("--dock", choices=["matcher", "pose", "session"], help="the tab raised on the right")
+    parser.add_argument("--dock", choices=["matcher", "pose", "session", "kinematics"],
+                        help="the tab raised on the right")
     parser.add_argument("--edges", action="store_true", help="show the Canny edges (View > Show edges)")
+    parser.add_argument("--contact", action="store_true",
+                        help="the Kinematics dock's contact plot, and the condyle points in the 3D scene")
     parser.add_argument("--settings", type=Path, help="QSettings ini file (default: a temporary one)")
     args = parser.parse_args(argv)
 
@@ -120,7 +124,18 @@ def main(argv=None) -> int:
     if args.show_frame is not None:
         window.controller.set_frame(args.show_frame)
     if args.dock:
-        getattr(window, f"{args.dock}_dock").raise_()
+        window.docks[args.dock].raise_()
+    if args.contact:
+        kinematics = window.presenters.kinematics
+        window.docks["kinematics"].raise_()
+        window.knee_panel.plot.setCurrentIndex(window.knee_panel.plot.findData("contact"))
+        kinematics.toggle_contact_points(True)
+        t = time.perf_counter()
+        while kinematics.contact_stale or kinematics.contact_runner.is_running():
+            if time.perf_counter() - t > 120:
+                break
+            wait(50)
+        timings["contact_s"] = round(time.perf_counter() - t, 3)
     if args.edges:
         window.display.toggle_edges(True)
     session = window.controller.session

@@ -159,6 +159,40 @@ def contact_rows(session, setup: ContactSetup | None = None, frames=None, knee_r
     return out
 
 
+def session_contact_job(session, knee_rows=None):
+    """What :func:`contact_rows` needs of a session, taken now (its femoral mesh, anatomical
+    frames, side and ``knee_rows``), and a callable that computes from it, later and in
+    another thread if wished (it no longer reads the session): ``() -> (rows, pivot)``.
+
+    Raises
+    ------
+    KeyError, fluorogui.io.errors.InputError, fluorogui.core.knee.kinematics.KinematicsError
+        A model is missing or unreadable.
+    """
+    mesh = session.raw_mesh("femoral")
+    frames = {c: session.anatomical_frame(c) for c in ("femoral", "tibial")}
+    side = session.side or "right"
+    rows = session.knee_rows() if knee_rows is None else list(knee_rows)
+
+    def run() -> tuple[list[ContactRow], Pivot]:
+        setup = contact_setup(mesh, femoral_frame=frames["femoral"], tibial_frame=frames["tibial"], side=side)
+        out = contact_rows(None, setup, knee_rows=rows)
+        return out, pivot_of_rows(out)
+
+    return run
+
+
+def contact_world_points(row: ContactRow, tibial_pose, tibial_frame, side: str) -> dict[str, np.ndarray]:
+    """A row's lowest points in world mm (``{"medial": (3,), "lateral": (3,)}``, NaN when
+    missing): undone the left knee's mirror, through the tibial anatomical frame
+    (anatomical → model) and the tray's pose (model → world, a 6-vector or 4×4)."""
+    pose = np.asarray(tibial_pose, dtype=float)
+    to_world = (pose if pose.shape == (4, 4) else pose_to_matrix(pose)) @ np.asarray(tibial_frame, dtype=float)
+    mirror = np.array([1.0 if check_side(side) == "right" else -1.0, 1.0, 1.0])
+    return {name: to_world[:3, :3] @ (getattr(row.contact, name).lowest * mirror) + to_world[:3, 3]
+            for name in ("medial", "lateral")}
+
+
 def contact_of_poses(poses: dict[tuple[int, str], np.ndarray], setup: ContactSetup, femoral_frame
                      ) -> list[ContactRow]:
     """Contact per frame of bare poses (``{(frame, component): pose}``). A frame with both

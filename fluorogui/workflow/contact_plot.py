@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from fluorogui.workflow.knee_plot import REVIEW_COLOUR, save_figure
+from fluorogui.workflow.knee_plot import REVIEW_COLOUR, apply_colours, save_figure
 
 CONDYLE_COLOURS = {"medial": "#1f77b4", "lateral": "#ff7f0e"}
 LIFTOFF_COLOUR = "#d62728"
@@ -30,14 +30,19 @@ def contact_arrays(rows) -> dict[str, np.ndarray]:
     return out
 
 
-def draw_contact(figure: Figure, rows, *, side: str = "right", title: str = "", pivot=None) -> list:
+def draw_contact(figure: Figure, rows, *, side: str = "right", title: str = "", pivot=None,
+                 stacked: bool = False, current_frame: int | None = None,
+                 colours: tuple[str, str, str] | None = None) -> list:
     """Draw on ``figure`` (cleared first); returns the two axes (AP against flexion, the
-    tray from above). ``pivot``: a ``core.knee.contact.Pivot`` to mark on the tray."""
+    tray from above). ``pivot``: a ``core.knee.contact.Pivot`` to mark on the tray;
+    ``stacked``: one above the other (a narrow panel), else side by side;
+    ``current_frame``: marked on both; ``colours``: as ``knee_plot.draw_kinematics``."""
     figure.clear()
     figure.set_layout_engine("constrained")
     data = contact_arrays(rows)
-    grid = figure.add_gridspec(1, 2, width_ratios=[1.5, 1])
-    ap, tray = figure.add_subplot(grid[0, 0]), figure.add_subplot(grid[0, 1])
+    grid = (figure.add_gridspec(2, 1, height_ratios=[1.2, 1]) if stacked
+            else figure.add_gridspec(1, 2, width_ratios=[1.5, 1]))
+    ap, tray = figure.add_subplot(grid[0]), figure.add_subplot(grid[1])
     ap.set_gid("contact_ap")
     tray.set_gid("contact_tray")
     flexion = data["flexion"]
@@ -74,8 +79,14 @@ def draw_contact(figure: Figure, rows, *, side: str = "right", title: str = "", 
     for ax in (ap, tray):
         ax.tick_params(labelsize=7)
         ax.grid(True, alpha=0.3)
+    now = np.flatnonzero(data["frame"] == current_frame) if current_frame is not None else []
+    for i in now:
+        for name in ("medial", "lateral"):
+            ap.plot([flexion[i]], [data[name][i, 1]], "o", color="k", ms=7, mfc="none", mew=1.4)
+            tray.plot([data[name][i, 0]], [data[name][i, 1]], "o", color="k", ms=7, mfc="none", mew=1.4)
     heading = f"Condylar contact ({side} knee; tibial frame, + lateral, + anterior)"
     figure.suptitle(f"{title}: {heading}" if title else heading, fontsize=9)
+    apply_colours(figure, [ap, tray], colours)
     return [ap, tray]
 
 

@@ -100,19 +100,28 @@ def draw_kinematics(figure: Figure, rows, *, side: str = "right", against: str =
     for ax in axes[2::3][:2]:
         ax.set_xlabel(x_label, fontsize=7)
     heading = f"Knee kinematics ({side} knee; tibia relative to femur, Grood & Suntay)"
-    suptitle = figure.suptitle(f"{title}: {heading}" if title else heading, fontsize=9)
-    if colours is not None:
-        background, area, text = colours
-        figure.set_facecolor(background)
-        suptitle.set_color(text)
-        for ax in axes:
-            ax.set_facecolor(area)
-            ax.title.set_color(text)
-            ax.xaxis.label.set_color(text)
-            ax.tick_params(colors=text)
-            for spine in ax.spines.values():
-                spine.set_color(text)
+    figure.suptitle(f"{title}: {heading}" if title else heading, fontsize=9)
+    apply_colours(figure, axes, colours)
     return axes
+
+
+def apply_colours(figure: Figure, axes, colours: tuple[str, str, str] | None) -> None:
+    """Give a drawn figure an app theme's ``colours`` (background, plot area, text); None
+    leaves matplotlib's."""
+    if colours is None:
+        return
+    background, area, text = colours
+    figure.set_facecolor(background)
+    for words in figure.texts:  # the title
+        words.set_color(text)
+    for ax in axes:
+        ax.set_facecolor(area)
+        ax.title.set_color(text)
+        ax.xaxis.label.set_color(text)
+        ax.yaxis.label.set_color(text)
+        ax.tick_params(colors=text)
+        for spine in ax.spines.values():
+            spine.set_color(text)
 
 
 def save_kinematics_figure(rows, path, *, side: str = "right", against: str = "frame", title: str = "") -> None:

@@ -16,8 +16,10 @@ from fluorogui.workflow import Session
 from fluorogui.workflow.contact import (
     CONTACT_COLUMNS,
     contact_rows,
+    contact_world_points,
     export_contact_csv,
     pivot_of_rows,
+    session_contact_job,
     session_contact_setup,
 )
 from fluorogui.workflow.contact_plot import draw_contact, save_contact_figure
@@ -101,6 +103,35 @@ def test_a_left_knee_reads_the_mirror_of_the_right(demo, truth):
     for f in (0, 1, 3):
         np.testing.assert_allclose(left[f].medial.lowest, right[f].lateral.lowest * [-1, 1, 1], atol=1e-9)
         np.testing.assert_allclose(left[f].lateral.lowest, right[f].medial.lowest * [-1, 1, 1], atol=1e-9)
+
+
+def test_world_points_are_the_same_points_on_either_side(demo, truth):
+    """In world the lowest points do not depend on which knee it is: a left knee's medial
+    point is where the right knee's lateral one is (the mirror undone)."""
+    session = prepared(demo, truth)
+    frame = session.anatomical_frame("tibial")
+    world = {}
+    for side in ("right", "left"):
+        session.set_side(side)
+        row = contact_rows(session, frames=[0])[0]
+        world[side] = contact_world_points(row, session.pose("tibial", 0), frame, side)
+    np.testing.assert_allclose(world["left"]["medial"], world["right"]["lateral"], atol=1e-9)
+    np.testing.assert_allclose(world["left"]["lateral"], world["right"]["medial"], atol=1e-9)
+    assert np.linalg.norm(world["right"]["medial"] - world["right"]["lateral"]) > 20  # two condyles apart
+
+
+def test_a_contact_job_computes_from_what_it_took_then(demo, truth):
+    """The job (the app runs it in a thread) gives the rows and pivot of the session as it was
+    when the job was made, not as it is when it runs."""
+    session = prepared(demo, truth)
+    job = session_contact_job(session)
+    expected = contact_rows(session)
+    session.project.poses.clear()
+    rows, found = job()
+    assert [r.status for r in rows] == [r.status for r in expected]
+    for got, want in zip(rows, expected):
+        np.testing.assert_allclose(got.contact.medial.lowest, want.contact.medial.lowest, atol=1e-12)
+    assert found.frames_used == pivot_of_rows(expected).frames_used
 
 
 def test_trials_averaged_from_sessions(demo, truth, tmp_path):

@@ -58,8 +58,8 @@ def project(tmp_path, capsys):
 
 def test_the_real_formats_are_declared_once_each():
     names = [f.name for f in formats()]
-    assert names == ["poses", "kinematics", "tra", "jts", "plot", "contact", "c3d", "trc", "mot", "xromm"]
-    assert [f.name for f in formats() if f.timed] == ["c3d", "trc", "mot"]
+    assert names == ["poses", "kinematics", "tra", "jts", "plot", "contact", "c3d", "trc", "condyles", "mot", "xromm"]
+    assert [f.name for f in formats() if f.timed] == ["c3d", "trc", "condyles", "mot"]
     with pytest.raises(ValueError, match="two export formats"):
         registry.register(ExportFormat(name="tra", label="", default_name="", metavar="", help="",
                                        write=_write_toy))
@@ -103,7 +103,8 @@ def test_a_toy_format_is_a_check_box_of_the_export_dialog(toy, qtbot, tmp_path):
     assert dialog.checks["toy"].text() == "Toy poses (JSON lines)" and not dialog.checks["toy"].isChecked()
     assert dialog.names["toy"].text() == "knee_toy.jsonl"
     dialog.checks["toy"].setChecked(True)
-    assert dialog.time_note.text() == "C3D, .trc, .mot and toy file need the frame rate: give it above."
+    assert dialog.time_note.text() == ("C3D, .trc, condyle markers, .mot and toy file need the frame rate: "
+                                       "give it above.")
     assert dialog.targets()["toy"] == tmp_path / "knee_toy.jsonl"
 
 

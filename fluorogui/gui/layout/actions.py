@@ -109,6 +109,10 @@ ACTIONS = (
     ActionSpec("view.edges", "Show &edges", lambda p: p.display.toggle_edges(),
                _in("view", "1_images", 2, ("4_images", 2)), shortcut="Ctrl+E", icon="edges",
                tip="Show Canny edges (thresholds on the toolbar)", checkable=True),
+    ActionSpec("view.contact_points", "Condyle &contact points", lambda p: p.kinematics.toggle_contact_points(),
+               _in("view", "2_scene", 1), checkable=True,
+               tip="Show each femoral condyle's lowest point on the tray in the 3D scene, for the frame on screen "
+                   "(medial magenta, lateral yellow)"),
     # the active model's pose from the keyboard
     *_nudge_actions(),
     # the Match menu (and Find in the Model menu)

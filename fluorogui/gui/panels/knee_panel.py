@@ -1,12 +1,15 @@
 """The Kinematics panel: the current frame's six knee values, the side, and the curves
-across frames (matplotlib, embedded) where a click goes to that frame.
+across frames (matplotlib, embedded) where a click goes to that frame; or, chosen beside
+them, the contact plot (each condyle's lowest point on the tray against flexion, lift-off
+marked: ``workflow.contact_plot``).
 
-It draws what it is given (``set_rows``: ``fluorogui.workflow.session.knee.KneeRow``s); the main
-window computes them from the session (the anatomical frames are edited in
-``dialogs.anatomical_frame``). The curves keep a readable size (``PLOT_MIN_SIZE``) and
-scroll when the dock is smaller (a laptop screen), instead of being squeezed into strips;
-*Curves in a window* shows them in a window of their own, sized to the screen
-(``CurvesWindow``). A long review reason is one line, the whole on demand (*Details*).
+It draws what it is given (``set_rows``: ``fluorogui.workflow.session.knee.KneeRow``s;
+``set_contact``: ``fluorogui.workflow.contact.ContactRow``s); the presenter computes them
+from the session (the anatomical frames are edited in ``dialogs.anatomical_frame``). The
+curves keep a readable size (``PLOT_MIN_SIZE``) and scroll when the dock is smaller (a
+laptop screen), instead of being squeezed into strips; *Curves in a window* shows them in
+a window of their own, sized to the screen (``CurvesWindow``). A long review reason is one
+line, the whole on demand (*Details*).
 """
 from __future__ import annotations
 
@@ -30,6 +33,7 @@ from PySide6.QtWidgets import (
 
 from fluorogui.core.knee.kinematics import KINEMATICS_LABELS
 from fluorogui.gui.panels.matcher_panel import one_line
+from fluorogui.workflow.contact_plot import draw_contact
 from fluorogui.workflow.knee_plot import UNITS, draw_kinematics
 
 #: the smallest size (px) the seven plots are drawn at: below it the plot area scrolls
@@ -37,6 +41,7 @@ PLOT_MIN_SIZE = (380, 640)
 #: the curves window's size where the screen has room for it
 CURVES_WINDOW_SIZE = (1000, 820)
 SIDE_CHOICES = (("Not set (right assumed)", None), ("Right knee", "right"), ("Left knee", "left"))
+PLOT_CHOICES = (("Kinematics", "kinematics"), ("Contact", "contact"))
 
 
 class CurvesWindow(QWidget):
@@ -73,11 +78,22 @@ class KneePanel(QWidget):
     side_chosen = Signal(str)
     export_figure_requested = Signal()
     edit_frames_requested = Signal()
+    plot_changed = Signal(str)  # "kinematics" or "contact"
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.rows: list = []
         self.current_frame: int | None = None
+        self.contact_rows: list = []
+        self.contact_pivot = None
+        self.contact_note = "Contact not computed yet."  # why there is no plot, or ""
+        self.plot = QComboBox()
+        self.plot.setObjectName("kneePlot")
+        self.plot.setToolTip("The figure: the knee's six curves, or the condyles' contact on the tray "
+                             "(lowest points against flexion, lift-off marked)")
+        for text, value in PLOT_CHOICES:
+            self.plot.addItem(text, value)
+        self.plot.currentIndexChanged.connect(self._plot_changed)
         self.side = QComboBox()
         self.side.setObjectName("kneeSide")
         self.side.setToolTip("Which knee this is: the signs of varus, rotation and medial translation depend on it")
@@ -102,10 +118,11 @@ class KneePanel(QWidget):
         self.curves_window: CurvesWindow | None = None
         top = QGridLayout()  # rows: a narrow dock keeps every control visible
         top.addWidget(self.side, 0, 0)
-        top.addWidget(self.against, 0, 1)
-        top.addWidget(self.window_button, 0, 2)
+        top.addWidget(self.plot, 0, 1)
+        top.addWidget(self.against, 0, 2)
         top.addWidget(frames, 1, 0)
         top.addWidget(export, 1, 1)
+        top.addWidget(self.window_button, 1, 2)
         top.setColumnStretch(3, 1)
 
         self.value_labels: list[QLabel] = []
@@ -169,7 +186,19 @@ class KneePanel(QWidget):
         self.set_current(current_frame)
         self._redraw_timer.start()
 
+    def shows_contact(self) -> bool:
+        return self.plot.currentData() == "contact"
+
+    def set_contact(self, rows: list, pivot=None, note: str = "") -> None:
+        """The contact of every frame and its pivot, or ``note`` saying why there is none
+        (or that it is being computed); redrawn now when shown."""
+        self.contact_rows, self.contact_pivot, self.contact_note = rows, pivot, note
+        if self.shows_contact():
+            self.redraw()
+
     def set_current(self, frame: int | None) -> None:
+        if frame != self.current_frame and self.shows_contact():
+            self._redraw_timer.start()  # the current frame's ring
         self.current_frame = frame
         row = next((r for r in self.rows if r.frame == frame), None)
         if row is None:
@@ -205,6 +234,8 @@ class KneePanel(QWidget):
     def resizeEvent(self, event) -> None:  # noqa: N802 (Qt override)
         super().resizeEvent(event)
         self._fit_status()
+        if self.shows_contact():
+            self._redraw_timer.start()  # stacked or side by side, as the dock's shape asks
 
     def show_curves_window(self) -> None:
         """Open (or raise) the curves in their own window, sized to the screen."""
@@ -215,18 +246,33 @@ class KneePanel(QWidget):
         self.curves_window.raise_()
         self.redraw()
 
-    def redraw(self) -> None:
+    def _plot_changed(self, _index: int) -> None:
+        self.against.setEnabled(not self.shows_contact())  # the contact plot is against flexion
+        self.redraw()
+        self.plot_changed.emit(self.plot.currentData())
+
+    def _draw(self, figure: Figure, stacked: bool) -> list:
         side = self.side.currentData() or "right"
         palette = self.palette()  # the theme's colours (light or dark)
         colours = tuple(palette.color(role).name() for role in (
             QPalette.ColorRole.Window, QPalette.ColorRole.Base, QPalette.ColorRole.Text))
-        self.axes = draw_kinematics(self.figure, self.rows, side=side, against=self.against.currentData(),
-                                    current_frame=self.current_frame, colours=colours)
+        if not self.shows_contact():
+            return draw_kinematics(figure, self.rows, side=side, against=self.against.currentData(),
+                                   current_frame=self.current_frame, colours=colours)
+        if self.contact_note:
+            figure.clear()
+            figure.set_facecolor(colours[0])
+            figure.text(0.5, 0.5, self.contact_note, ha="center", va="center", wrap=True, color=colours[2])
+            return []
+        return draw_contact(figure, self.contact_rows, side=side, pivot=self.contact_pivot, stacked=stacked,
+                            current_frame=self.current_frame, colours=colours)
+
+    def redraw(self) -> None:
+        self.axes = self._draw(self.figure, stacked=self.canvas.height() > 0.8 * self.canvas.width())
         self.canvas.draw_idle()
         window = self.curves_window
         if window is not None and window.isVisible():
-            window.axes = draw_kinematics(window.figure, self.rows, side=side, against=self.against.currentData(),
-                                          current_frame=self.current_frame, colours=colours)
+            window.axes = self._draw(window.figure, stacked=False)
             window.canvas.draw_idle()
 
     # -- what the user does ------------------------------------------------------------------------
@@ -237,16 +283,27 @@ class KneePanel(QWidget):
 
     def frame_near(self, x: float, y: float | None, axes_gid: str | None) -> int | None:
         """The frame of the point nearest a click at data (x, y) in the axes ``axes_gid``."""
+        if axes_gid == "contact_tray":
+            return self._contact_frame_near(x, y)
         if not self.rows:
             return None
         frames = np.array([r.frame for r in self.rows], dtype=float)
-        if self.against.currentData() == "frame" or axes_gid == "residual_mm":
+        if axes_gid != "contact_ap" and (self.against.currentData() == "frame" or axes_gid == "residual_mm"):
             return int(frames[np.argmin(np.abs(frames - x))])
         flexion = np.array([r.values.flexion_deg for r in self.rows])
         ok = np.isfinite(flexion)
         if not ok.any():
             return None
         return int(frames[ok][np.argmin(np.abs(flexion[ok] - x))])
+
+    def _contact_frame_near(self, x: float, y: float | None) -> int | None:
+        """The frame whose medial or lateral point on the tray is nearest (x, y)."""
+        if y is None or not self.contact_rows:
+            return None
+        points = np.array([[getattr(r.contact, n).lowest[:2] for n in ("medial", "lateral")]
+                           for r in self.contact_rows], dtype=float)
+        distance = np.nanmin(np.hypot(points[..., 0] - x, points[..., 1] - y), axis=1, initial=np.inf)
+        return None if not np.isfinite(distance).any() else int(self.contact_rows[int(np.argmin(distance))].frame)
 
     def _clicked(self, event) -> None:
         if event.inaxes is None or event.xdata is None:

@@ -1,4 +1,5 @@
-"""The 3D scene: X-ray sources, intensifier planes with their images, beams, implant models.
+"""The 3D scene: X-ray sources, intensifier planes with their images, beams, implant models,
+and on demand the condyles' contact points on the tray.
 
 ``FluoroScene`` builds everything on any pyvista ``Plotter`` (tests pass
 ``pv.Plotter(off_screen=True)``, the app passes a ``QtInteractor``). Updates reuse the
@@ -27,6 +28,8 @@ from fluorogui.core.projection.pose import matrix_to_pose, pose_to_matrix
 VIEW_COLOURS = [(1.0, 0.55, 0.15), (0.25, 0.65, 1.0), (0.85, 0.35, 0.85), (0.4, 0.85, 0.4)]
 MODEL_COLOURS = {"femoral": (0.78, 0.84, 0.93), "tibial": (0.62, 0.86, 0.52)}
 FALLBACK_MODEL_COLOUR = (0.9, 0.8, 0.55)
+#: the condyles' points: colours that neither model (blue or grey femur, green tray) has
+CONTACT_COLOURS = {"medial": (1.0, 0.2, 0.8), "lateral": (1.0, 0.85, 0.1)}
 BACKGROUND_TOP = (0.16, 0.18, 0.22)
 BACKGROUND_BOTTOM = (0.05, 0.05, 0.07)
 DEFAULT_PERCENTILES = (0.5, 99.5)
@@ -86,6 +89,7 @@ class FluoroScene:
         self._models: dict[str, object] = {}  # component -> actor
         self._poses: dict[str, np.ndarray] = {}
         self._rays_visible = True
+        self._contact = None  # the contact points' actor
         self._gizmo = None
         self._gizmo_component: str | None = None
         self._gizmo_callback = None
@@ -289,6 +293,33 @@ class FluoroScene:
         if actor is not None:
             actor.visibility = bool(visible)
             self.render()
+
+    # -- contact points -----------------------------------------------------------------------
+    def set_contact_points(self, points: dict | None) -> None:
+        """The condyles' lowest points (world mm, ``{"medial": (3,), "lateral": (3,)}``) as
+        balls drawn over the models (they lie between the femur and the tray, hidden
+        otherwise); None, or no finite point, hides them."""
+        finite = {name: np.asarray(p, dtype=float) for name, p in (points or {}).items()
+                  if np.all(np.isfinite(p))}
+        if not finite:
+            if self._contact is not None:
+                self._contact.visibility = False
+                self.render()
+            return
+        cloud = pv.PolyData(np.array(list(finite.values())))
+        cloud["colour"] = np.array([CONTACT_COLOURS[name] for name in finite])
+        self._contact = self.plotter.add_mesh(  # the same name replaces the previous actor
+            cloud, scalars="colour", rgb=True, point_size=14, render_points_as_spheres=True, name="contact_points",
+            render=False, reset_camera=False, pickable=False)
+        mapper = self._contact.mapper  # a depth offset toward the camera: never hidden by a model
+        mapper.SetResolveCoincidentTopologyToPolygonOffset()
+        mapper.SetRelativeCoincidentTopologyPointOffsetParameter(-1e6)
+        self.render()
+
+    @property
+    def contact_actor(self):
+        """The contact points' actor (None before any was shown)."""
+        return self._contact
 
     # -- rays ---------------------------------------------------------------------------------
     def set_rays(self, view_index: int, points_px, max_rays: int = 60) -> None:
