@@ -142,3 +142,21 @@ def test_pose_changes_refresh_the_dock_once_the_burst_is_over(window, demo, qtbo
     expected = f"{session.knee_at(window.controller.frame).values.flexion_deg:.2f}"
     qtbot.waitUntil(lambda: window.knee_panel.value_labels[0].text() == expected, timeout=3000)
     assert not window.presenters.kinematics.refresh_timer.isActive()
+
+
+def test_a_relinked_mesh_refreshes_the_dock_with_its_own_anatomical_frame(window, demo, tmp_path):
+    import pyvista as pv
+
+    window.open_project(demo)
+    session = window.session
+    put_truth(session)
+    window.presenters.kinematics.refresh_knee()
+    before = [label.text() for label in window.knee_panel.value_labels]
+    vertices, faces = session.raw_mesh("tibial")
+    moved = tmp_path / "tray_moved.stl"
+    pv.PolyData(vertices + [10.0, 0.0, 0.0], np.column_stack([np.full(len(faces), 3), faces]).ravel()).save(moved)
+    session.relink_mesh("tibial", moved)  # the tray's origin 10 mm on: its translations change at once
+    after = [label.text() for label in window.knee_panel.value_labels]
+    assert after != before
+    row = session.knee_at(window.controller.frame)
+    assert after[0] == f"{row.values.flexion_deg:.2f}"

@@ -78,3 +78,19 @@ def test_replace_project_gives_the_parts_the_new_project_and_drops_the_caches(de
         assert getattr(session, name).project is other
     session.set_pose("tibial", 1, np.zeros(6))
     assert (1, "tibial") in other.poses
+
+
+def test_another_mesh_file_gives_its_own_default_anatomical_frame(demo, tmp_path):
+    import pyvista as pv
+
+    session = Session.open(demo)
+    before = session.default_anatomical_frame("tibial")
+    vertices, faces = session.raw_mesh("tibial")
+    moved = tmp_path / "tray_moved.stl"
+    pv.PolyData(vertices + [10.0, 0.0, 0.0], np.column_stack([np.full(len(faces), 3), faces]).ravel()).save(moved)
+    session.relink_mesh("tibial", moved)
+    after = session.default_anatomical_frame("tibial")
+    assert np.allclose(after[:3, 3] - before[:3, 3], [10.0, 0.0, 0.0], atol=1e-3)  # found on the new file
+    assert np.allclose(after[:3, :3], before[:3, :3], atol=1e-6)
+    session.history.undo()
+    assert np.allclose(session.default_anatomical_frame("tibial"), before)

@@ -64,6 +64,7 @@ class KinematicsPresenter(QObject):
         c.project_replaced.connect(self.refresh_knee)
         c.pose_changed.connect(lambda _f, _c: self.refresh_timer.start())
         c.knee_changed.connect(lambda _what: self.refresh_knee())
+        c.model_changed.connect(lambda _component: self.refresh_knee())  # its default anatomical frame too
         c.frame_changed.connect(lambda frame: panel.set_current(frame))
         c.frame_changed.connect(lambda _frame: self.show_contact_points())
         c.pose_changed.connect(lambda _f, component: component == "tibial" and self.show_contact_points())

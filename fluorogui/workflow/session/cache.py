@@ -56,9 +56,11 @@ class SessionCache:
         return image
 
     def forget_mesh(self, component: str) -> None:
-        """Drop a component's meshes (its file changed)."""
+        """Drop what was made from a component's mesh file (its file changed): the meshes
+        and the anatomical frame found on it."""
         self.raw_meshes.pop(component, None)
         self.meshes.pop(component, None)
+        self.anatomical_frames.pop(component, None)
 
     def clear(self) -> None:
         """Drop everything (another project)."""
