@@ -162,6 +162,14 @@ class _Items:
         return [(group, kind, payload) for group, _order, _n, kind, payload in sorted(self._items.get(menu, []),
                                                                                      key=lambda i: i[:3])]
 
+    def grouped(self, menu: str):
+        """(whether a separator comes first, kind, payload) of a container's items: one
+        between two groups."""
+        last = None
+        for group, kind, payload in self.of(menu):
+            yield last is not None and group != last, kind, payload
+            last = group
+
 
 def build_menus(window: QMainWindow, menus: Iterable[MenuSpec], specs: Iterable[ActionSpec],
                 actions: dict[str, QAction], *, presenters: SimpleNamespace, panel_toggles: Place,
@@ -181,11 +189,9 @@ def build_menus(window: QMainWindow, menus: Iterable[MenuSpec], specs: Iterable[
     built: dict[str, QMenu] = {}
 
     def fill(menu: QMenu, menu_id: str) -> None:
-        last = None
-        for group, kind, payload in items.of(menu_id):
-            if last is not None and group != last:
+        for separated, kind, payload in items.grouped(menu_id):
+            if separated:
                 menu.addSeparator()
-            last = group
             if kind == "action":
                 menu.addAction(payload)
             else:
@@ -221,11 +227,9 @@ def build_toolbar(window: QMainWindow, title: str, name: str, specs: Iterable[Ac
     bar = window.addToolBar(title)
     bar.setObjectName(name)
     bar.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonIconOnly)
-    last = None
-    for group, kind, payload in items.of(TOOLBAR):
-        if last is not None and group != last:
+    for separated, kind, payload in items.grouped(TOOLBAR):
+        if separated:
             bar.addSeparator()
-        last = group
         if kind == "action":
             bar.addAction(payload)
         else:
