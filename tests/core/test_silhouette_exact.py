@@ -145,3 +145,66 @@ def test_snap_refuses_a_point_without_candidates():
     P0, P1 = np.array([[0.0, 0.0]]), np.array([[1.0, 0.0]])
     with pytest.raises(ValueError):
         _snap(np.array([[0.5, 0.5], [0.2, 0.1]]), np.array([[0, -1], [-1, -1]]), P0, P1)
+
+
+def plain_facing_edges(mesh, s_model):
+    front = mesh.face_normals @ s_model - mesh.face_offsets > 0
+    return np.flatnonzero(front[mesh.edge_faces[:, 0]] != front[mesh.edge_faces[:, 1]])
+
+
+def test_face_edges_name_each_face_s_own_edges():
+    from fluorogui.core.projection.mesh import face_edges
+
+    v, f = femoral_component_mesh()
+    keep = np.ones(len(f), bool)
+    keep[::7] = False  # holes: some edges are left with one face
+    for mesh in (prepare_mesh(v, f), prepare_mesh(v, f[keep])):
+        fe = face_edges(mesh)
+        assert fe.shape == mesh.faces.shape and not fe.flags.writeable
+        for corner, (a, b) in enumerate([(1, 2), (2, 0), (0, 1)]):
+            ends = np.sort(mesh.faces[:, [a, b]], axis=1)
+            paired = fe[:, corner] >= 0
+            assert np.array_equal(mesh.edges[fe[paired, corner]], ends[paired])
+            assert np.all(np.any(mesh.edge_faces[fe[paired, corner]] == np.flatnonzero(paired)[:, None], axis=1))
+            open_ends = {tuple(e) for e in mesh.open_edges.tolist()}
+            assert all(tuple(e) in open_ends for e in ends[~paired].tolist())
+        assert (fe < 0).any() == (len(mesh.open_edges) > 0)
+
+
+def test_facing_edges_reuse_the_last_edge_set_while_no_face_turns():
+    from fluorogui.core.projection.facing import facing_edges
+
+    mesh = prepare_mesh(*femoral_component_mesh())
+    s = np.array([30.0, -1000.0, 40.0])
+    first = facing_edges(mesh, s)
+    assert facing_edges(mesh, s + 1e-6) is first  # no plane passes within a nanometre of the source
+    far = facing_edges(mesh, s + np.array([0.0, 0.0, 15.0]))  # faces turn: a new set, from the same reference
+    assert far is not first and len(mesh.cache["facing"]) == 1
+    assert np.array_equal(far.edges, mesh.edges[plain_facing_edges(mesh, s + np.array([0.0, 0.0, 15.0]))])
+    assert facing_edges(mesh, s + np.array([0.0, 0.0, 15.0 + 1e-6])) is far
+    assert not far.edges.flags.writeable and np.array_equal(far.ends[far.local], far.edges)
+
+
+def test_facing_edges_shared_by_threads_are_the_plain_ones():
+    import threading
+
+    from fluorogui.core.projection.facing import facing_edges
+
+    mesh = prepare_mesh(*femoral_component_mesh())
+    wrong = []
+
+    def walk_from(start, seed):
+        rng = np.random.default_rng(seed)
+        s = start.copy()
+        for k in range(300):
+            s = s + rng.normal(0, 10 ** rng.uniform(-3, 1), 3)
+            if not np.array_equal(facing_edges(mesh, s).edges, mesh.edges[plain_facing_edges(mesh, s)]):
+                wrong.append((seed, k))
+
+    # two sources near each other, so the threads share references and their last states
+    threads = [threading.Thread(target=walk_from, args=(np.array([0.0, -1000.0, 0.0]), seed)) for seed in (1, 2)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    assert wrong == []

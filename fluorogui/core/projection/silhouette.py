@@ -9,9 +9,8 @@ edge. Each outline point therefore carries the model-frame 3D point it images, w
 lets the matcher hold correspondences fixed within an evaluation and use analytic
 derivatives.
 
-Speed (the matcher draws about a dozen silhouettes per match): a source near one seen
-before re-tests only the faces whose plane passed near that one (``_FacingReference``),
-which gives exactly what the plain computation gives (``tests/core/test_fast_paths.py``);
+Speed (the matcher draws a silhouette per view and evaluation): the silhouette edges are
+kept between calls and updated only where a face can have turned (``core.projection.facing``);
 the drawing keeps, per cell, a segment drawn through it, so a contour cell is snapped
 onto the nearest segment drawn around it without searching all edges (only the filled
 cells of the 5 x 5 square around it are measured; ``tests/core/test_silhouette_exact.py``
@@ -27,6 +26,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from fluorogui.core.projection.facing import facing_edges
 from fluorogui.core.projection.geometry import View
 from fluorogui.core.projection.mesh import PreparedMesh
 
@@ -59,68 +59,9 @@ class Silhouette:
 
 
 def silhouette_edges(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, source: np.ndarray) -> np.ndarray:
-    """(S, 2) vertex indices of the edges on the silhouette seen from ``source``."""
-    s_model = R.T @ (np.asarray(source, dtype=float) - t)
-    on = _silhouette_edge_indices(mesh, s_model)
-    edges = np.take(mesh.edges, on, axis=0)  # np.take: several times faster than a boolean mask here
-    if len(mesh.open_edges):
-        return np.vstack([edges, mesh.open_edges])
-    return edges
-
-
-#: a facing reference is made with the faces whose plane passes within this distance (mm)
-#: of the source re-tested, and serves sources up to half of it away
-FACING_MARGIN_MM = 40.0
-#: facing references kept per mesh (the most recently made first)
-FACING_REFERENCES = 8
-
-
-@dataclass(frozen=True)
-class _FacingReference:
-    """Which faces can change between facing towards and away from sources near ``source``
-    (model frame): only those whose plane passes within the margin of it. A face facing
-    the source at ``source`` keeps doing so while the source moves less than the distance
-    of its plane, so the edges between two faces beyond the margin keep their state."""
-
-    source: np.ndarray  # (3,)
-    normals: np.ndarray  # (F, 3) of the faces within the margin
-    offsets: np.ndarray  # (F,)
-    edges: np.ndarray  # (E,) sorted indices of the edges with a face within the margin
-    ends: np.ndarray  # (E, 2) each such edge's faces: index into the facing of those faces, then True, False
-    fixed: np.ndarray  # sorted indices of the silhouette edges at ``source`` among the others
-
-
-def _silhouette_edge_indices(mesh: PreparedMesh, s_model: np.ndarray) -> np.ndarray:
-    """Sorted indices into ``mesh.edges`` of the silhouette edges seen from ``s_model``: the
-    faces facing it (``n . s > offset``) and the edges between a facing and a turned-away
-    face. Sources near one seen before re-test only the faces near grazing there."""
-    references = mesh.cache.get("facing", ())
-    for ref in references:
-        d = s_model - ref.source
-        if d @ d <= (0.5 * FACING_MARGIN_MM) ** 2:
-            facing = np.empty(len(ref.offsets) + 2, dtype=bool)
-            facing[:-2] = ref.normals @ s_model - ref.offsets > 0
-            facing[-2:] = True, False
-            turning = ref.edges[facing[ref.ends[:, 0]] != facing[ref.ends[:, 1]]]
-            return np.sort(np.concatenate([ref.fixed, turning]))  # two disjoint sets
-    ef0, ef1 = mesh.edge_faces[:, 0], mesh.edge_faces[:, 1]
-    height = mesh.face_normals @ s_model - mesh.face_offsets  # the source's height above each face's plane
-    front = height > 0
-    on = front[ef0] != front[ef1]
-    near = np.abs(height) <= FACING_MARGIN_MM
-    faces = np.flatnonzero(near)
-    if len(faces) > len(height) // 4:  # a source this close to the mesh: a reference would save little
-        return np.flatnonzero(on)
-    touched = near[ef0] | near[ef1]
-    edges = np.flatnonzero(touched)
-    ends = []
-    for side in (ef0[edges], ef1[edges]):
-        constant = len(faces) + (~front[side]).astype(np.int64)  # True -> len(faces), False -> len(faces) + 1
-        ends.append(np.where(near[side], np.searchsorted(faces, side), constant))
-    ref = _FacingReference(s_model.copy(), mesh.face_normals[faces], mesh.face_offsets[faces], edges,
-                           np.column_stack(ends), np.flatnonzero(on & ~touched))
-    mesh.cache["facing"] = (ref,) + tuple(references[: FACING_REFERENCES - 1])  # one assignment: thread-safe
-    return np.flatnonzero(on)
+    """(S, 2) vertex indices of the edges on the silhouette seen from ``source`` (read-only:
+    kept for the calls that see the same edges)."""
+    return facing_edges(mesh, R.T @ (np.asarray(source, dtype=float) - t)).edges
 
 
 def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View, *, scale: float = 2.0,
@@ -132,18 +73,13 @@ def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View
     ``spacing_px`` keeps about one outline point per that many pixels (default: all,
     about ``1 / scale`` px apart), which is what makes it cheap enough for the matcher.
     """
-    edges = silhouette_edges(mesh, R, t, view.source)
+    found = facing_edges(mesh, R.T @ (np.asarray(view.source, dtype=float) - t))
+    edges, e = found.edges, found.local  # e: the edges' ends as indices into found.ends
     if len(edges) == 0:
         raise ValueError("the mesh has no silhouette from this source")
-    used = np.zeros(len(mesh.vertices), dtype=bool)
-    used[edges.ravel()] = True
-    ends = np.flatnonzero(used)  # the vertices on silhouette edges, sorted (np.unique without a sort)
-    uv_all, depth_all = view.project_with_depth(mesh.vertices[ends] @ R.T + t)
+    uv_all, depth_all = view.project_with_depth(mesh.vertices[found.ends] @ R.T + t)
     if np.any(depth_all <= 1e-6):
         raise ValueError("part of the model lies behind the X-ray source")
-    remap = np.empty(mesh.vertices.shape[0], dtype=np.int64)
-    remap[ends] = np.arange(len(ends))
-    e = remap[edges]
     segs = uv_all[e]  # (S, 2, 2): both ends of every projected edge
     P0, P1 = segs[:, 0], segs[:, 1]
 
