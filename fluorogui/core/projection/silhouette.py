@@ -89,7 +89,7 @@ def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View
     u, v = uv_all[:, 0], uv_all[:, 1]  # (per column: much faster than min(0) on an (N, 2) array)
     origin = np.array([u.min(), v.min()]) - 3.0
     size = np.ceil((np.array([u.max(), v.max()]) - origin + 3.0) * scale).astype(int) + 1
-    drawn = _segment_cells((segs - origin) * scale, (size[1], size[0]))
+    drawn = _segment_cells(((uv_all - origin) * scale)[e], (size[1], size[0]))  # (each end scaled once)
     filled = (drawn >= 0).view(np.uint8)  # (a bool is a byte of 0 or 1: no copy)
     contours, _ = cv2.findContours(filled, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     cells = max(contours, key=lambda c: cv2.contourArea(c) + len(c))[:, 0, :]
@@ -98,7 +98,9 @@ def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View
     sid, lam_b, p_exact = _snap(cells / scale + origin, _nearby_segments(drawn, cells), P0, P1)
 
     # keep the order, drop repeats of the same exact point
-    keep = np.r_[True, np.any(np.abs(np.diff(p_exact, axis=0)) > 1e-9, axis=1)]
+    keep = np.empty(len(p_exact), bool)
+    keep[0] = True
+    keep[1:] = (np.abs(np.diff(p_exact[:, 0])) > 1e-9) | (np.abs(np.diff(p_exact[:, 1])) > 1e-9)
     sid, lam_b, p_exact = sid[keep], lam_b[keep], p_exact[keep]
 
     # 2D edge parameter -> 3D edge parameter (perspective)
@@ -118,11 +120,11 @@ def _segment_cells(segments: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     x0, y0 = segments[:, 0, 0], segments[:, 0, 1]
     dx, dy = segments[:, 1, 0] - x0, segments[:, 1, 1] - y0
     n = np.floor(np.maximum(np.abs(dx), np.abs(dy))).astype(np.int64) + 2  # samples per segment
-    seg = np.repeat(np.arange(len(segments)), n)
+    seg = np.repeat(np.arange(len(segments), dtype=np.int32), n)
     k = np.arange(len(seg)) - np.repeat(np.cumsum(n) - n, n)
     frac = k / np.repeat(n - 1, n)
-    col = np.floor(x0[seg] + frac * dx[seg] + 0.5).astype(np.int64)
-    row = np.floor(y0[seg] + frac * dy[seg] + 0.5).astype(np.int64)
+    col = np.floor(np.repeat(x0, n) + frac * np.repeat(dx, n) + 0.5).astype(np.int64)
+    row = np.floor(np.repeat(y0, n) + frac * np.repeat(dy, n) + 0.5).astype(np.int64)
     drawn = np.full(shape, -1, np.int32)
     drawn.ravel()[row * shape[1] + col] = seg
     return drawn
