@@ -115,8 +115,9 @@ def _segment_cells(segments: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """Drawing (``shape``; -1 where empty) of segments given in drawing cells: every cell a
     segment passes through holds a segment's index (the last drawn where several cross).
     Each segment is sampled at steps under one cell, so its cells are 8-connected and
-    closed loops of edges draw closed curves. (Per coordinate and into the flat drawing:
-    the same numbers as on (N, 2) arrays, at half the cost.)"""
+    closed loops of edges draw closed curves. The segments must lie inside the drawing.
+    (Per coordinate and into the flat drawing: the same numbers as on (N, 2) arrays, at
+    half the cost.)"""
     x0, y0 = segments[:, 0, 0], segments[:, 0, 1]
     dx, dy = segments[:, 1, 0] - x0, segments[:, 1, 1] - y0
     n = np.floor(np.maximum(np.abs(dx), np.abs(dy))).astype(np.int64) + 2  # samples per segment
