@@ -68,9 +68,10 @@ def test_times_skew_is_the_row_times_the_cross_product_matrix():
 def test_facing_references_give_the_silhouette_edges_of_a_fresh_computation():
     import dataclasses
 
+    from fluorogui.core.projection.facing import FACING_REFERENCES
     from fluorogui.core.projection.mesh import prepare_mesh
     from fluorogui.core.projection.pose import rotation_matrix
-    from fluorogui.core.projection.silhouette import FACING_REFERENCES, silhouette_edges
+    from fluorogui.core.projection.silhouette import silhouette_edges
     from fluorogui.simulation.phantoms import femoral_component_mesh
 
     mesh = prepare_mesh(*femoral_component_mesh())

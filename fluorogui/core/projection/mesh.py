@@ -29,7 +29,7 @@ class PreparedMesh:
     centroid: np.ndarray  # (3,) area-weighted surface centroid
     radius: float  # RMS distance of the surface from the centroid
     area: float
-    #: derived data kept between calls (``core.projection.silhouette``'s facing references); not part
+    #: derived data kept between calls (``face_edges``, ``core.projection.facing``'s references); not part
     #: of the mesh's identity, and a copy (``dataclasses.replace``) starts without it
     cache: dict = field(default_factory=dict, init=False, compare=False, repr=False)
 
@@ -81,6 +81,23 @@ def prepare_mesh(vertices, faces) -> PreparedMesh:
     centroid = (centroids * areas[:, None]).sum(0) / area
     radius = float(np.sqrt((((centroids - centroid) ** 2).sum(1) * areas).sum() / area))
     return PreparedMesh(v, f, normals, offsets, edges, edge_faces, open_edges, centroid, radius, area)
+
+
+def face_edges(mesh: PreparedMesh) -> np.ndarray:
+    """(M, 3) for each face the indices into ``mesh.edges`` of its edges (b-c, c-a, a-b;
+    -1 for an open edge). Made once per mesh and kept in its cache (read-only)."""
+    out = mesh.cache.get("face_edges")
+    if out is None:
+        n = len(mesh.vertices) + 1
+        f = mesh.faces
+        sides = np.sort(np.stack([f[:, [1, 2]], f[:, [2, 0]], f[:, [0, 1]]], axis=1), axis=2)  # (M, 3, 2)
+        key = sides[..., 0] * n + sides[..., 1]
+        known = mesh.edges[:, 0] * n + mesh.edges[:, 1]  # ascending: prepare_mesh makes them in key order
+        at = np.minimum(np.searchsorted(known, key), max(len(known) - 1, 0))
+        out = np.where(known[at] == key, at, -1) if len(known) else np.full(key.shape, -1)
+        out.flags.writeable = False
+        mesh.cache["face_edges"] = out
+    return out
 
 
 def check_plausible_mm(vertices) -> None:

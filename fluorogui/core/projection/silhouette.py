@@ -9,11 +9,12 @@ edge. Each outline point therefore carries the model-frame 3D point it images, w
 lets the matcher hold correspondences fixed within an evaluation and use analytic
 derivatives.
 
-Speed (the matcher draws about a dozen silhouettes per match): a source near one seen
-before re-tests only the faces whose plane passed near that one (``_FacingReference``),
-which gives exactly what the plain computation gives (``tests/core/test_fast_paths.py``);
+Speed (the matcher draws a silhouette per view and evaluation): the silhouette edges are
+kept between calls and updated only where a face can have turned (``core.projection.facing``);
 the drawing keeps, per cell, a segment drawn through it, so a contour cell is snapped
-onto the nearest segment drawn around it without searching all edges. Against an
+onto the nearest segment drawn around it without searching all edges (only the filled
+cells of the 5 x 5 square around it are measured; ``tests/core/test_silhouette_exact.py``
+holds the whole pipeline to its plain version bit for bit). Against an
 independent outline (the filled triangles' contour at 16 cells per px) the points lie as
 close as the earlier band-and-KD-tree snapping's (mean 0.031 px, 99 % within 0.08 px)
 at half the cost.
@@ -25,6 +26,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from fluorogui.core.projection.facing import facing_edges
 from fluorogui.core.projection.geometry import View
 from fluorogui.core.projection.mesh import PreparedMesh
 
@@ -57,68 +59,9 @@ class Silhouette:
 
 
 def silhouette_edges(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, source: np.ndarray) -> np.ndarray:
-    """(S, 2) vertex indices of the edges on the silhouette seen from ``source``."""
-    s_model = R.T @ (np.asarray(source, dtype=float) - t)
-    on = _silhouette_edge_indices(mesh, s_model)
-    edges = np.take(mesh.edges, on, axis=0)  # np.take: several times faster than a boolean mask here
-    if len(mesh.open_edges):
-        return np.vstack([edges, mesh.open_edges])
-    return edges
-
-
-#: a facing reference is made with the faces whose plane passes within this distance (mm)
-#: of the source re-tested, and serves sources up to half of it away
-FACING_MARGIN_MM = 40.0
-#: facing references kept per mesh (the most recently made first)
-FACING_REFERENCES = 8
-
-
-@dataclass(frozen=True)
-class _FacingReference:
-    """Which faces can change between facing towards and away from sources near ``source``
-    (model frame): only those whose plane passes within the margin of it. A face facing
-    the source at ``source`` keeps doing so while the source moves less than the distance
-    of its plane, so the edges between two faces beyond the margin keep their state."""
-
-    source: np.ndarray  # (3,)
-    normals: np.ndarray  # (F, 3) of the faces within the margin
-    offsets: np.ndarray  # (F,)
-    edges: np.ndarray  # (E,) sorted indices of the edges with a face within the margin
-    ends: np.ndarray  # (E, 2) each such edge's faces: index into the facing of those faces, then True, False
-    fixed: np.ndarray  # sorted indices of the silhouette edges at ``source`` among the others
-
-
-def _silhouette_edge_indices(mesh: PreparedMesh, s_model: np.ndarray) -> np.ndarray:
-    """Sorted indices into ``mesh.edges`` of the silhouette edges seen from ``s_model``: the
-    faces facing it (``n . s > offset``) and the edges between a facing and a turned-away
-    face. Sources near one seen before re-test only the faces near grazing there."""
-    references = mesh.cache.get("facing", ())
-    for ref in references:
-        d = s_model - ref.source
-        if d @ d <= (0.5 * FACING_MARGIN_MM) ** 2:
-            facing = np.empty(len(ref.offsets) + 2, dtype=bool)
-            facing[:-2] = ref.normals @ s_model - ref.offsets > 0
-            facing[-2:] = True, False
-            turning = ref.edges[facing[ref.ends[:, 0]] != facing[ref.ends[:, 1]]]
-            return np.sort(np.concatenate([ref.fixed, turning]))  # two disjoint sets
-    ef0, ef1 = mesh.edge_faces[:, 0], mesh.edge_faces[:, 1]
-    height = mesh.face_normals @ s_model - mesh.face_offsets  # the source's height above each face's plane
-    front = height > 0
-    on = front[ef0] != front[ef1]
-    near = np.abs(height) <= FACING_MARGIN_MM
-    faces = np.flatnonzero(near)
-    if len(faces) > len(height) // 4:  # a source this close to the mesh: a reference would save little
-        return np.flatnonzero(on)
-    touched = near[ef0] | near[ef1]
-    edges = np.flatnonzero(touched)
-    ends = []
-    for side in (ef0[edges], ef1[edges]):
-        constant = len(faces) + (~front[side]).astype(np.int64)  # True -> len(faces), False -> len(faces) + 1
-        ends.append(np.where(near[side], np.searchsorted(faces, side), constant))
-    ref = _FacingReference(s_model.copy(), mesh.face_normals[faces], mesh.face_offsets[faces], edges,
-                           np.column_stack(ends), np.flatnonzero(on & ~touched))
-    mesh.cache["facing"] = (ref,) + tuple(references[: FACING_REFERENCES - 1])  # one assignment: thread-safe
-    return np.flatnonzero(on)
+    """(S, 2) vertex indices of the edges on the silhouette seen from ``source`` (read-only:
+    kept for the calls that see the same edges)."""
+    return facing_edges(mesh, R.T @ (np.asarray(source, dtype=float) - t)).edges
 
 
 def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View, *, scale: float = 2.0,
@@ -130,18 +73,13 @@ def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View
     ``spacing_px`` keeps about one outline point per that many pixels (default: all,
     about ``1 / scale`` px apart), which is what makes it cheap enough for the matcher.
     """
-    edges = silhouette_edges(mesh, R, t, view.source)
+    found = facing_edges(mesh, R.T @ (np.asarray(view.source, dtype=float) - t))
+    edges, e = found.edges, found.local  # e: the edges' ends as indices into found.ends
     if len(edges) == 0:
         raise ValueError("the mesh has no silhouette from this source")
-    used = np.zeros(len(mesh.vertices), dtype=bool)
-    used[edges.ravel()] = True
-    ends = np.flatnonzero(used)  # the vertices on silhouette edges, sorted (np.unique without a sort)
-    uv_all, depth_all = view.project_with_depth(mesh.vertices[ends] @ R.T + t)
+    uv_all, depth_all = view.project_with_depth(mesh.vertices[found.ends] @ R.T + t)
     if np.any(depth_all <= 1e-6):
         raise ValueError("part of the model lies behind the X-ray source")
-    remap = np.empty(mesh.vertices.shape[0], dtype=np.int64)
-    remap[ends] = np.arange(len(ends))
-    e = remap[edges]
     segs = uv_all[e]  # (S, 2, 2): both ends of every projected edge
     P0, P1 = segs[:, 0], segs[:, 1]
 
@@ -151,15 +89,18 @@ def mesh_silhouette(mesh: PreparedMesh, R: np.ndarray, t: np.ndarray, view: View
     u, v = uv_all[:, 0], uv_all[:, 1]  # (per column: much faster than min(0) on an (N, 2) array)
     origin = np.array([u.min(), v.min()]) - 3.0
     size = np.ceil((np.array([u.max(), v.max()]) - origin + 3.0) * scale).astype(int) + 1
-    drawn = _segment_cells((segs - origin) * scale, (size[1], size[0]))
-    contours, _ = cv2.findContours((drawn >= 0).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    drawn = _segment_cells(((uv_all - origin) * scale)[e], (size[1], size[0]))  # (each end scaled once)
+    filled = (drawn >= 0).view(np.uint8)  # (a bool is a byte of 0 or 1: no copy)
+    contours, _ = cv2.findContours(filled, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     cells = max(contours, key=lambda c: cv2.contourArea(c) + len(c))[:, 0, :]
     if spacing_px:
         cells = cells[:: max(1, int(round(spacing_px * scale)))]
     sid, lam_b, p_exact = _snap(cells / scale + origin, _nearby_segments(drawn, cells), P0, P1)
 
     # keep the order, drop repeats of the same exact point
-    keep = np.r_[True, np.any(np.abs(np.diff(p_exact, axis=0)) > 1e-9, axis=1)]
+    keep = np.empty(len(p_exact), bool)
+    keep[0] = True
+    keep[1:] = (np.abs(np.diff(p_exact[:, 0])) > 1e-9) | (np.abs(np.diff(p_exact[:, 1])) > 1e-9)
     sid, lam_b, p_exact = sid[keep], lam_b[keep], p_exact[keep]
 
     # 2D edge parameter -> 3D edge parameter (perspective)
@@ -174,15 +115,19 @@ def _segment_cells(segments: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """Drawing (``shape``; -1 where empty) of segments given in drawing cells: every cell a
     segment passes through holds a segment's index (the last drawn where several cross).
     Each segment is sampled at steps under one cell, so its cells are 8-connected and
-    closed loops of edges draw closed curves."""
-    P0, d = segments[:, 0], segments[:, 1] - segments[:, 0]
-    n = np.floor(np.maximum(np.abs(d[:, 0]), np.abs(d[:, 1]))).astype(np.int64) + 2  # samples per segment
-    seg = np.repeat(np.arange(len(segments)), n)
+    closed loops of edges draw closed curves. The segments must lie inside the drawing.
+    (Per coordinate and into the flat drawing: the same numbers as on (N, 2) arrays, at
+    half the cost.)"""
+    x0, y0 = segments[:, 0, 0], segments[:, 0, 1]
+    dx, dy = segments[:, 1, 0] - x0, segments[:, 1, 1] - y0
+    n = np.floor(np.maximum(np.abs(dx), np.abs(dy))).astype(np.int64) + 2  # samples per segment
+    seg = np.repeat(np.arange(len(segments), dtype=np.int32), n)
     k = np.arange(len(seg)) - np.repeat(np.cumsum(n) - n, n)
-    at = P0[seg] + (k / np.repeat(n - 1, n))[:, None] * d[seg]
-    col, row = np.floor(at[:, 0] + 0.5).astype(np.int64), np.floor(at[:, 1] + 0.5).astype(np.int64)
+    frac = k / np.repeat(n - 1, n)
+    col = np.floor(np.repeat(x0, n) + frac * np.repeat(dx, n) + 0.5).astype(np.int64)
+    row = np.floor(np.repeat(y0, n) + frac * np.repeat(dy, n) + 0.5).astype(np.int64)
     drawn = np.full(shape, -1, np.int32)
-    drawn[row, col] = seg
+    drawn.ravel()[row * shape[1] + col] = seg
     return drawn
 
 
@@ -191,31 +136,50 @@ _NEARBY_CELLS = 2
 
 
 def _nearby_segments(drawn: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """(K, 25) the segments drawn in the 5 x 5 cells around each contour cell (-1: none).
-    The cell itself holds one, so every row has at least one."""
-    off = np.arange(-_NEARBY_CELLS, _NEARBY_CELLS + 1)
+    """(K, 25) the segments drawn in the 5 x 5 cells around each contour cell (-1: none), in
+    row-major order of the square. The cell itself holds one, so every row has at least one.
+    Squares reaching past the drawing's border repeat its last row or column."""
+    h, w = drawn.shape
+    rows, cols = cells[:, 1], cells[:, 0]
+    k = _NEARBY_CELLS
+    off = np.arange(-k, k + 1)
+    if rows.min() >= k and cols.min() >= k and rows.max() < h - k and cols.max() < w - k:
+        # every square inside the drawing (as the margin around the outline makes it): one
+        # gather from the flat drawing
+        return drawn.ravel()[(rows * w + cols)[:, None] + (off[:, None] * w + off).ravel()]
     dr, dc = (g.ravel() for g in np.meshgrid(off, off, indexing="ij"))
-    rows = np.minimum(np.maximum(cells[:, 1:2] + dr, 0), drawn.shape[0] - 1)  # (np.clip's wrapper: slower)
-    cols = np.minimum(np.maximum(cells[:, 0:1] + dc, 0), drawn.shape[1] - 1)
+    rows = np.minimum(np.maximum(rows[:, None] + dr, 0), h - 1)  # (np.clip's wrapper: slower)
+    cols = np.minimum(np.maximum(cols[:, None] + dc, 0), w - 1)
     return drawn[rows, cols]
 
 
 def _snap(pts, cand, P0, P1):
     """For every point the nearest point on its candidate segments (``cand``, -1 for none):
-    (segment, parameter along it, the point)."""
-    valid = cand >= 0
-    cand = np.where(valid, cand, 0)
-    ax, ay = P0[cand, 0], P0[cand, 1]
-    abx, aby = P1[cand, 0] - ax, P1[cand, 1] - ay
-    px, py = pts[:, 0:1], pts[:, 1:2]
-    lam = ((px - ax) * abx + (py - ay) * aby) / np.maximum(abx * abx + aby * aby, 1e-12)
+    (segment, parameter along it, the point). Of equally near candidates the first in its
+    row. Only the filled candidates are measured (about a fifth of a 5 x 5 square)."""
+    ax, ay = P0[:, 0], P0[:, 1]
+    abx, aby = P1[:, 0] - ax, P1[:, 1] - ay
+    length2 = np.maximum(abx * abx + aby * aby, 1e-12)
+    flat = cand.ravel()
+    at = np.flatnonzero(flat >= 0)  # the filled candidates, row by row
+    s = flat[at]
+    row = at // cand.shape[1]
+    px, py = pts[:, 0][row], pts[:, 1][row]
+    sax, say, sabx, saby = ax[s], ay[s], abx[s], aby[s]
+    lam = ((px - sax) * sabx + (py - say) * saby) / length2[s]
     np.maximum(lam, 0.0, out=lam)
     np.minimum(lam, 1.0, out=lam)
-    qx, qy = ax + lam * abx, ay + lam * aby
+    qx, qy = sax + lam * sabx, say + lam * saby
     dx, dy = qx - px, qy - py
-    best = np.argmin(np.where(valid, dx * dx + dy * dy, np.inf), axis=1)
-    rows = np.arange(len(pts))
-    return cand[rows, best], lam[rows, best], np.column_stack([qx[rows, best], qy[rows, best]])
+    d2 = np.full(flat.shape, np.inf)
+    d2[at] = dx * dx + dy * dy
+    best = np.arange(len(pts)) * cand.shape[1] + np.argmin(d2.reshape(cand.shape), axis=1)
+    where = np.full(flat.shape, -1)
+    where[at] = np.arange(len(at))
+    best = where[best]
+    if len(best) and best.min() < 0:
+        raise ValueError("a point without a candidate segment")  # (the contour cell itself holds one)
+    return s[best], lam[best], np.column_stack([qx[best], qy[best]])
 
 
 def projected_region(view: View, placed, margin_px: int = 3) -> np.ndarray:
