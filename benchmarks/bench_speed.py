@@ -161,7 +161,8 @@ def track_real(workers: int) -> dict:
         costs[frame] = (now - last[0], cpu_now - last[1])
         last[:] = [now, cpu_now]
 
-    rows = list(session.track(None, components="both", workers=workers, progress=progress))
+    rows = list(session.track(None, components="both", workers=workers,
+                              progress=progress if workers == 1 else None))  # (workers: CPU in them)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0  # (cpu: this process only)
     children = _children_cpu() - children0  # worker processes, once they have ended
     n = len(session.frames)
