@@ -438,6 +438,7 @@ class _Rounds:
     def __init__(self, images, views, fovs):
         self.images, self.views, self.fovs = images, views, fovs
         self._rounds: list[list[np.ndarray]] = []
+        self._levels: list = []  # per view: its dark regions (shape_search.dark_levels), for both rounds
 
     def __len__(self) -> int:
         return 2
@@ -447,8 +448,10 @@ class _Rounds:
             raise IndexError(k)
         while len(self._rounds) <= k:
             peaks = bool(self._rounds)
-            points = [ss.dark_region_points(image, fov, max_peaks=4 if peaks else 0)
-                      for image, fov in zip(self.images, self.fovs)]
+            if not self._levels:
+                self._levels = [ss.dark_levels(image, fov) for image, fov in zip(self.images, self.fovs)]
+            points = [ss.dark_region_points(image, fov, max_peaks=4 if peaks else 0, levels=levels)
+                      for image, fov, levels in zip(self.images, self.fovs, self._levels)]
             hyps = ss.position_hypotheses(self.views, [c + p for c, p in points], merge_mm=12.0)
             if peaks:
                 hyps = [h for h in hyps if all(np.linalg.norm(h - g) > 12.0 for g in self._rounds[0])]
