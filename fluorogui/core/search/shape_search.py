@@ -359,16 +359,18 @@ def shift_grid(radius_px: float, step_px: float) -> np.ndarray:
 
 
 # -- exact silhouettes and refinement on edges ---------------------------------------------------------
-def outline(mesh: PreparedMesh, R: np.ndarray, c: np.ndarray, view: View, *, spacing_px: float = 4.0):
+def outline(mesh: PreparedMesh, R: np.ndarray, c: np.ndarray, view: View, *, spacing_px: float = 4.0,
+            nearest: bool = True):
     """Outer outline of ``mesh`` with rotation R and centroid at c in ``view``: pixel
     points about ``spacing_px`` apart, their outward normals, and for each the model
     vertex (an end of a silhouette edge) nearest to it in the image, which is what the
-    point images to within an edge length (enough for Gauss-Newton steps)."""
+    point images to within an edge length (enough for Gauss-Newton steps; None unless
+    ``nearest``: a score needs only the points)."""
     t = c - R @ mesh.centroid
     edges = silhouette_edges(mesh, R, t, view.source)
     if len(edges) == 0:
         raise ValueError("the mesh has no silhouette from this source")
-    ends, inv = np.unique(edges, return_inverse=True)
+    ends, inv = _used_vertices(edges, len(mesh.vertices))
     X = mesh.vertices[ends] @ R.T + t
     if np.any((X - view.source) @ view.normal <= 1e-6):
         raise ValueError("part of the model lies behind the X-ray source")
@@ -386,8 +388,23 @@ def outline(mesh: PreparedMesh, R: np.ndarray, c: np.ndarray, view: View, *, spa
     pts = _smooth_closed(pts, 2)[::step] + lo
     if len(pts) < 4:
         raise ValueError("the projected model is too small")
-    _, nearest = cKDTree(uv).query(pts)
-    return pts, outward_normals(pts), mesh.vertices[ends[nearest]]
+    if not nearest:
+        return pts, outward_normals(pts), None
+    _, closest = cKDTree(uv).query(pts)
+    return pts, outward_normals(pts), mesh.vertices[ends[closest]]
+
+
+def _used_vertices(edges: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(edges, return_inverse=True)`` for vertex indices below ``n_vertices``
+    (the sorted vertices the edges use, and each edge end's place among them), by marking
+    them instead of sorting: the same arrays, in a fraction of the time."""
+    flat = np.ravel(edges)
+    used = np.zeros(n_vertices, bool)
+    used[flat] = True
+    ends = np.flatnonzero(used)
+    place = np.zeros(n_vertices, np.intp)
+    place[ends] = np.arange(len(ends))
+    return ends, place[flat]
 
 
 def pose_edge_score(mesh: PreparedMesh, R, c, views, *, maps, level: str = "fine", hidden=None) -> list[float]:
@@ -396,7 +413,7 @@ def pose_edge_score(mesh: PreparedMesh, R, c, views, *, maps, level: str = "fine
     out = []
     for k, (view, m) in enumerate(zip(views, maps)):
         try:
-            p, n, _ = outline(mesh, R, c, view, spacing_px=4.0 * m.unit)
+            p, n, _ = outline(mesh, R, c, view, spacing_px=4.0 * m.unit, nearest=False)
         except ValueError:
             out.append(-1.0)
             continue
