@@ -230,3 +230,36 @@ def test_a_frames_edge_maps_are_made_once_and_searches_find_the_same(scene):
     assert all(a is not b for a, b in zip(ss.edge_maps_of(images)[1], fresh))
     twice = near_candidates(images, views, meshes["tibial"], start)
     assert len(cached) >= 1 and all(np.array_equal(a, b) for a, b in zip(cached, twice))
+
+
+def test_far_from_all_answers_as_the_one_by_one_loop():
+    """``shape_search.far_from_all`` takes the distances all at once: the same answer as
+    ``all(norm(p - q) > limit ...)`` (points exactly at the limit, NaN, none), in 2D and 3D."""
+    rng = np.random.default_rng(7)
+    for trial in range(3000):
+        dim = 2 + trial % 2
+        points = [rng.normal(size=dim) * 10 for _ in range(rng.integers(0, 6))]
+        p = rng.normal(size=dim) * 10
+        if points and trial % 3 == 0:
+            points[0] = p + np.eye(dim)[0] * 12.0  # on the limit
+        if points and trial % 7 == 0:
+            points[-1] = np.full(dim, np.nan)
+        loop = all(np.linalg.norm(p - q) > 12.0 for q in points)
+        assert ss.far_from_all(p, points, 12.0) == loop
+        assert ss.far_from_all(p, np.array(points).reshape(-1, dim), 12.0) == loop
+
+
+def test_dark_regions_made_once_give_both_rounds_their_points(scene):
+    """*Find implants*' two rounds of position hypotheses read one ``dark_levels`` per image:
+    the same centroids and depth peaks as dark regions made afresh for each round."""
+    images, views, meshes, truth, empty = scene
+    fovs = ss.edge_maps_of(images)[0]
+    for image, fov in zip(images, fovs):
+        levels = ss.dark_levels(image, fov)
+        assert len(levels.regions) >= 10
+        for peaks in (0, 4):
+            afresh = ss.dark_region_points(image, fov, max_peaks=peaks)
+            shared = ss.dark_region_points(image, fov, max_peaks=peaks, levels=levels)
+            assert len(afresh[0]) >= 3 and (len(afresh[1]) >= 1) == (peaks > 0)
+            for a, b in zip(afresh, shared):
+                assert len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b))

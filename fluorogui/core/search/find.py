@@ -53,6 +53,7 @@ degrees off, about 0.3 s per component.
 """
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
@@ -232,10 +233,19 @@ def _moved_centre(views, c, shifts_px) -> np.ndarray:
 
 def near_rotations(R: np.ndarray, max_deg: float = NEAR_DEG, step_deg: float = 6.0) -> np.ndarray:
     """Rotations exp(w) R with |w| <= max_deg on a cubic grid of rotation vectors."""
+    return np.matmul(_near_turns(float(max_deg), float(step_deg)), R)
+
+
+@functools.lru_cache(maxsize=4)
+def _near_turns(max_deg: float, step_deg: float) -> np.ndarray:
+    """The turns exp(w) of ``near_rotations``, made once (900 Rodrigues matrices took 10-15 ms
+    of every search near a prediction)."""
     g = np.arange(-max_deg, max_deg + 1e-9, step_deg)
     w = np.array([(a, b, c) for a in g for b in g for c in g])
     w = np.radians(w[np.linalg.norm(w, axis=1) <= max_deg + 1e-9])
-    return np.stack([rotvec_matrix(x) @ R for x in w])
+    turns = np.stack([rotvec_matrix(x) for x in w])
+    turns.flags.writeable = False
+    return turns
 
 
 _GRIDS: dict[int, np.ndarray] = {}
@@ -428,6 +438,7 @@ class _Rounds:
     def __init__(self, images, views, fovs):
         self.images, self.views, self.fovs = images, views, fovs
         self._rounds: list[list[np.ndarray]] = []
+        self._levels: list = []  # per view: its dark regions (shape_search.dark_levels), for both rounds
 
     def __len__(self) -> int:
         return 2
@@ -437,8 +448,10 @@ class _Rounds:
             raise IndexError(k)
         while len(self._rounds) <= k:
             peaks = bool(self._rounds)
-            points = [ss.dark_region_points(image, fov, max_peaks=4 if peaks else 0)
-                      for image, fov in zip(self.images, self.fovs)]
+            if not self._levels:
+                self._levels = [ss.dark_levels(image, fov) for image, fov in zip(self.images, self.fovs)]
+            points = [ss.dark_region_points(image, fov, max_peaks=4 if peaks else 0, levels=levels)
+                      for image, fov, levels in zip(self.images, self.fovs, self._levels)]
             hyps = ss.position_hypotheses(self.views, [c + p for c, p in points], merge_mm=12.0)
             if peaks:
                 hyps = [h for h in hyps if all(np.linalg.norm(h - g) > 12.0 for g in self._rounds[0])]

@@ -77,7 +77,7 @@ def outline_iou(mesh, pose, view: View, spline, *, shape, hidden: np.ndarray | N
     a = np.zeros((h, w), np.uint8)
     b = np.zeros((h, w), np.uint8)
     R = rotation_matrix(*pose[3:])
-    sil = ss.outline(mesh, R, R @ mesh.centroid + pose[:3], view, spacing_px=1.0)[0]
+    sil = ss.outline(mesh, R, R @ mesh.centroid + pose[:3], view, spacing_px=1.0, nearest=False)[0]
     ring = spline.sample(max(64, int(spline.length_px)))
     for canvas, pts in ((a, sil), (b, ring)):
         cv2.fillPoly(canvas, [np.round(_to_half(pts) * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
