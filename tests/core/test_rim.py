@@ -221,3 +221,33 @@ def test_a_stretch_pulled_by_another_edge_is_left_out(tray, monkeypatch):
     # measured -0.022 px (-0.0072 with the silhouette's earlier snapping, -0.046 before the
     # slope and bend terms); the truth's distances come in 1/8 px steps
     assert abs(rest.mean()) < 0.044
+
+
+def test_the_views_of_a_component_are_fitted_side_by_side(monkeypatch):
+    """Each view's residual curves are computed on its own thread (``core.threads.each_view``),
+    and the shared attenuation and each view's blur are the same as one view after the other."""
+    import threading
+
+    from fluorogui.core import threads
+
+    centre = {0.0: 1.2, 1.0: 0.9}
+    where = []
+
+    def residual_per_mu(pts, max_points, sigma_grid, mu_grid=rim.MU_GRID):
+        view = float(pts.at[0])
+        where.append(threading.current_thread().name)
+        per_mu = np.array([(1.0 + view) * (1.0 + 0.1 * np.log(mu / centre[view]) ** 2) for mu in mu_grid])
+        return per_mu, np.full(len(mu_grid), centre[view] - 0.3)
+
+    monkeypatch.setattr(rim, "_residual_per_mu", residual_per_mu)
+    views = [rim._Points(*(np.zeros((10, 3)),) * 4, np.full(10, v), np.zeros((10, 3)), np.zeros(10), np.zeros(10),
+                         np.zeros(10))
+             for v in (0.0, 1.0)]
+    monkeypatch.setattr(threads, "_threads", 1)
+    alone = rim.fit_rim_models(views)
+    assert not any(threads.is_view_thread_name(name) for name in where)
+    where.clear()
+    monkeypatch.setattr(threads, "_threads", 2)
+    assert rim.fit_rim_models(views) == alone
+    assert any(threads.is_view_thread_name(name) for name in where)  # coarse and fine grids, side by side
+    assert alone[0].mu == alone[1].mu == pytest.approx(np.sqrt(1.2 * 0.9), rel=0.02)

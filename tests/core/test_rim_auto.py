@@ -67,3 +67,37 @@ def test_loop_settings_rim_modes_and_older_projects():
     assert LoopSettings.from_dict(LoopSettings(rim="off").to_dict()).rim == "off"
     with pytest.raises(ValueError, match="rim must be one of"):
         LoopSettings(rim="sometimes")
+
+
+def test_the_views_are_judged_side_by_side_in_their_own_order(monkeypatch):
+    """Each view's edge is judged on its own thread (``core.threads.each_view``); the models
+    and the soft views come back in view order, views without an outline or with a model
+    already given are not judged, and a cancel stops the judgement."""
+    import threading
+
+    from fluorogui.core import threads
+    from fluorogui.core.cancel import Cancelled
+    from fluorogui.core.matching import loop
+    from fluorogui.core.outlines.rim import STEP, RimModel
+
+    judged = {}
+
+    def fake_edge_model(image, view, mesh, pose, *, outline_px, exclude):
+        judged[int(image)] = threading.current_thread().name
+        return RimModel(1.0, 0.9) if image == 2 else STEP  # view 3 soft, the others steps
+
+    monkeypatch.setattr(threads, "_threads", 2)
+    monkeypatch.setattr(loop, "edge_model", fake_edge_model)
+    monkeypatch.setattr(loop, "rim_models_together", lambda *a, **k: [])  # (one soft view: not called)
+    outline = np.zeros((20, 2))
+    soft, models = loop.soft_edge_views([0, 1, 2, 3], [None] * 4, None, np.zeros(6),
+                                        outlines=[outline, outline, outline, None], models=[None, None, None, None])
+    assert soft == [2] and models == [STEP, STEP, RimModel(1.0, 0.9), None]
+    assert sorted(judged) == [0, 1, 2]
+    assert any(threads.is_view_thread_name(name) for name in judged.values())  # not one after the other
+    judged.clear()
+    soft, models = loop.soft_edge_views([0, 1], [None] * 2, None, np.zeros(6), outlines=[outline, outline],
+                                        models=[RimModel(1.2, 1.0), None])
+    assert soft == [0] and models == [RimModel(1.2, 1.0), STEP] and list(judged) == [1]  # a given model stays
+    with pytest.raises(Cancelled):
+        loop.soft_edge_views([0, 1], [None] * 2, None, np.zeros(6), outlines=[outline, outline], cancel=lambda: True)

@@ -208,3 +208,26 @@ def test_an_automatic_outline_keeps_its_point_weights_in_the_project_until_edite
     assert session.project.records[key].weights is None and session.spline(key).point_weights is None
     session.history.undo()
     np.testing.assert_array_equal(session.project.records[key].weights, weights)
+
+
+@pytest.mark.slow
+def test_a_second_orientation_that_fits_within_the_probe_ratio_is_flagged_ambiguous(demo, truth):
+    """The ambiguity probe's flag, end to end (no other test reaches it): in a frame with no
+    matched frame before it (frame 0: the probe runs), the tray turned 25 deg about its stem
+    is recovered at the truth and the probe, turned 20 deg either way about the stem, finds
+    a second orientation that passes every check (measured: 15 deg away, outline distance
+    0.30 mm against 0.05 mm). With ``probe_ratio`` above that ratio the two count as fitting
+    alike: the truth is kept, flagged ambiguous, saying how far apart they are."""
+    session = Session.open(demo)
+    known = truth(session)
+    settings = session.settings
+    settings.tracking.probe_ratio = 10.0
+    session.set_settings(settings)
+    pose = known[0]["tibial"]
+    start = turned(pose, session.mesh("tibial").centroid, rotation_matrix(*pose[3:])[:, 2], -25.0)
+    session.set_pose("tibial", 0, start)
+    result = session.match(0, "tibial")[0]
+    mm, deg = _error(result, known)
+    assert result.status == "needs_review" and "ambiguous" in result.failed, (result.status, result.reason)
+    assert result.reason.startswith("ambiguous: another orientation") and "° away" in result.reason
+    assert mm < 0.013 and deg < 0.055, (mm, deg)  # the pose kept is the truth

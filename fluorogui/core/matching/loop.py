@@ -179,20 +179,19 @@ def soft_edge_views(images, views, mesh: PreparedMesh, pose, *, outlines: Sequen
     component's metal: a noisy view's own varies by several per cent, and over three
     noise draws the views' own moved a 15 % smaller femur 0.004-0.024 deg further from
     the truth than the shared one). Returns the views and the models. ``cancel`` is checked
-    before each fit (a second or more each)."""
+    before each fit (a second or more each). The views are judged side by side
+    (``core.threads.each_view``): the same models as one after the other."""
     models = list(models) if models is not None else [None] * len(views)
-    soft, judged_here = [], []
     excludes = [occluded[k] if occluded is not None and k < len(occluded) else None for k in range(len(views))]
-    for k, points in enumerate(outlines):
-        if points is None:
-            continue
-        model = models[k]
-        if model is None:
-            check_cancel(cancel)
-            model = models[k] = edge_model(images[k], views[k], mesh, pose, outline_px=points, exclude=excludes[k])
-            judged_here.append(k)
-        if is_soft(model):
-            soft.append(k)
+    judged_here = [k for k, points in enumerate(outlines) if points is not None and models[k] is None]
+
+    def judge(k: int) -> RimModel:
+        check_cancel(cancel)
+        return edge_model(images[k], views[k], mesh, pose, outline_px=outlines[k], exclude=excludes[k])
+
+    for k, model in zip(judged_here, each_view(judge, judged_here)):  # the views side by side
+        models[k] = model
+    soft = [k for k, points in enumerate(outlines) if points is not None and is_soft(models[k])]
     together = [k for k in judged_here if k in soft]
     if len(together) > 1:
         check_cancel(cancel)

@@ -79,6 +79,7 @@ from fluorogui.core.projection.mesh import PreparedMesh
 from fluorogui.core.projection.path_length import path_lengths
 from fluorogui.core.projection.pose import rotation_matrix
 from fluorogui.core.projection.silhouette import mesh_silhouette
+from fluorogui.core.threads import each_view
 
 #: candidate attenuations (1/mm; the last one is a step) and blurs (px, Gaussian sigma
 #: including the pixel's own width)
@@ -320,7 +321,7 @@ def fit_rim_models(views_pts: list[_Points], max_points: int = 120, tolerance: f
     relative to its own least (its noise), and each view's blur where that lands. A
     noisy view's own attenuation varies by several per cent from draw to draw, and the
     views' outlines move the pose in opposite ways with it."""
-    curves = [_residual_per_mu(pts, max_points, sigma_grid) for pts in views_pts]
+    curves = each_view(lambda pts: _residual_per_mu(pts, max_points, sigma_grid), views_pts)  # side by side
     fitted = [c for c in curves if c is not None]
     if not fitted:
         return [STEP] * len(views_pts)
@@ -337,8 +338,9 @@ def fit_rim_models(views_pts: list[_Points], max_points: int = 120, tolerance: f
     grid = np.log(MU_GRID)
     if 0 < best < len(MU_GRID) - 1:
         grid = log_mu + FINE_LOG_MU_STEPS
-        curves = [_residual_per_mu_near(pts, max_points, sigma_grid, tuple(np.exp(grid)), sigma=c[1][best])
-                  if c is not None else None for pts, c in zip(views_pts, curves)]
+        curves = each_view(lambda pc: _residual_per_mu_near(pc[0], max_points, sigma_grid, tuple(np.exp(grid)),
+                                                            sigma=pc[1][1][best]) if pc[1] is not None else None,
+                           list(zip(views_pts, curves)))
         fitted = [c for c in curves if c is not None]
         total = sum(per_mu / per_mu.min() for per_mu, _ in fitted)
         best = int(np.argmin(total))
@@ -431,37 +433,40 @@ def refine_outlines(images, views, mesh: PreparedMesh, pose, *, outlines_px, mod
     (``precision_weights``; None where nothing was refined), for ``OutlineSpline.fit``."""
     models = list(models) if models is not None else [None] * len(views)
     excludes = list(excludes) if excludes is not None else [None] * len(views)
-    gathered = []
-    for k, outline in enumerate(outlines_px):
-        points = np.asarray(outline, dtype=float).reshape(-1, 2)
+
+    def gather(k: int) -> tuple:
+        points = np.asarray(outlines_px[k], dtype=float).reshape(-1, 2)
         if len(points) < 8:
-            gathered.append((points, None, None, None))
-            models[k] = models[k] or STEP
-            continue
+            return points, None, None, None
         pts, n = _gather(images[k], views[k], mesh, pose, points=points, exclude=excludes[k])
-        gathered.append((points, pts, n, _usable(pts)))
+        return points, pts, n, _usable(pts)
+
+    gathered = each_view(gather, range(len(outlines_px)))  # the views side by side, here and below
+    for k, (_, pts, _, _) in enumerate(gathered):
+        if pts is None:
+            models[k] = models[k] or STEP
     to_fit = [k for k, (_, pts, _, _) in enumerate(gathered) if pts is not None and models[k] is None]
     if to_fit:
         fitted = _fit_models([gathered[k][1] for k in to_fit], [gathered[k][3] for k in to_fit], smooth)
         for k, model in zip(to_fit, fitted):
             models[k] = model
-    refined, weights = [], []
-    for (points, pts, n, usable), model in zip(gathered, models):
+
+    def refine(k: int) -> tuple[np.ndarray, np.ndarray | None]:
+        points, pts, n, usable = gathered[k]
         if pts is None:
-            refined.append(points.copy())
-            weights.append(None)
-            continue
-        moves, offsets, found = _moves(pts, model, usable, smooth)
+            return points.copy(), None
+        moves, offsets, found = _moves(pts, models[k], usable, smooth)
         drop = strays(offsets)
         if drop.mean() > MAX_DROPPED:  # too many to be strays: the pose is not close enough to judge
             drop[:] = False
         moved = (points + moves[:, None] * n)[~drop]
         outline = simple_or_plain(moved, points)
-        refined.append(outline)
         if outline is not moved and np.array_equal(outline, points):
-            weights.append(None)  # given up for Canny's own outline
-        else:  # each point (of an untangled outline too) weighted as the moved point it is
-            weights.append(precision_weights(found)[~drop][cKDTree(moved).query(outline)[1]])
+            return outline, None  # given up for Canny's own outline
+        # each point (of an untangled outline too) weighted as the moved point it is
+        return outline, precision_weights(found)[~drop][cKDTree(moved).query(outline)[1]]
+
+    refined, weights = (list(x) for x in zip(*each_view(refine, range(len(gathered))))) if gathered else ([], [])
     return refined, models, weights
 
 
@@ -507,7 +512,8 @@ def _fit_models(views_pts: list[_Points], usable: list[np.ndarray], smooth: int,
     # strays must not decide the images' model either: fit it again without them, over
     # more points (the attenuation of a first fit over 120 points varies by several per
     # cent from one noise draw to the next, and moves the outline with it)
-    kept = {k: usable[k] & ~strays(_moves(views_pts[k], models[k], usable[k], smooth)[1]) for k in again}
+    kept = dict(zip(again, each_view(lambda k: usable[k] & ~strays(_moves(views_pts[k], models[k], usable[k],
+                                                                          smooth)[1]), again)))
     again = [k for k in again if kept[k].sum() >= 8]
     if again:
         for k, model in zip(again, fit_rim_models([_subset(views_pts[k], kept[k]) for k in again],
