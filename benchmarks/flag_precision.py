@@ -41,3 +41,42 @@ def flag_precision(results: Iterable, right: Callable[[object], bool | None], la
             "right_share": share, "wrong_matched": wrong_matched,
             "per_check": {c: {"flagged": flagged[c], "right": flagged_right[c], "judged": judged[c]}
                           for c in flagged}}
+
+
+def region_fit_verdict(session, result, matched_poses: dict, tolerance: float = 0.5) -> bool | None:
+    """Is a real frame's pose right, where no reference pose is stored? Judged by the
+    independent region fit (``fluorogui.reference.region_fit``: pixels beyond the field of
+    view and the other component's region, at its pose in ``matched_poses`` or the result's
+    own, left out): right when the fit from the pose lands within ``tolerance`` mm / deg
+    (largest translation difference, rotation angle); not right when the fit is refused and
+    the pose's own region overlaps the dark region under ``MIN_IOU`` in a view; else None."""
+    import numpy as np
+
+    from fluorogui.reference.region_fit import (
+        MIN_IOU,
+        EdgeMesh,
+        LowOverlap,
+        component_masks,
+        field_of_view,
+        fit_pose,
+        overlap_at,
+        rotation_angle,
+    )
+
+    def edges(component):
+        mesh = session.mesh(component)
+        return EdgeMesh.from_arrays(mesh.vertices, mesh.faces)
+
+    pose = np.asarray(result.pose, dtype=float)
+    other = "tibial" if result.component == "femoral" else "femoral"
+    images = session.images(result.frame)
+    fields = [field_of_view(im) for im in images]
+    at_other = matched_poses.get((result.frame, other))
+    exclude = component_masks(session.views, edges(other), at_other) if at_other is not None else None
+    mesh = edges(result.component)
+    try:
+        fit = fit_pose(session.views, images, mesh, pose, exclude=exclude, fields=fields)
+    except LowOverlap:
+        return False if min(overlap_at(session.views, images, mesh, pose, exclude=exclude,
+                                       fields=fields)) < MIN_IOU else None
+    return bool(np.abs(fit.pose[:3] - pose[:3]).max() <= tolerance and rotation_angle(fit.pose, pose) <= tolerance)

@@ -16,6 +16,15 @@ region overlap (IoU) per view at the reference and at the matcher's pose (the sa
 evidence), and the mean, SD and max of |difference|;
 ``--out`` writes the rows as CSV.
 
+``--project P.fluoro`` takes the poses of a tracked project instead (e.g. the one
+``benchmarks/bench_tracking.py real`` prints: every frame of the 33 pairs, flagged ones
+too, where the CSV stops at frame 160 because the tool that made it kept only poses whose
+outline residual was small), with their status; ``--flagged`` fits only the poses that are
+not ``matched`` and says of each whether it is a right pose (within ``--right MM_DEG``,
+default 0.5, of the reference: largest translation difference and rotation angle), so each
+check's flags can be judged. Pixels beyond the intensifier's field are left out of the
+evidence (``region_fit.field_of_view``), as the matcher leaves them out.
+
 ``--xray`` measures the reference fitter's own error instead, on images of the
 independent X-ray model (``fluorogui.reference.xray``: path length, Beer-Lambert, blur,
 noise, a leg and bone background) with known poses: the real meshes at ``--flexion``
@@ -25,6 +34,7 @@ mm / deg per axis. Prints fit - truth per start and the mean, SD and max per com
 
 Usage: .venv/bin/python tools/reference_poses.py [--data DIR] [--poses CSV] [--frames N]
            [--components femoral tibial] [--perturb MM_DEG] [--out CSV]
+           [--project P.fluoro [--flagged] [--right MM_DEG]] [--only FRAME ...]
        .venv/bin/python tools/reference_poses.py --xray [--flexion 30 45 60 90] [--starts 3]
        .venv/bin/python tools/reference_poses.py --single-plane [--data ../shared/data/single-plane-tka]
 
@@ -57,6 +67,7 @@ from fluorogui.reference.region_fit import (  # noqa: E402
     component_masks,
     field_of_view,
     fit_pose,
+    overlap_at,
     pose_difference,
     rotation,
     rotation_angle,
@@ -73,6 +84,19 @@ def read_poses(path: Path) -> dict:
                 for r in csv.DictReader(fh)}
 
 
+def project_poses(path: Path) -> tuple[dict, dict]:
+    """{(frame, component): pose} and {(frame, component): (status, failed checks)} of a
+    saved project's pose records."""
+    from fluorogui.workflow.session import Session
+
+    session = Session.open(path)
+    poses, status = {}, {}
+    for (frame, comp), record in session.project.poses.items():
+        poses[int(frame), comp] = np.asarray(record.pose, dtype=float)
+        status[int(frame), comp] = str(record.status)
+    return poses, status
+
+
 def main(argv=None) -> int:
     default_data = ROOT.parent / "shared" / "data" / "biplane-tka"
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -83,6 +107,10 @@ def main(argv=None) -> int:
     ap.add_argument("--perturb", type=float, default=0.0, help="also fit from a start moved by this (mm, deg)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", type=Path)
+    ap.add_argument("--project", type=Path, help="the poses (and statuses) of a tracked project instead of --poses")
+    ap.add_argument("--flagged", action="store_true", help="with --project: only the poses not matched")
+    ap.add_argument("--only", type=int, nargs="+", help="only these frames")
+    ap.add_argument("--right", type=float, default=0.5, help="a right pose: within this (mm, deg) of the reference")
     ap.add_argument("--xray", action="store_true", help="the fitter's own error on X-ray model images")
     ap.add_argument("--flexion", type=float, nargs="+", default=[30.0, 45.0, 60.0, 90.0])
     ap.add_argument("--starts", type=int, default=3)
@@ -98,12 +126,23 @@ def main(argv=None) -> int:
     with open(data / "pairs.csv", newline="") as fh:
         pairs = {int(r["frame"]): (r["cam1"], r["cam2"]) for r in csv.DictReader(fh)}
     meshes = {c: EdgeMesh.from_arrays(*load_mesh(data / f"models/{c}_component.stl")) for c in ("femoral", "tibial")}
-    matcher = read_poses(args.poses)
+    status: dict = {}
+    if args.project:
+        matcher, status = project_poses(args.project)
+        if args.flagged:
+            matcher = {key: pose for key, pose in matcher.items() if status[key] != "matched"}
+            others = project_poses(args.project)[0]  # the other component's region, whatever its status
+        else:
+            others = matcher
+    else:
+        matcher = others = read_poses(args.poses)
     frames = sorted({f for f, _ in matcher})
     if args.frames:
         frames = frames[:args.frames]
+    if args.only:
+        frames = [f for f in frames if f in args.only]
     rng = np.random.default_rng(args.seed)
-    rows, refusals, t_all = [], [], time.perf_counter()
+    rows, refusals, t_all, refused_wrong = [], [], time.perf_counter(), 0
     print(f"{'frame':>5} {'component':9} " + " ".join(f"{k:>7}" for k in DIFF_LABELS)
           + "   iou1   iou2 (matcher's) secs" + ("  start-spread" if args.perturb else ""))
     for frame in frames:
@@ -114,12 +153,19 @@ def main(argv=None) -> int:
                 continue
             pose = matcher[frame, comp]
             other = "tibial" if comp == "femoral" else "femoral"
-            exclude = (component_masks(views, meshes[other], matcher[frame, other])
-                       if (frame, other) in matcher else None)
+            exclude = (component_masks(views, meshes[other], others[frame, other])
+                       if (frame, other) in others else None)
             try:
                 fit = fit_pose(views, images, meshes[comp], pose, exclude=exclude, fields=fields)
             except LowOverlap as refused:
-                print(f"{frame:5d} {comp:9} refused: {refused}", flush=True)
+                line = f"{frame:5d} {comp:9} refused: {refused}"
+                if status:  # the pose itself against the evidence: too little overlap is no right pose
+                    at = overlap_at(views, images, meshes[comp], pose, exclude=exclude, fields=fields)
+                    wrong = min(at) < MIN_IOU
+                    line += ("; overlap at this pose " + " ".join(f"{v:.2f}" for v in at)
+                             + f"  {status[frame, comp]}" + (", NOT a right pose" if wrong else ", unknown"))
+                    refused_wrong += wrong
+                print(line, flush=True)
                 refusals.append((frame, comp))
                 continue
             diff = np.r_[pose_difference(pose, fit.pose), rotation_angle(pose, fit.pose)]
@@ -139,11 +185,21 @@ def main(argv=None) -> int:
                 spread = np.r_[pose_difference(again.pose, fit.pose), rotation_angle(again.pose, fit.pose)]
                 row.update({f"restart_{k}": v for k, v in zip(DIFF_LABELS, spread)})
                 line += (f"  {np.abs(spread[:3]).max():.3f} mm {spread[6]:.3f} deg")
+            if status:
+                row["status"] = status[frame, comp]
+                row["right"] = bool(np.abs(diff[:3]).max() <= args.right and diff[6] <= args.right)
+                line += f"  {row['status']}" + (", a right pose" if row["right"] else ", NOT a right pose")
             print(line, flush=True)
             rows.append(row)
     if refusals:
         print(f"\nrefused (overlap under {MIN_IOU:g} in a view), left out: "
               + ", ".join(f"{f} {c}" for f, c in refusals))
+    flagged = [r for r in rows if r.get("status", "matched") != "matched"]
+    if status and (flagged or refusals):
+        print(f"not matched: {len(flagged)} fitted, {sum(r['right'] for r in flagged)} of them right poses "
+              f"(within {args.right:g} mm / {args.right:g} deg of the reference); refused: "
+              f"{sum(status[key] != 'matched' for key in refusals)} ({refused_wrong} of them not right poses: "
+              f"their region overlaps the dark region under {MIN_IOU:g} in a view)")
     if not rows:
         print("no frames")
         return 1

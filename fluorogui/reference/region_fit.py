@@ -378,6 +378,17 @@ def iou(data: ViewData, cover: np.ndarray) -> float:
     return float(np.count_nonzero(a & b) / union) if union else 0.0
 
 
+def overlap_at(views, images, mesh: EdgeMesh, pose, *, exclude=None, fields=None, pad: int = 20,
+               s: int = STAGES[-1][1]) -> list[float]:
+    """Per view, the overlap (IoU) of the region at ``pose`` with the dark region sampled
+    around it, without fitting: how well a given pose (another method's) explains the
+    images where a fit from it is refused."""
+    pose = np.asarray(pose, dtype=float)
+    world = mesh.vertices @ rotation(*pose[3:]).T + pose[:3]
+    data = prepare_views(views, images, world, mesh, pad=pad, exclude=exclude, fields=fields)
+    return [iou(d, coverage(d.view, world, mesh, d.box, s=s)) for d in data]
+
+
 def fit_pose(views, images, mesh: EdgeMesh, start, *, exclude=None, fields=None, pad: int = 20,
              stages=STAGES, max_nfev: int = 30, settle: int = SETTLE, min_iou: float | None = MIN_IOU) -> RegionFit:
     """Fit the pose of one component (``EdgeMesh`` in its own coordinates) to the dark

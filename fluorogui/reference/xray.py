@@ -341,8 +341,14 @@ def xray_image(view, bodies: list[Body], model: XrayModel | None = None,
     """The detector image (H, W) in [0, 1], quantised to ``model.bits``: bright where
     little is in the way, dark behind metal."""
     model = model or XrayModel()
+    return detector_image(line_integrals(view, bodies, model), model, rng)
+
+
+def detector_image(transmitted: np.ndarray, model: XrayModel, rng: np.random.Generator | None = None) -> np.ndarray:
+    """``xray_image`` from the noise-free transmitted fraction (``line_integrals``): quantum
+    noise, distortion, gain and quantisation. Several noise draws of one scene share the
+    costly ``line_integrals``."""
     rng = rng or np.random.default_rng(0)
-    transmitted = line_integrals(view, bodies, model)
     if model.photons:
         transmitted = rng.poisson(transmitted * model.photons) / float(model.photons)
     if model.distortion_k1:

@@ -132,3 +132,19 @@ def test_distortion_moves_points_as_the_model_says_and_back():
     observed = np.array([[np.sum(cols * w) / w.sum(), np.sum(rows * w) / w.sum()]])
     assert np.linalg.norm(observed - [101, 21]) > 2.0  # it moved outwards
     np.testing.assert_allclose(undistort_points(observed, 0.08, (128, 128)), [[101, 21]], atol=0.1)
+
+
+def test_noise_draws_of_one_scene_share_its_noise_free_image():
+    import pyvista as pv
+
+    from fluorogui.reference.xray import detector_image, line_integrals
+
+    v, f = _mesh(pv.Sphere(radius=12.0))
+    bodies, model = [Body(v, f)], XrayModel(supersample=1, bits=8)
+    shared = line_integrals(VIEW, bodies, model)  # computed once, drawn twice
+    for seed in (1, 2):  # each draw is the image drawn alone with that seed, to the bit
+        alone = xray_image(VIEW, bodies, model, np.random.default_rng(seed))
+        assert np.array_equal(detector_image(shared, model, np.random.default_rng(seed)), alone)
+    one, two = (detector_image(shared, model, np.random.default_rng(s)) for s in (1, 2))
+    # the draws differ by noise only: ~1/sqrt(3000) of the signal, a few 8-bit levels
+    assert not np.array_equal(one, two) and np.abs(one - two).mean() < 0.03
