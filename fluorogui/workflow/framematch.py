@@ -31,7 +31,13 @@ from scipy.spatial.transform import Rotation
 from fluorogui.core.cancel import OutOfTime, check_cancel, with_deadline
 from fluorogui.core.matching.loop import SegmentationError, segment_and_match
 from fluorogui.core.matching.problem import MatchProblem
-from fluorogui.core.matching.quality import assess, failed_checks, weak_view, weak_view_problem
+from fluorogui.core.matching.quality import (
+    assess,
+    failed_checks,
+    hidden_where_no_edges,
+    weak_view,
+    weak_view_problem,
+)
 from fluorogui.core.matching.uncertainty import covariances, pose_sd
 from fluorogui.core.outlines.field import field_of_view
 from fluorogui.core.outlines.rim import MAYBE_SOFT_BELOW_MU
@@ -217,7 +223,7 @@ class FrameMatcher:
                                  why_not_converged=result.message)
         weak = weak_view(problems, quality, s.quality)
         if weak is not None:  # one view's edges are weak, nothing else fails: judged by the others
-            problems = self._judged_without(weak, job, out, hidden, quality=quality)
+            problems = self._judged_without(weak, job, out, hidden, images=images, quality=quality)
         status = Status.NEEDS_REVIEW if problems else Status.MATCHED
         reason = "; ".join(text for _, text in problems)
         failed = [name for name, _ in problems]
@@ -229,13 +235,15 @@ class FrameMatcher:
                            time.perf_counter() - t0, rim_models=rims, outline_weights=out.outline_weights,
                            failed=failed)
 
-    def _judged_without(self, weak: int, job: ComponentInput, out, hidden, *, quality) -> list[tuple[str, str]]:
-        """A pose whose view ``weak`` has weak edges, judged by the other views' outlines
-        alone (``quality.weak_view_problem``): passed when they pin it down, else flagged
-        (as ``edge_support``) naming the direction they leave loose."""
-        others = [k for k in range(len(self.views)) if k != weak]
-        problem = MatchProblem(job.mesh, [self.views[k] for k in others], [out.splines[k] for k in others],
-                               [hidden[k] for k in others])
+    def _judged_without(self, weak: int, job: ComponentInput, out, hidden, *, images, quality) -> list[tuple[str, str]]:
+        """A pose whose view ``weak`` has weak edges, judged by the other views' outlines and
+        the stretches of the weak view's outline that lie on image edges (the rest hidden,
+        ``quality.weak_view_problem``): passed when they pin it down, else flagged (as
+        ``edge_support``) naming the direction they leave loose."""
+        masks = list(hidden)
+        masks[weak] = hidden_where_no_edges(images[weak], out.outlines_px[weak], hidden[weak],
+                                       tol_px=self.settings.quality.tol_px)
+        problem = MatchProblem(job.mesh, self.views, out.splines, masks)
         try:
             _, body = covariances(problem, out.pose, settings=self.settings.match)
         except ValueError:

@@ -54,7 +54,7 @@ def test_a_weak_view_is_named_only_when_its_edges_are_all_that_fails():
     assert weak_view(failed_checks(also), also) is None
 
 
-def test_a_weak_view_flags_only_what_the_other_view_leaves_loose():
+def test_a_weak_view_flags_only_what_its_edges_and_the_other_view_leave_loose():
     import numpy as np
 
     from fluorogui.core.matching.quality import weak_view_problem
@@ -66,6 +66,26 @@ def test_a_weak_view_flags_only_what_the_other_view_leaves_loose():
     loose = tight + 0.6 ** 2 * np.outer(n, n)  # along view 2's beam, which view 2 cannot see
     text = weak_view_problem(0, views, loose, [0.6] * 3 + [0.1, 0.1, 0.1], edge=0.6)
     assert text == ("view 1 has little edge contrast (only 60 % of the model outline lies on image edges "
-                    "there); judged by the other view, its depth along view 2's axis is uncertain to ±0.6 mm")
+                    "there); judged by the other view and the edges view 1 has, its depth along view 2's axis is "
+                    "uncertain to ±0.6 mm")
     turned = weak_view_problem(0, views, tight, [0.05] * 3 + [0.1, 0.9, 0.1], edge=0.6)
     assert turned.endswith("its rotation about the model's y axis (beta) is uncertain to ±0.9 °")
+
+
+def test_the_stretches_of_a_weak_view_without_edges_are_hidden_the_rest_kept():
+    import cv2
+    import numpy as np
+
+    from fluorogui.core.matching.quality import edge_support, hidden_where_no_edges
+
+    image = np.full((120, 160), 0.8, np.float32)
+    cv2.rectangle(image, (40, 30), (120, 90), 0.2, -1)  # a dark block: edges all round ...
+    image[70:, :] = 0.8 * 0.03 + image[70:, :] * 0  # ... but its lower part washed out (no contrast left)
+    outline = np.array([(40, 30), (120, 30), (120, 90), (40, 90)], float)
+    dense = np.concatenate([np.linspace(outline[i], outline[(i + 1) % 4], 80, endpoint=False) for i in range(4)])
+    share = edge_support(image, dense)
+    assert 0.4 < share < 0.8
+    hidden = hidden_where_no_edges(image, dense, None, tol_px=1.5)
+    covered = hidden[np.round(dense[:, 1]).astype(int), np.round(dense[:, 0]).astype(int)]
+    assert covered[dense[:, 1] >= 75].all()  # the washed-out stretch
+    assert not covered[dense[:, 1] <= 60].any()  # the edges that are there stay

@@ -116,16 +116,27 @@ def edge_support(image: np.ndarray, outline_px: np.ndarray, *, occluded: np.ndar
                  tol_px: float = 1.5, thresholds: tuple[float, float] = (0.04, 0.12), sigma: float = 1.0) -> float:
     """Share of the (visible) outline points lying within ``tol_px`` of a Canny edge of
     ``image``, with Canny run on a crop around the outline."""
+    _, near = edge_supported_points(image, outline_px, occluded=occluded, tol_px=tol_px, thresholds=thresholds,
+                                    sigma=sigma)
+    return float(np.mean(near)) if len(near) else 0.0
+
+
+def edge_supported_points(image: np.ndarray, outline_px: np.ndarray, *, occluded: np.ndarray | None = None,
+                          tol_px: float = 1.5, thresholds: tuple[float, float] = (0.04, 0.12),
+                          sigma: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """The (visible) outline points and, per point, whether it lies within ``tol_px`` of a
+    Canny edge of ``image`` (``edge_support`` is their share)."""
     pts = np.asarray(outline_px, dtype=float)
     pts = pts[visible_points(occluded, pts)]
+    none = np.zeros(len(pts), dtype=bool)
     if len(pts) == 0:
-        return 0.0
+        return pts, none
     h, w = np.asarray(image).shape[:2]
     pad = 12
     u0, v0 = max(int(pts[:, 0].min()) - pad, 0), max(int(pts[:, 1].min()) - pad, 0)
     u1, v1 = min(int(pts[:, 0].max()) + pad + 1, w), min(int(pts[:, 1].max()) + pad + 1, h)
     if u1 - u0 < 4 or v1 - v0 < 4:
-        return 0.0
+        return pts, none
     crop = np.asarray(image, dtype=np.float32)[v0:v1, u0:u1]
     edges = canny_edges(crop, thresholds[0], thresholds[1], sigma)
     distance = cv2.distanceTransform((~edges).astype(np.uint8), cv2.DIST_L2, 5)
@@ -133,8 +144,21 @@ def edge_support(image: np.ndarray, outline_px: np.ndarray, *, occluded: np.ndar
     inside = (local[:, 0] >= 0) & (local[:, 0] < u1 - u0) & (local[:, 1] >= 0) & (local[:, 1] < v1 - v0)
     col = np.clip(np.round(local[:, 0]).astype(int), 0, u1 - u0 - 1)
     row = np.clip(np.round(local[:, 1]).astype(int), 0, v1 - v0 - 1)
-    near = (distance[row, col] <= tol_px) & inside
-    return float(np.mean(near))
+    return pts, (distance[row, col] <= tol_px) & inside
+
+
+def hidden_where_no_edges(image: np.ndarray, model_outline_px: np.ndarray, hidden: np.ndarray | None, *,
+                          tol_px: float = 1.5) -> np.ndarray:
+    """``hidden`` (a view's boolean mask, or None) grown by the stretches of the model
+    outline that lie on no image edge (``edge_supported_points``), each point's disc of
+    twice ``tol_px``: what is left of the view's outline is what its edges show."""
+    mask = np.zeros(np.asarray(image).shape[:2], bool) if hidden is None else np.array(hidden, dtype=bool)
+    points, on_edge = edge_supported_points(image, model_outline_px, occluded=hidden, tol_px=tol_px)
+    reach = int(np.ceil(2 * tol_px))
+    canvas = np.zeros(mask.shape, np.uint8)
+    for u, v in np.round(points[~on_edge]).astype(int):
+        cv2.circle(canvas, (int(u), int(v)), reach, 1, -1)
+    return mask | canvas.astype(bool)
 
 
 def outline_support(image_outline_px: np.ndarray, model_outline_px: np.ndarray, occluded: np.ndarray | None = None,
@@ -314,19 +338,18 @@ def weak_view(problems: Sequence[tuple[str, str]], quality: Quality,
 
 def weak_view_problem(weak: int, views: Sequence[View], centroid_cov: np.ndarray, sd_body: Sequence[float],
                       *, edge: float, thresholds: QualityThresholds | None = None) -> str:
-    """Judge a pose whose view ``weak`` has weak edges by the other views alone:
-    ``centroid_cov`` (3 x 3, world mm^2) and ``sd_body`` (the turn about the model's axes,
-    deg, last three used) are the pose's uncertainty from those views' outlines. Empty when
-    they pin it down (within ``partial_sd_mm`` / ``partial_sd_deg``, the limits of a partly
-    visible component); else why not, naming the loosest direction (a translation along
-    another view's beam, which that view cannot see, or a turn)."""
+    """Judge a pose whose view ``weak`` has weak edges by the other views and by the
+    stretches of the weak view's outline that do lie on image edges: ``centroid_cov``
+    (3 x 3, world mm^2) and ``sd_body`` (the turn about the model's axes, deg, last three
+    used) are the pose's uncertainty from those outlines. Empty when they pin it down
+    (within ``partial_sd_mm`` / ``partial_sd_deg``, the limits of a partly visible
+    component); else why not, naming the loosest direction (a translation along a view's
+    beam, which that view cannot see, or a turn)."""
     t = thresholds or QualityThresholds()
     names = [f"view {k + 1}" for k in range(len(views))]
     C = np.asarray(centroid_cov, dtype=float)
     loose = []  # (SD over its limit, words, SD, unit)
     for k, view in enumerate(views):
-        if k == weak:
-            continue
         n = np.asarray(view.normal, dtype=float)
         var = float(n @ C @ n) if np.all(np.isfinite(C)) else np.inf
         sd = float(np.sqrt(var)) if np.isfinite(var) and var >= 0 else np.inf
@@ -340,7 +363,7 @@ def weak_view_problem(weak: int, views: Sequence[View], centroid_cov: np.ndarray
     amount = f"uncertain to ±{sd:.2g} {unit}" if np.isfinite(sd) else "not determined"
     by = "view" if len(views) == 2 else "views"
     return (f"{names[weak]} has little edge contrast (only {100 * edge:.0f} % of the model outline lies on image "
-            f"edges there); judged by the other {by}, its {words} is {amount}")
+            f"edges there); judged by the other {by} and the edges {names[weak]} has, its {words} is {amount}")
 
 
 def _partly_visible(quality: Quality, t: QualityThresholds, names: Sequence[str]) -> list[str]:
