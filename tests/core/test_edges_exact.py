@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from fluorogui.core.outlines.edges import best_translation, canny_edges, smoothed_gradients
+from fluorogui.core.outlines.edges import best_translation, canny_edges, gradient_magnitude, smoothed_gradients
 from fluorogui.core.outlines.quantile import tail_percentile
 from fluorogui.core.outlines.spline import resample_closed_polyline
 
@@ -105,3 +105,17 @@ def test_best_translation_is_the_plain_search():
         pts = resample_closed_polyline(pred, n=min(300, max(8, len(pred))))
         plain = _plain_best_translation(edges > 0, pts, search)
         assert np.array_equal(best_translation(edges > 0, pred, search), plain)
+
+
+def test_gradients_are_sobel_divided_by_eight_and_their_hypot():
+    rng = np.random.default_rng(5)
+    image = cv2.GaussianBlur(rng.uniform(0, 1, (300, 280)).astype(np.float32), (0, 0), 2.0)
+    image[100:200, 50:150] *= 0.3
+    img, gx, gy = smoothed_gradients(image, 1.0)
+    assert np.array_equal(gx, cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3, borderType=cv2.BORDER_REFLECT) / 8.0)
+    assert np.array_equal(gy, cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3, borderType=cv2.BORDER_REFLECT) / 8.0)
+    assert np.array_equal(gradient_magnitude(gx, gy), np.hypot(gx, gy))
+    for _ in range(5):  # magnitudes from 1e-6 to 1e2, either much larger than the other
+        x, y = (rng.normal(size=400_000) * 10.0 ** rng.uniform(-6, 2, 400_000) for _ in range(2))
+        x, y = x.astype(np.float32), y.astype(np.float32)
+        assert np.array_equal(gradient_magnitude(x, y), np.hypot(x, y))
