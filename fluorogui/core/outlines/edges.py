@@ -38,8 +38,8 @@ def smoothed_gradients(image: np.ndarray, sigma: float = 1.0):
 
 
 def gradient_magnitude(gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
-    """float32 ``np.hypot(gx, gy)`` of finite float32 gradients, in float64 rounded once: the C
-    library's hypotf does just this, and numpy's float32 hypot calls it element by element
+    """float32 ``np.hypot(gx, gy)`` of finite float32 gradients, in float64 rounded once: glibc's
+    hypotf does just this, and numpy's float32 hypot calls it element by element
     (twice as slow). Held to ``np.hypot`` by the tests."""
     if gx.dtype != np.float32 or gy.dtype != np.float32:
         return np.hypot(gx, gy)
