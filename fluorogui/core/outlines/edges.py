@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
+from fluorogui.core.outlines.quantile import tail_percentile
 from fluorogui.core.outlines.spline import outward_normals, resample_closed_polyline, untangle_outline
 
 #: fraction of the reference gradient (see ``canny_edges``) used by default
@@ -30,9 +31,21 @@ def smoothed_gradients(image: np.ndarray, sigma: float = 1.0):
     img = np.asarray(image, dtype=np.float32)
     if sigma > 0:
         img = cv2.GaussianBlur(img, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
-    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3, borderType=cv2.BORDER_REFLECT) / 8.0
-    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3, borderType=cv2.BORDER_REFLECT) / 8.0
+    # (scale 1/8 inside the filter: a power of two, so the same numbers as dividing after)
+    gx = cv2.Sobel(img, cv2.CV_32F, 1, 0, ksize=3, scale=0.125, borderType=cv2.BORDER_REFLECT)
+    gy = cv2.Sobel(img, cv2.CV_32F, 0, 1, ksize=3, scale=0.125, borderType=cv2.BORDER_REFLECT)
     return img, gx, gy
+
+
+def gradient_magnitude(gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
+    """float32 ``np.hypot(gx, gy)`` of finite float32 gradients, in float64 rounded once: glibc's
+    hypotf does just this, and numpy's float32 hypot calls it element by element
+    (twice as slow). Held to ``np.hypot`` by the tests."""
+    if gx.dtype != np.float32 or gy.dtype != np.float32:
+        return np.hypot(gx, gy)
+    total = np.square(gx, dtype=np.float64)
+    total += np.square(gy, dtype=np.float64)
+    return np.sqrt(total, out=total).astype(np.float32)
 
 
 def canny_edges(image: np.ndarray, low: float = DEFAULT_LOW, high: float = DEFAULT_HIGH, sigma: float = 1.0, *,
@@ -51,19 +64,41 @@ def canny_edges(image: np.ndarray, low: float = DEFAULT_LOW, high: float = DEFAU
     if not 0 < low <= high:
         raise ValueError("Canny thresholds must satisfy 0 < low <= high")
     _, gx, gy = gradients if gradients is not None else smoothed_gradients(image, sigma)
-    mag = magnitude if magnitude is not None else np.hypot(gx, gy)
-    region = mag
+    mag = magnitude if magnitude is not None else gradient_magnitude(gx, gy)
+    return canny_from(canny_derivatives(gx, gy, mag, roi), low, high)
+
+
+def canny_derivatives(gx: np.ndarray, gy: np.ndarray, magnitude: np.ndarray,
+                      roi: tuple[int, int, int, int] | None = None):
+    """The 16-bit derivatives ``canny_edges`` passes to cv2.Canny (the gradients scaled so
+    that the reference gradient is 8000), or the empty edge map where the image is flat;
+    made once, they serve any thresholds (``canny_from``)."""
+    region = magnitude
     if roi is not None:
         u0, v0, u1, v1 = (int(round(x)) for x in roi)
-        region = mag[max(v0, 0):max(v1, 0), max(u0, 0):max(u1, 0)]
+        region = magnitude[max(v0, 0):max(v1, 0), max(u0, 0):max(u1, 0)]
         if region.size == 0:
-            region = mag
-    reference = float(np.percentile(region, 99.9)) or float(mag.max())
+            region = magnitude
+    reference = tail_percentile(region, 99.9) or float(magnitude.max())
     if reference <= 0:
-        return np.zeros(mag.shape, dtype=bool)
+        return np.zeros(magnitude.shape, dtype=bool)
     scale = 8000.0 / reference  # reference gradient -> 8000 of int16's 32767
-    dx = np.clip(np.round(gx * scale), -32767, 32767).astype(np.int16)
-    dy = np.clip(np.round(gy * scale), -32767, 32767).astype(np.int16)
+    out = []
+    for g in (gx, gy):  # round and clip in place: the same numbers as np.clip(np.round(g * scale))
+        scaled = np.multiply(g, scale)
+        np.rint(scaled, out=scaled)
+        np.minimum(scaled, 32767, out=scaled)
+        np.maximum(scaled, -32767, out=scaled)
+        out.append(scaled.astype(np.int16))
+    return tuple(out)
+
+
+def canny_from(derivatives, low: float, high: float) -> np.ndarray:
+    """Canny edge map from ``canny_derivatives`` with thresholds ``low``, ``high`` (fractions
+    of the reference gradient)."""
+    if isinstance(derivatives, np.ndarray):  # a flat image: no edges
+        return derivatives.copy()
+    dx, dy = derivatives
     return cv2.Canny(dx, dy, low * 8000.0, high * 8000.0, L2gradient=True) > 0
 
 
@@ -344,16 +379,23 @@ def best_translation(edge_mask: np.ndarray, predicted_px: np.ndarray, search_px:
     height, width = distance.shape
     pts = resample_closed_polyline(predicted_px, n=min(300, max(8, len(predicted_px))))
 
-    def costs(shifts: np.ndarray) -> np.ndarray:
-        u = np.minimum(np.maximum(np.round(pts[None, :, 0] + shifts[:, None, 0]).astype(int), 0), width - 1)
-        v = np.minimum(np.maximum(np.round(pts[None, :, 1] + shifts[:, None, 1]).astype(int), 0), height - 1)
-        return distance[v, u].mean(axis=1)
+    flat = distance.reshape(-1)
+
+    def costs(best: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+        """Mean distance at the points shifted by ``best`` + (du, dv) for every du, dv of
+        ``offsets`` (du outer): a point's rounded column depends on du alone and its row on
+        dv alone, so each is rounded once per offset, not once per shift."""
+        du, dv = best[0] + offsets.astype(float), best[1] + offsets.astype(float)
+        u = np.minimum(np.maximum(np.round(pts[None, :, 0] + du[:, None]).astype(int), 0), width - 1)
+        v = np.minimum(np.maximum(np.round(pts[None, :, 1] + dv[:, None]).astype(int), 0), height - 1)
+        index = (v * width)[None, :, :] + u[:, None, :]  # (du, dv, point)
+        return flat[index.reshape(len(du) * len(dv), -1)].mean(axis=1)
 
     best = np.zeros(2)
     for step, reach in ((8, search_px), (2, 8), (1, 2)):
         offsets = np.arange(-reach, reach + 1, step)
-        grid = best + np.array([(du, dv) for du in offsets for dv in offsets], dtype=float)
-        best = grid[int(np.argmin(costs(grid)))]  # first minimum, as min() over the list did
+        i = int(np.argmin(costs(best, offsets)))  # first minimum, as min() over the list did
+        best = best + np.array([offsets[i // len(offsets)], offsets[i % len(offsets)]], dtype=float)
     return best
 
 
@@ -488,8 +530,11 @@ def _outline_in_region(image, predicted, roi, keep, *, sigma, tolerance_px, pola
                        min_gap_px) -> np.ndarray:
     """``component_outline`` in the coordinates of an image crop; ``keep`` masks usable edges."""
     gradients = smoothed_gradients(image, sigma)  # shared by both Canny maps and the sub-pixel step
-    magnitude = np.hypot(gradients[1], gradients[2])
-    edges = canny_edges(image, low, high, sigma, roi=roi, gradients=gradients, magnitude=magnitude)
+    magnitude = gradient_magnitude(gradients[1], gradients[2])
+    if not 0 < low <= high:
+        raise ValueError("Canny thresholds must satisfy 0 < low <= high")
+    derivatives = canny_derivatives(gradients[1], gradients[2], magnitude, roi)  # for both maps
+    edges = canny_from(derivatives, low, high)
     hidden = None
     if keep is not None:
         edges &= keep
@@ -500,8 +545,9 @@ def _outline_in_region(image, predicted, roi, keep, *, sigma, tolerance_px, pola
 
     def weak_edges():
         if not weak_map:
-            weak = canny_edges(image, gap_fill[0], gap_fill[1], sigma, roi=roi, gradients=gradients,
-                                   magnitude=magnitude)
+            if not 0 < gap_fill[0] <= gap_fill[1]:
+                raise ValueError("Canny thresholds must satisfy 0 < low <= high")
+            weak = canny_from(derivatives, gap_fill[0], gap_fill[1])
             inside = np.zeros_like(weak)
             inside[max(roi[1], 0):max(roi[3], 0), max(roi[0], 0):max(roi[2], 0)] = True
             weak_map.append(weak & inside if keep is None else weak & inside & keep)

@@ -10,6 +10,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from fluorogui.core.outlines.quantile import tail_percentile
+
 
 def image_unit(shape) -> float:
     """Pixel lengths in this module are for 1024-pixel images; this is the factor for an
@@ -54,7 +56,7 @@ def intensifier_disc(image: np.ndarray, border_level: float | None = None, margi
     img = cv2.GaussianBlur(img.astype(np.float32), (0, 0), 1.5)
     h, w = img.shape
     if border_level is None:
-        centre = float(np.percentile(img[h // 4: 3 * h // 4, w // 4: 3 * w // 4], 0.5))
+        centre = tail_percentile(img[h // 4: 3 * h // 4, w // 4: 3 * w // 4], 0.5)  # = np.percentile
         k = max(2, min(h, w) // 50)
         frame = float(np.median(np.r_[img[:k].ravel(), img[-k:].ravel(), img[:, :k].ravel(), img[:, -k:].ravel()]))
         frame = min(frame, centre)  # no darker frame: the field of view fills the image
