@@ -53,7 +53,7 @@ def test_auto_refines_a_soft_rim_and_leaves_a_step_edge_alone(tray, monkeypatch)
     # the next frame reuses the judgement: no fit, and no pass spent on judging again
     def no_fit(*args, **kwargs):
         raise AssertionError("the edge was judged again")
-    monkeypatch.setattr("fluorogui.core.matching.loop.edge_model", no_fit)
+    monkeypatch.setattr("fluorogui.core.matching.loop.edge_models", no_fit)
     monkeypatch.setattr("fluorogui.core.matching.loop.refine_outlines", no_fit)
     again = segment_and_match(step, VIEWS, mesh, auto.pose, loop=LoopSettings(rim="auto"), rim_models=models)
     assert again.passes == 1 and again.settings["rim_refined"] == [False, False]
@@ -69,35 +69,47 @@ def test_loop_settings_rim_modes_and_older_projects():
         LoopSettings(rim="sometimes")
 
 
-def test_the_views_are_judged_side_by_side_in_their_own_order(monkeypatch):
-    """Each view's edge is judged on its own thread (``core.threads.each_view``); the models
-    and the soft views come back in view order, views without an outline or with a model
-    already given are not judged, and a cancel stops the judgement."""
-    import threading
-
-    from fluorogui.core import threads
+def test_the_views_to_judge_are_judged_together_and_come_back_in_their_own_order(monkeypatch):
+    """The views whose edge is to be judged are judged in one call (``rim.edge_models``: one
+    attenuation for the component's metal); the models and the soft views come back in view
+    order, views without an outline or with a model already given are not judged, and a
+    cancel stops the judgement."""
     from fluorogui.core.cancel import Cancelled
     from fluorogui.core.matching import loop
     from fluorogui.core.outlines.rim import STEP, RimModel
 
-    judged = {}
+    calls = []
 
-    def fake_edge_model(image, view, mesh, pose, *, outline_px, exclude):
-        judged[int(image)] = threading.current_thread().name
-        return RimModel(1.0, 0.9) if image == 2 else STEP  # view 3 soft, the others steps
+    def fake_edge_models(images, views, mesh, pose, *, outlines_px, excludes):
+        calls.append(list(images))
+        return [RimModel(1.0, 0.9) if image == 2 else STEP for image in images]  # view 3 soft, the others steps
 
-    monkeypatch.setattr(threads, "_threads", 2)
-    monkeypatch.setattr(loop, "edge_model", fake_edge_model)
+    monkeypatch.setattr(loop, "edge_models", fake_edge_models)
     monkeypatch.setattr(loop, "rim_models_together", lambda *a, **k: [])  # (one soft view: not called)
     outline = np.zeros((20, 2))
     soft, models = loop.soft_edge_views([0, 1, 2, 3], [None] * 4, None, np.zeros(6),
                                         outlines=[outline, outline, outline, None], models=[None, None, None, None])
     assert soft == [2] and models == [STEP, STEP, RimModel(1.0, 0.9), None]
-    assert sorted(judged) == [0, 1, 2]
-    assert any(threads.is_view_thread_name(name) for name in judged.values())  # not one after the other
-    judged.clear()
+    assert calls == [[0, 1, 2]]  # together, in one call
+    calls.clear()
     soft, models = loop.soft_edge_views([0, 1], [None] * 2, None, np.zeros(6), outlines=[outline, outline],
                                         models=[RimModel(1.2, 1.0), None])
-    assert soft == [0] and models == [RimModel(1.2, 1.0), STEP] and list(judged) == [1]  # a given model stays
+    assert soft == [0] and models == [RimModel(1.2, 1.0), STEP] and calls == [[1]]  # a given model stays
     with pytest.raises(Cancelled):
         loop.soft_edge_views([0, 1], [None] * 2, None, np.zeros(6), outlines=[outline, outline], cancel=lambda: True)
+
+
+@pytest.mark.slow
+def test_the_views_of_a_component_are_judged_with_one_attenuation(tray):
+    """``edge_models`` gives both views of the soft tray one attenuation (its metal's), each
+    its own blur; both are soft, as each view's own ``edge_model`` finds."""
+    from fluorogui.core.matching.loop import segment_outlines
+    from fluorogui.core.outlines.rim import edge_model, edge_models
+
+    mesh, truth, _ = tray
+    images = _images(tray, 1.0)
+    outlines = [o for o in segment_outlines(images, VIEWS, mesh, truth)]
+    together = edge_models(images, VIEWS, mesh, truth, outlines_px=outlines)
+    alone = [edge_model(i, v, mesh, truth, outline_px=o) for i, v, o in zip(images, VIEWS, outlines)]
+    assert all(is_soft(m) for m in together + alone)
+    assert together[0].mu == together[1].mu == pytest.approx(1.0, rel=0.15)

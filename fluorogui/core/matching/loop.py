@@ -37,7 +37,7 @@ from fluorogui.core.matching.matcher import judge_match, match
 from fluorogui.core.matching.problem import MatchProblem, MatchResult, MatchSettings
 from fluorogui.core.matching.quality import QualityThresholds
 from fluorogui.core.outlines.edges import component_outline
-from fluorogui.core.outlines.rim import RimModel, edge_model, is_soft, refine_outlines, rim_models_together
+from fluorogui.core.outlines.rim import RimModel, edge_models, is_soft, refine_outlines, rim_models_together
 from fluorogui.core.outlines.spline import OutlineError, OutlineSpline
 from fluorogui.core.projection.geometry import View
 from fluorogui.core.projection.mesh import PreparedMesh
@@ -173,24 +173,25 @@ def soft_edge_views(images, views, mesh: PreparedMesh, pose, *, outlines: Sequen
                     cancel=None) -> tuple[list[int], list]:
     """The views (with an outline) whose edge is a soft rim (``core.outlines.rim.is_soft``), judged
     at ``pose`` by each image's rim model: the one in ``models`` or, where that is None,
-    ``core.outlines.rim.edge_model`` (a quick fit where that finds a step, else the full one the
-    refinement uses). Where two or more views judged here are soft, their models are
-    fitted again together (``core.outlines.rim.rim_models_together``: one attenuation for the
-    component's metal: a noisy view's own varies by several per cent, and over three
-    noise draws the views' own moved a 15 % smaller femur 0.004-0.024 deg further from
-    the truth than the shared one). Returns the views and the models. ``cancel`` is checked
-    before each fit (a second or more each). The views are judged side by side
-    (``core.threads.each_view``): the same models as one after the other."""
+    judged here, all such views at once (``core.outlines.rim.edge_models``: one attenuation
+    for the component's metal, a quick fit where that finds a step, else the full one the
+    refinement uses; a view judged alone swung between soft and step from frame to frame
+    where its residual curve was flat). Where two or more views judged here are soft, their
+    models are fitted again together (``core.outlines.rim.rim_models_together``: over three
+    noise draws the views' own attenuations moved a 15 % smaller femur 0.004-0.024 deg further
+    from the truth than the shared one). Returns the views and the models. ``cancel`` is
+    checked before each fit (a second or more each)."""
     models = list(models) if models is not None else [None] * len(views)
     excludes = [occluded[k] if occluded is not None and k < len(occluded) else None for k in range(len(views))]
     judged_here = [k for k, points in enumerate(outlines) if points is not None and models[k] is None]
 
-    def judge(k: int) -> RimModel:
+    if judged_here:
         check_cancel(cancel)
-        return edge_model(images[k], views[k], mesh, pose, outline_px=outlines[k], exclude=excludes[k])
-
-    for k, model in zip(judged_here, each_view(judge, judged_here)):  # the views side by side
-        models[k] = model
+        judged = edge_models([images[k] for k in judged_here], [views[k] for k in judged_here], mesh, pose,
+                             outlines_px=[outlines[k] for k in judged_here],
+                             excludes=[excludes[k] for k in judged_here])
+        for k, model in zip(judged_here, judged):
+            models[k] = model
     soft = [k for k, points in enumerate(outlines) if points is not None and is_soft(models[k])]
     together = [k for k in judged_here if k in soft]
     if len(together) > 1:
