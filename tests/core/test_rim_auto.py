@@ -85,7 +85,6 @@ def test_the_views_to_judge_are_judged_together_and_come_back_in_their_own_order
         return [RimModel(1.0, 0.9) if image == 2 else STEP for image in images]  # view 3 soft, the others steps
 
     monkeypatch.setattr(loop, "edge_models", fake_edge_models)
-    monkeypatch.setattr(loop, "rim_models_together", lambda *a, **k: [])  # (one soft view: not called)
     outline = np.zeros((20, 2))
     soft, models = loop.soft_edge_views([0, 1, 2, 3], [None] * 4, None, np.zeros(6),
                                         outlines=[outline, outline, outline, None], models=[None, None, None, None])

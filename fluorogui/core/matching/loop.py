@@ -37,7 +37,7 @@ from fluorogui.core.matching.matcher import judge_match, match
 from fluorogui.core.matching.problem import MatchProblem, MatchResult, MatchSettings
 from fluorogui.core.matching.quality import QualityThresholds
 from fluorogui.core.outlines.edges import component_outline
-from fluorogui.core.outlines.rim import RimModel, edge_models, is_soft, refine_outlines, rim_models_together
+from fluorogui.core.outlines.rim import RimModel, edge_models, is_soft, refine_outlines
 from fluorogui.core.outlines.spline import OutlineError, OutlineSpline
 from fluorogui.core.projection.geometry import View
 from fluorogui.core.projection.mesh import PreparedMesh
@@ -176,11 +176,10 @@ def soft_edge_views(images, views, mesh: PreparedMesh, pose, *, outlines: Sequen
     judged here, all such views at once (``core.outlines.rim.edge_models``: one attenuation
     for the component's metal, a quick fit where that finds a step, else the full one the
     refinement uses; a view judged alone swung between soft and step from frame to frame
-    where its residual curve was flat). Where two or more views judged here are soft, their
-    models are fitted again together (``core.outlines.rim.rim_models_together``: over three
-    noise draws the views' own attenuations moved a 15 % smaller femur 0.004-0.024 deg further
-    from the truth than the shared one). Returns the views and the models. ``cancel`` is
-    checked before each fit (a second or more each)."""
+    where its residual curve was flat; over three noise draws the views' own attenuations
+    moved a 15 % smaller femur 0.004-0.024 deg further from the truth than the shared one).
+    Returns the views and the models. ``cancel`` is checked before the fit (a second or
+    more)."""
     models = list(models) if models is not None else [None] * len(views)
     excludes = [occluded[k] if occluded is not None and k < len(occluded) else None for k in range(len(views))]
     judged_here = [k for k, points in enumerate(outlines) if points is not None and models[k] is None]
@@ -193,15 +192,6 @@ def soft_edge_views(images, views, mesh: PreparedMesh, pose, *, outlines: Sequen
         for k, model in zip(judged_here, judged):
             models[k] = model
     soft = [k for k, points in enumerate(outlines) if points is not None and is_soft(models[k])]
-    together = [k for k in judged_here if k in soft]
-    if len(together) > 1:
-        check_cancel(cancel)
-        joint = rim_models_together([images[k] for k in together], [views[k] for k in together], mesh, pose,
-                                    outlines_px=[outlines[k] for k in together],
-                                    excludes=[excludes[k] for k in together])
-        if all(is_soft(m) for m in joint):  # together they must still be soft rims
-            for k, model in zip(together, joint):
-                models[k] = model
     return soft, models
 
 

@@ -481,16 +481,6 @@ def rim_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, *, outlin
     return _fit_model(pts, _usable(pts), smooth, judging)
 
 
-def rim_models_together(images, views, mesh: PreparedMesh, pose, *, outlines_px, excludes=None,
-                        smooth: int = 8) -> list[RimModel]:
-    """The rim models of one component's views as ``refine_outlines`` fits them together
-    (one attenuation, each view's blur), without moving anything."""
-    excludes = list(excludes) if excludes is not None else [None] * len(views)
-    gathered = [_gather(image, view, mesh, pose, points=points, exclude=exclude)[0]
-                for image, view, points, exclude in zip(images, views, outlines_px, excludes)]
-    return _fit_models(gathered, [_usable(pts) for pts in gathered], smooth)
-
-
 def _fit_model(pts: _Points, usable: np.ndarray, smooth: int, judging: bool = False) -> RimModel:
     return _fit_models([pts], [usable], smooth, judging)[0]
 
@@ -555,19 +545,7 @@ def edge_model(image: np.ndarray, view: View, mesh: PreparedMesh, pose, *, outli
     512 px view of the X-ray model) where it finds a step edge (attenuation
     ``MAYBE_SOFT_BELOW_MU`` or more), else the full fit of ``rim_model``: its first fit over
     120 points and, where that is not a step either, the second one (2.6-3.4 s in all)."""
-    points = np.asarray(outline_px, dtype=float).reshape(-1, 2)
-    sparse = points[::max(1, len(points) // DECIDE_POINTS)]
-    if len(sparse) < 8:
-        return STEP
-    pts, _ = _gather(image, view, mesh, pose, points=sparse, exclude=exclude)
-    usable = _usable(pts)
-    if usable.sum() < 8:
-        return STEP
-    quick = fit_rim_model(_subset(pts, usable), max_points=DECIDE_POINTS, tolerance=DECIDE_TOLERANCE,
-                          sigma_grid=DECIDE_SIGMAS)
-    if quick.mu >= MAYBE_SOFT_BELOW_MU:
-        return quick
-    return rim_model(image, view, mesh, pose, outline_px=points, exclude=exclude, judging=True)
+    return edge_models([image], [view], mesh, pose, outlines_px=[outline_px], excludes=[exclude])[0]
 
 
 def edge_models(images, views, mesh: PreparedMesh, pose, *, outlines_px, excludes=None) -> list[RimModel]:
@@ -577,8 +555,9 @@ def edge_models(images, views, mesh: PreparedMesh, pose, *, outlines_px, exclude
     step from frame to frame where its curve is flat between them (the X-ray model's tray
     with bone and cement beside it: 4 of the first 5 frames of a bend called view 2 a
     step, the truth 0.9/mm soft, and the kept step turned the tray 0.1 deg); the other
-    view's curve, of the same metal, settles it. A view with too few usable points is
-    a step, as in ``edge_model``."""
+    view's curve, of the same metal, settles it. Where the quick fit is not a step, the
+    full fit of the views together decides (soft views keep its shared attenuation). A
+    view with too few usable points is a step."""
     excludes = list(excludes) if excludes is not None else [None] * len(views)
 
     def gather(k: int):
