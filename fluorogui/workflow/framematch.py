@@ -215,7 +215,8 @@ class FrameMatcher:
                          per_view_mean_mm=result.per_view_mean_mm,
                          image_outlines=outlines, predicted=job.start if job.predicted else None, occluded=hidden,
                          tol_px=s.quality.tol_px,
-                         fields=self._fields(images), model_outlines=result.outlines_px, sd=result.sd)
+                         fields=self._fields(images), model_outlines=result.outlines_px, sd=result.sd,
+                         sd_body=result.sd_body)
         limits = replace(s.quality, max_jump_mm=s.quality.max_jump_mm * max(1, job.gap),
                          max_jump_deg=s.quality.max_jump_deg * max(1, job.gap))
         problems = failed_checks(quality, thresholds=limits, typical_view_mm=job.typical_view_mm,

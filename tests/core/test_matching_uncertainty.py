@@ -81,3 +81,20 @@ def test_a_sphere_leaves_its_orientation_open_and_is_not_converged():
     assert "do not pin the pose down" in result.message
     # the position is sharp; a turn about the mesh's polar axis only shows in its facets
     assert np.all(np.array(result.sd[:3]) < 0.05) and max(result.sd[3:]) > 2.0, result.sd
+
+
+def test_a_pose_near_gimbal_lock_is_pinned_down_by_its_own_turns():
+    # gamma near 90 deg couples alpha and beta (R = Ry Rz Rx): their SDs grow without bound
+    # (4.0 deg at 89.5) while the body turns by 0.04-0.09 deg; the check judges the body
+    # (before: "the outlines do not pin the pose down", not converged)
+    v, f = _egg()
+    mesh = prepare_mesh(v, f)
+    views = dual_orthogonal_views()
+    truth = np.array([3.0, -2.0, 5.0, 20.0, 30.0, 89.5])
+    world = v @ rotation_matrix(*truth[3:]).T + truth[:3]
+    rng = np.random.default_rng(0)
+    splines = [OutlineSpline.fit(_noisy_outline(view, world, 0.3, 3.0, rng)) for view in views]
+    result = match(MatchProblem(mesh, views, splines), truth + [0.3, -0.3, 0.3, 0.5, 0.5, 0.5], MatchSettings())
+    assert max(result.sd[3:5]) > 3.0, result.sd  # the Euler angles' SDs: the coupling
+    assert max(result.sd_body[3:]) < 0.2, result.sd_body
+    assert result.converged, result.message

@@ -30,6 +30,27 @@ def test_a_loose_pose_is_flagged_naming_the_loosest_direction():
                       "(gamma) is uncertain to ±0.9 °")
 
 
+def test_the_partly_visible_rule_judges_the_bodys_turns_not_the_euler_angles():
+    # the real femur at frame 260 (93 % visible in view 2): its Euler alpha and beta SDs are
+    # 1.0 deg, as in every frame of the sequence (the angles' coupling), its turns about its
+    # own axes 0.07-0.21 deg; it lies 0.07 mm / 0.33 deg from the region fit
+    euler = [0.063, 0.11, 0.037, 0.996, 1.008, 0.109]
+    body = [0.062, 0.121, 0.041, 0.067, 0.208, 0.098]
+    q = Quality(True, [0.13, 0.14], [0.99, 0.99], [0.99, 0.99], outside_field=[0.0, 0.07], sd=euler, sd_body=body)
+    assert judge(q) == (Status.MATCHED, "")
+    q.sd_body = [0.062, 0.121, 0.041, 0.067, 0.6, 0.098]
+    assert judge(q)[1] == ("only 93 % of the model outline is visible in view 2; its turn about the model's y axis "
+                           "is uncertain to ±0.6 °")
+    assert judge(Quality(True, [0.13, 0.14], [0.99, 0.99], [0.99, 0.99], outside_field=[0.0, 0.07],
+                         sd=euler))[0] == Status.NEEDS_REVIEW  # without the body's SDs: the Euler angles'
+
+
+def test_a_projects_quality_keeps_undetermined_sds_as_none():
+    q = Quality(True, [0.1], [0.9], [0.9], sd=[0.1] * 5 + [float("inf")], sd_body=[float("inf")] + [0.2] * 5)
+    d = q.to_dict()
+    assert d["sd"][5] is None and d["sd_body"][0] is None and d["sd_body"][1] == 0.2
+
+
 def test_too_little_visible_is_flagged_whatever_the_sd():
     t = QualityThresholds()
     status, reason = judge(_partial(1.0 - t.min_visible_share + 0.05, [0.01] * 6))
@@ -69,7 +90,7 @@ def test_a_weak_view_flags_only_what_its_edges_and_the_other_view_leave_loose():
                     "there); judged by the other view and the edges view 1 has, its depth along view 2's axis is "
                     "uncertain to ±0.6 mm")
     turned = weak_view_problem(0, views, tight, [0.05] * 3 + [0.1, 0.9, 0.1], edge=0.6)
-    assert turned.endswith("its rotation about the model's y axis (beta) is uncertain to ±0.9 °")
+    assert turned.endswith("its turn about the model's y axis is uncertain to ±0.9 °")
 
 
 def test_the_stretches_of_a_weak_view_without_edges_are_hidden_the_rest_kept():

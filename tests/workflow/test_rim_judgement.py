@@ -57,7 +57,7 @@ def test_frame_matcher_reuses_the_models_only_after_three_matched_frames(monkeyp
             if rims[k] is None:  # judged here, as segment_and_match fills the list
                 rims[k] = script[frame][0] if k == 0 else STEP
         return SimpleNamespace(pose=np.zeros(6), converged=True, per_view_mean_mm=[0.05, 0.05], outlines_px=None,
-                               splines=[], image_outlines=None, outline_weights=None, sd=None, message="",
+                               splines=[], image_outlines=None, outline_weights=None, sd=None, sd_body=None, message="",
                                optimiser_converged=True, failed=[])
 
     monkeypatch.setattr(framematch, "segment_and_match", fake_loop)
@@ -93,7 +93,7 @@ def test_the_attempts_of_a_frame_after_a_matched_one_start_from_its_models(monke
                 rims[k] = RimModel(1.0 + len(handed), 1.2)  # a model per judging attempt
         return SimpleNamespace(pose=np.zeros(6), converged=True, per_view_mean_mm=[0.05, 0.05], outlines_px=None,
                                objective_mm=0.05, weakest_rotation_axis=lambda: np.array([0.0, 0.0, 1.0]),
-                               splines=[], image_outlines=None, outline_weights=None, sd=None, message="",
+                               splines=[], image_outlines=None, outline_weights=None, sd=None, sd_body=None, message="",
                                optimiser_converged=True, failed=[])
 
     monkeypatch.setattr(framematch, "segment_and_match", fake_loop)

@@ -98,12 +98,19 @@ class Quality:
     jump_mm: float = 0.0
     jump_deg: float = 0.0
     outside_field: list[float] = field(default_factory=list)  # share of the outline off the field of view
-    sd: list[float] | None = None  # the pose's standard deviations (mm, deg), for a partly visible one
+    sd: list[float] | None = None  # the pose's standard deviations (mm, deg; the Euler angles')
+    # the body's own: its centroid (world mm) and its turn about the model's axes (deg), free of
+    # the Euler angles' coupling (``MatchResult.sd_body``); what the partly visible rule judges
+    sd_body: list[float] | None = None
 
     def to_dict(self) -> dict:
         d = asdict(self)
-        return {k: (round(v, 5) if isinstance(v, float) else [round(x, 5) for x in v] if isinstance(v, list) else v)
-                for k, v in d.items()}
+        out = {k: (round(v, 5) if isinstance(v, float) else [round(x, 5) for x in v] if isinstance(v, list) else v)
+               for k, v in d.items()}
+        for key in ("sd", "sd_body"):  # an SD the outlines leave undetermined: None (JSON has no infinity)
+            if out[key] is not None:
+                out[key] = [v if np.isfinite(v) else None for v in out[key]]
+        return out
 
 
 def model_outline(mesh: PreparedMesh, pose, view: View, spacing_px: float = 2.0) -> np.ndarray:
@@ -190,7 +197,7 @@ def assess(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMe
            per_view_mean_mm: Sequence[float], image_outlines: Sequence[np.ndarray] | None,
            predicted=None, occluded: Sequence | None = None, tol_px: float = 1.5,
            fields: Sequence[np.ndarray] | None = None, model_outlines: Sequence[np.ndarray] | None = None,
-           sd: Sequence[float] | None = None) -> Quality:
+           sd: Sequence[float] | None = None, sd_body: Sequence[float] | None = None) -> Quality:
     """Every check of a pose. ``image_outlines`` are the outlines it was matched to (dense
     points per view, chords left out; None skips ``outline_support``); ``fields`` are the
     intensifiers' fields of view (bool images): an outline reaching beyond one is cut off
@@ -207,7 +214,8 @@ def assess(images: Sequence[np.ndarray], views: Sequence[View], mesh: PreparedMe
             outside.append(outside_share(fields[k], model))
     jump = pose_jump(mesh, pose, predicted) if predicted is not None else (0.0, 0.0)
     return Quality(bool(converged), [float(v) for v in per_view_mean_mm], edge, support, *jump, outside,
-                   None if sd is None else [float(v) for v in sd])
+                   None if sd is None else [float(v) for v in sd],
+                   None if sd_body is None else [float(v) for v in sd_body])
 
 
 #: the checks ``match_checks`` applies to a match's own evidence, by name
@@ -225,12 +233,13 @@ def match_checks(problem, result, thresholds: QualityThresholds | None = None) -
     plain words (empty: none).
 
     ``problem`` is the ``MatchProblem`` it was matched on, ``result`` its ``MatchResult``
-    (with ``outlines_px``, the model outline at the result, and ``sd``). Checks, per view:
+    (with ``outlines_px``, the model outline at the result, and ``sd_body``, else ``sd``). Checks, per view:
     the mean outline distance against the absolute ceiling ``max_view_mm`` (the
     sequence-relative limits are ``judge``'s); the share of the model outline lying on
     the image outline and of the image outline lying on the model (both ways, so neither
     can slide onto part of the other); and the uncertainty the outlines leave (the
-    Gauss-Newton matrix's conditioning, as standard deviations of the pose, against
+    Gauss-Newton matrix's conditioning, as standard deviations of the body's centroid and
+    of its turn about its axes, against
     ``max_sd_mm`` / ``max_sd_deg``, each named where it is exceeded)."""
     t = thresholds or QualityThresholds()
     problems = []
@@ -257,9 +266,13 @@ def match_checks(problem, result, thresholds: QualityThresholds | None = None) -
         if on_model < t.min_outline_support:
             problems.append(("outline_on_model",
                              f"only {100 * on_model:.0f} % of the image outline lies on the model in {name}"))
-    if result.sd is not None:
-        sd = np.asarray(result.sd, dtype=float)
-        labels = ("x", "y", "z", "alpha", "beta", "gamma")
+    # the body's own uncertainty where the match gave it: the Euler angles' SDs add their
+    # coupling (near gimbal lock without bound), which is no looseness of the pose
+    sd, labels, unit = result.sd_body, ("x", "y", "z", "turn about x", "turn about y", "turn about z"), "deg"
+    if sd is None:
+        sd, labels = result.sd, ("x", "y", "z", "alpha", "beta", "gamma")
+    if sd is not None:
+        sd = np.asarray(sd, dtype=float)
         limits = np.array([t.max_sd_mm] * 3 + [t.max_sd_deg] * 3)
         limit_names = ["max_sd_mm"] * 3 + ["max_sd_deg"] * 3
         if len(problem.views) == 1:  # single plane: depth along the beam is weak by nature (stated, not failed)
@@ -269,7 +282,7 @@ def match_checks(problem, result, thresholds: QualityThresholds | None = None) -
         loose = [j for j in range(6) if not np.isfinite(sd[j]) or sd[j] > limits[j]]
         if loose:
             problems.append(("uncertainty", "the outlines do not pin the pose down (SD " + ", ".join(
-                f"{labels[j]} {sd[j]:.2g} {'mm' if j < 3 else 'deg'} over {limit_names[j]} {limits[j]:.2g}"
+                f"{labels[j]} {sd[j]:.2g} {'mm' if j < 3 else unit} over {limit_names[j]} {limits[j]:.2g}"
                 for j in loose) + ")"))
     return problems
 
@@ -322,6 +335,9 @@ def failed_checks(quality: Quality, *, thresholds: QualityThresholds | None = No
 _POSE_WORDS = ("translation along x", "translation along y", "translation along z",
                "rotation about the model's x axis (alpha)", "rotation about the model's y axis (beta)",
                "rotation about the model's z axis (gamma)")
+#: the same for the body's own motion (``MatchResult.sd_body``): its centroid, its turn about its axes
+_BODY_WORDS = ("position along x", "position along y", "position along z", "turn about the model's x axis",
+               "turn about the model's y axis", "turn about the model's z axis")
 
 
 def weak_view(problems: Sequence[tuple[str, str]], quality: Quality,
@@ -356,7 +372,7 @@ def weak_view_problem(weak: int, views: Sequence[View], centroid_cov: np.ndarray
         loose.append((sd / t.partial_sd_mm, f"depth along {names[k]}'s axis", sd, "mm"))
     for j, sd in enumerate(np.asarray(sd_body, dtype=float)[3:]):
         sd = float(sd) if np.isfinite(sd) else np.inf
-        loose.append((sd / t.partial_sd_deg, _POSE_WORDS[3 + j], sd, "°"))
+        loose.append((sd / t.partial_sd_deg, _BODY_WORDS[3 + j], sd, "°"))
     ratio, words, sd, unit = max(loose, key=lambda x: x[0])
     if ratio <= 1.0:
         return ""
@@ -369,7 +385,10 @@ def weak_view_problem(weak: int, views: Sequence[View], centroid_cov: np.ndarray
 def _partly_visible(quality: Quality, t: QualityThresholds, names: Sequence[str]) -> list[str]:
     """A component partly beyond the field of view was matched and checked on what is
     visible; it fails only when too little is left, or when that leaves its pose loose
-    (said from the pose's own uncertainty, naming the loosest direction)."""
+    (said from the pose's own uncertainty, naming the loosest direction). The uncertainty
+    is the body's own (its centroid, its turn about its axes) where the match gave it: the
+    Euler angles' SDs add their coupling, which is no looseness of the pose (the real
+    femur: alpha and beta 0.4-1.4 deg in every frame, its turns 0.07-0.21 deg)."""
     partial = [(value, name) for name, value in zip(names, quality.outside_field) if value > t.max_outside_field]
     if not partial:
         return []
@@ -377,11 +396,12 @@ def _partly_visible(quality: Quality, t: QualityThresholds, names: Sequence[str]
     visible = 1.0 - outside
     where = f"only {100 * visible:.0f} % of the model outline is visible in {name}"
     loosest = ""
-    if quality.sd is not None and len(quality.sd) == 6:
-        sd = np.asarray(quality.sd, dtype=float)
+    sd, words = (quality.sd_body, _BODY_WORDS) if quality.sd_body is not None else (quality.sd, _POSE_WORDS)
+    if sd is not None and len(sd) == 6:
+        sd = np.array([np.inf if v is None else v for v in sd], dtype=float)
         limits = np.array([t.partial_sd_mm] * 3 + [t.partial_sd_deg] * 3)
         j = int(np.argmax(np.where(np.isfinite(sd), sd / limits, np.inf)))
-        loosest = f"; its {_POSE_WORDS[j]} is uncertain to ±{sd[j]:.2g} {'mm' if j < 3 else '°'}"
+        loosest = f"; its {words[j]} is uncertain to ±{sd[j]:.2g} {'mm' if j < 3 else '°'}"
         if not np.isfinite(sd[j]) or sd[j] > limits[j]:
             return [where + loosest]
     if visible < t.min_visible_share:
