@@ -145,6 +145,15 @@ def main(argv=None) -> int:
     wait(600)
     window.fit_images()
     wait(300)
+    # the Kinematics dock redraws 0.4 s after the poses change, and under Xvfb its figure was
+    # painted up to 1.3 s after that while the image panels and the 3D scene repainted: wait
+    # for its timers and the paint, or the grab shows the curves of before a match beside the
+    # values after it
+    timers = (window.presenters.kinematics.refresh_timer, window.knee_panel._redraw_timer)
+    t = time.perf_counter()
+    while any(timer.isActive() for timer in timers) and time.perf_counter() - t < 10:
+        wait(50)
+    wait(1500)
     geometry = window.frameGeometry()
     shot = window.screen().grabWindow(0, geometry.x(), geometry.y(), geometry.width(), geometry.height())
     if shot.isNull() or shot.width() < 10:

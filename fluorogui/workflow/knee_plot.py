@@ -49,6 +49,25 @@ def _flagged(ax, x, y, trusted) -> None:
             ax.plot(x[mask], np.full(mask.sum(), edge), marker, color=REVIEW_COLOUR, ms=6, clip_on=False)
 
 
+def _x_range(ax, x, *, frames: bool) -> None:
+    """An x axis that spans the session's frames (or the flexions drawn), at least two
+    frames or one degree wide: matplotlib's autoscale around a single point gives ±0.05 and
+    ticks that overlap."""
+    x = np.asarray(x, dtype=float)
+    x = x[np.isfinite(x)]
+    if frames:
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    if not len(x):
+        return
+    lo, hi = float(x.min()), float(x.max())
+    least = 2.0 if frames else 1.0
+    if hi - lo < least:
+        middle = 0.5 * (lo + hi)
+        lo, hi = middle - least / 2, middle + least / 2
+    pad = 0.5 if frames else 0.04 * (hi - lo)
+    ax.set_xlim(lo - pad, hi + pad)
+
+
 def draw_kinematics(figure: Figure, rows, *, side: str = "right", against: str = "frame", title: str = "",
                     current_frame: int | None = None, colours: tuple[str, str, str] | None = None) -> list:
     """Draw on ``figure`` (cleared first); returns the seven axes (six values, residual).
@@ -78,8 +97,7 @@ def draw_kinematics(figure: Figure, rows, *, side: str = "right", against: str =
         _flagged(ax, x[review], y[review], trusted)
         if current_frame is not None and against == "frame":
             ax.axvline(current_frame, color="0.5", lw=0.8, ls="--")
-        if against == "frame":
-            ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        _x_range(ax, data["frame"] if against == "frame" else x, frames=against == "frame")
         ax.set_title(f"{label} ({unit})", fontsize=8, pad=2)
         ax.tick_params(labelsize=7)
         ax.grid(True, alpha=0.3)
@@ -93,7 +111,7 @@ def draw_kinematics(figure: Figure, rows, *, side: str = "right", against: str =
     ax.set_title("Worst match residual per frame (mm); red rings: needs review (arrows: beyond the axis)",
                  fontsize=8, pad=2)
     ax.set_xlabel("frame", fontsize=7)
-    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    _x_range(ax, data["frame"], frames=True)
     ax.tick_params(labelsize=7)
     ax.grid(True, alpha=0.3)
     axes.append(ax)

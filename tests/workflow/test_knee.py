@@ -56,6 +56,29 @@ def test_missing_and_flagged_frames(demo):
     assert np.all(np.isfinite(row.values.values()))
 
 
+def test_curves_of_a_single_matched_frame_span_the_sessions_frames(demo):
+    """The demo's one matched frame (the others have no poses): autoscale gave the x axis
+    +-0.05 around it, ticks at -0.045 ... 0.045 written over each other."""
+    from matplotlib.figure import Figure
+
+    from fluorogui.workflow.knee_plot import draw_kinematics
+
+    session = Session.open(demo)
+    rows = session.knee_rows()
+    assert sum(r.status != "missing" for r in rows) == 1
+    figure = Figure()
+    axes = draw_kinematics(figure, rows)
+    for ax in axes:
+        lo, hi = ax.get_xlim()
+        assert (lo, hi) == (-0.5, len(rows) - 0.5)
+        ticks = [t for t in ax.get_xticks() if lo <= t <= hi]
+        assert ticks and all(float(t).is_integer() for t in ticks)
+    axes = draw_kinematics(figure, rows, against="flexion")
+    flexion = rows[0].values.flexion_deg
+    assert axes[0].get_xlim()[1] - axes[0].get_xlim()[0] >= 1.0
+    assert axes[0].get_xlim()[0] < flexion < axes[0].get_xlim()[1]
+
+
 def test_side_and_frames_are_undoable_and_saved(demo):
     session = Session.open(demo)
     assert session.side is None
