@@ -128,6 +128,8 @@ class FrameResult:
             quality = self.quality.to_dict() if self.quality else {}
             if self.match.sd is not None:  # the pose's standard deviations (mm, deg), kept with its checks
                 quality["sd"] = self.sd
+            if self.match.cov_body is not None:  # the body's whole covariance, for the knee's SDs
+                quality["cov_body"] = [[round(float(v), 9) for v in row] for row in self.match.cov_body]
             match = MatchRecord.from_result(self.match, quality)
         return PoseRecord(np.asarray(self.pose, dtype=float), match, reviewed=False, status=self.status,
                           reason=self.reason)

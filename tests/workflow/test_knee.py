@@ -271,3 +271,34 @@ def test_a_one_component_session_exports_poses_with_nan_kinematics(demo, truth, 
     data = [line for line in (tmp_path / "p.csv").read_text().splitlines() if not line.startswith("#")]
     row = dict(zip(data[0].split(","), data[1].split(",")))
     assert float(row["femoral_x"]) == pytest.approx(truth(session)[0]["femoral"][0])
+
+
+def test_a_matchs_body_covariance_gives_the_kinematics_sds_and_is_saved(demo, truth, tmp_path):
+    """Where both matches kept the body's covariance (``MatchResult.cov_body``) the knee's
+    SDs come from it, not from the Euler angles' SDs taken as independent."""
+    from fluorogui.core.knee.kinematics import kinematics_sd_body
+    from fluorogui.core.records import MatchRecord
+
+    session = Session.open(demo)
+    poses = truth(session)[1]
+    cov = np.diag([0.01, 0.02, 0.01, 0.05, 0.04, 0.03]) ** 2
+    cov[3, 4] = cov[4, 3] = -0.5 * 0.05 * 0.04
+    for c, pose in poses.items():
+        quality = {"sd": [0.01, 0.02, 0.01, 3.0, 3.0, 0.01], "cov_body": cov.tolist()}
+        session.project.poses[(1, c)] = PoseRecord(pose, MatchRecord(0.05, [0.05, 0.05], 10, 0.1, True, "fast",
+                                                                     quality=quality))
+    expected = kinematics_sd_body(pose_to_matrix(poses["femoral"]), pose_to_matrix(poses["tibial"]),
+                                  session.anatomical_frame("femoral"), session.anatomical_frame("tibial"),
+                                  side="right", femoral_cov=cov, tibial_cov=cov,
+                                  femoral_centroid=session.mesh("femoral").centroid,
+                                  tibial_centroid=session.mesh("tibial").centroid)
+    assert session.knee_at(1).sd == pytest.approx(expected, rel=1e-9)
+    assert session.knee_at(1).sd[0] < 0.2  # not the 3 deg Euler SDs
+    session.save(tmp_path / "k.fluoro")
+    again = Session.open(tmp_path / "k.fluoro")
+    assert again.knee_at(1).sd == pytest.approx(expected, rel=1e-9)
+    # an older project (the Euler SDs only) keeps the old propagation
+    for c in poses:
+        del again.project.poses[(1, c)].match.quality["cov_body"]
+    assert again.knee_at(1).sd[0] > 1.0
+

@@ -182,8 +182,10 @@ def test_matched_pose_keeps_its_sd_in_the_project(demo):
     # measured 0.0020-0.0044 mm, 0.0047-0.0056 deg (the error: 0.0041 mm, 0.0053 deg)
     assert np.all(sd > 0) and np.all(sd[:3] < 0.009) and np.all(sd[3:] < 0.0113), sd
     session.save()
-    stored = Session.open(demo).pose_record("femoral", 1).match.quality["sd"]
-    np.testing.assert_allclose(stored, sd)
+    quality = Session.open(demo).pose_record("femoral", 1).match.quality
+    np.testing.assert_allclose(quality["sd"], sd)
+    # the body's covariance too (for the knee's SDs): its diagonal is the body's SDs (kept to 1e-5)
+    np.testing.assert_allclose(np.sqrt(np.diag(quality["cov_body"])), quality["sd_body"], rtol=0, atol=1e-5)
 
 
 def test_an_automatic_outline_keeps_its_point_weights_in_the_project_until_edited(demo):

@@ -240,3 +240,62 @@ def kinematics_sd(femoral_pose, tibial_pose, femoral_frame, tibial_frame, *, sid
             derivative = (values(*plus) - values(*minus)) / (2 * step)
             variance += (derivative * sds[which][k]) ** 2
     return np.sqrt(variance)
+
+
+def moved_by_body(matrix, motion, centroid) -> np.ndarray:
+    """A 4×4 pose moved by the body's own motion (``MatchResult.sd_body``'s frame): its
+    ``centroid`` (model frame, mm) shifted by ``motion[:3]`` (world mm) and the body turned
+    about that centroid by the rotation vector ``motion[3:]`` (degrees, about its own model
+    axes: ``R' = R exp(turn)``)."""
+    matrix = np.asarray(matrix, dtype=float)
+    motion, centroid = np.asarray(motion, dtype=float), np.asarray(centroid, dtype=float)
+    w = np.radians(motion[3:])
+    angle = float(np.linalg.norm(w))
+    K = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+    turn = np.eye(3) + K if angle < 1e-12 else (
+        np.eye(3) + np.sin(angle) / angle * K + (1 - np.cos(angle)) / angle**2 * (K @ K))
+    R = matrix[:3, :3] @ turn
+    out = matrix.copy()
+    out[:3, :3] = R
+    out[:3, 3] = matrix[:3, :3] @ centroid + matrix[:3, 3] + motion[:3] - R @ centroid
+    return out
+
+
+def kinematics_sd_body(femoral_matrix, tibial_matrix, femoral_frame, tibial_frame, *, side: str,
+                       femoral_cov, tibial_cov, femoral_centroid, tibial_centroid) -> np.ndarray:
+    """Standard deviations of the six values from each component's uncertainty of its own
+    motion: ``*_cov`` the 6×6 covariance of its centroid (world mm) and its turn about its
+    model axes (deg) (``MatchResult.cov_body``), or those six SDs alone (taken as
+    independent). First order, by central differences; the two components' errors are
+    independent of each other. NaN where a covariance is missing or not finite.
+
+    Unlike ``kinematics_sd`` this is free of the Euler angles' coupling: near gimbal lock
+    two Euler angles of one pose trade against each other, so their SDs are large and,
+    propagated as if independent, overstate the knee's uncertainty many times.
+    """
+    matrices = [np.asarray(femoral_matrix, dtype=float), np.asarray(tibial_matrix, dtype=float)]
+    centroids = [femoral_centroid, tibial_centroid]
+    covs = []
+    for cov in (femoral_cov, tibial_cov):
+        cov = np.asarray(cov, dtype=float)
+        cov = np.diag(cov.reshape(6) ** 2) if cov.size == 6 else cov.reshape(6, 6)
+        if not np.all(np.isfinite(cov)):
+            return np.full(6, np.nan)
+        covs.append(cov)
+    frames = [femoral_frame, tibial_frame]
+
+    def values(which: int, motion) -> np.ndarray:
+        moved = list(matrices)
+        moved[which] = moved_by_body(matrices[which], motion, centroids[which])
+        return knee_kinematics(moved[0], moved[1], frames[0], frames[1], side=side).values()
+
+    variance = np.zeros(6)
+    step = 1e-4
+    for which in (0, 1):
+        J = np.zeros((6, 6))
+        for k in range(6):
+            d = np.zeros(6)
+            d[k] = step
+            J[:, k] = (values(which, d) - values(which, -d)) / (2 * step)
+        variance += np.einsum("ij,jk,ik->i", J, covs[which], J)
+    return np.sqrt(np.maximum(variance, 0.0))

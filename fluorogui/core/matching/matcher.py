@@ -125,7 +125,8 @@ def judge_match(problem: MatchProblem, result: MatchResult, settings: MatchSetti
     settings = settings or MatchSettings()
     try:
         pose_cov, body_cov = covariances(problem, result.pose, settings=settings, evaluation=result.evaluation)
-        judged = replace(result, sd=pose_sd(pose_cov), sd_body=pose_sd(body_cov))
+        judged = replace(result, sd=pose_sd(pose_cov), sd_body=pose_sd(body_cov),
+                         cov_body=body_cov if np.all(np.isfinite(body_cov)) else None)
     except ValueError:  # the model behind a source at this pose
         judged = replace(result, sd=[float("inf")] * 6, sd_body=[float("inf")] * 6)
     problems = match_checks(problem, judged, thresholds)

@@ -84,6 +84,9 @@ class MatchResult:
     #: the same for the body's own motion: its centroid (world x, y, z, mm) and its turn about
     #: its own model axes x, y, z (deg), free of the Euler angles' coupling
     sd_body: list[float] | None = None
+    #: ... and their whole 6x6 covariance (mm, deg), for what is computed from the pose
+    #: (the knee's kinematics); None where the outlines fix nothing in some direction
+    cov_body: np.ndarray | None = field(default=None, repr=False)
     #: did the optimiser itself stop by its criterion (``converged`` also needs the checks)
     optimiser_converged: bool = False
     #: the checks of its own evidence it failed (``quality.MATCH_CHECKS`` names; ``judge_match``)

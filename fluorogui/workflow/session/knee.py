@@ -27,6 +27,7 @@ from fluorogui.core.knee.kinematics import (
     check_frame,
     check_side,
     kinematics_sd,
+    kinematics_sd_body,
     knee_kinematics,
 )
 from fluorogui.core.projection.pose import pose_to_matrix
@@ -81,6 +82,25 @@ def record_sd(record: PoseRecord | None) -> np.ndarray:
     except (TypeError, ValueError):
         return np.full(6, np.nan)
     return sd
+
+
+def record_body_uncertainty(record: PoseRecord | None) -> np.ndarray | None:
+    """The uncertainty of a match's body motion (centroid world mm, turn about the model's
+    axes deg): its 6x6 covariance where the match kept it, else its six SDs; None where it
+    kept neither (an older project, a pose placed by hand) or they are not all finite."""
+    if record is None or record.match is None or not isinstance(record.match.quality, dict):
+        return None
+    for key, size in (("cov_body", 36), ("sd_body", 6)):
+        value = record.match.quality.get(key)
+        if value is None:
+            continue
+        try:
+            array = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            continue
+        if array.size == size and np.all(np.isfinite(array)):
+            return array.reshape(6, 6) if size == 36 else array.reshape(6)
+    return None
 
 
 def row_status(records: dict) -> tuple[str, str]:
@@ -292,11 +312,25 @@ class Knee:
                 femur, tibia = records["femoral"].pose, records["tibial"].pose
                 values = knee_kinematics(pose_to_matrix(femur), pose_to_matrix(tibia), anat["femoral"], anat["tibial"],
                                          side=side)
-                sd = kinematics_sd(femur, tibia, anat["femoral"], anat["tibial"], side=side,
-                                   femoral_sd=record_sd(records["femoral"]), tibial_sd=record_sd(records["tibial"]),
-                                   pose_matrix=pose_to_matrix)
+                sd = self._sd(records, anat, side)
             rows.append(KneeRow(frame, values, status, reason, records, sd))
         return rows
+
+    def _sd(self, records: dict, anat: dict, side: str) -> np.ndarray:
+        """The six values' SDs: from the body's own uncertainty where both matches kept it
+        (its whole covariance when kept), else from the Euler angles' SDs as independent,
+        which near gimbal lock overstates them (the real femur, gamma ~78 deg: its alpha and
+        beta SDs are ~1 deg, its turns 0.07-0.21 deg)."""
+        femur, tibia = records["femoral"].pose, records["tibial"].pose
+        body = [record_body_uncertainty(records[c]) for c in KNEE_COMPONENTS]
+        if all(b is not None for b in body):
+            centroids = [self.reader.mesh(c).centroid for c in KNEE_COMPONENTS]
+            return kinematics_sd_body(pose_to_matrix(femur), pose_to_matrix(tibia), anat["femoral"], anat["tibial"],
+                                      side=side, femoral_cov=body[0], tibial_cov=body[1],
+                                      femoral_centroid=centroids[0], tibial_centroid=centroids[1])
+        return kinematics_sd(femur, tibia, anat["femoral"], anat["tibial"], side=side,
+                             femoral_sd=record_sd(records["femoral"]), tibial_sd=record_sd(records["tibial"]),
+                             pose_matrix=pose_to_matrix)
 
     def knee_at(self, frame: int) -> KneeRow:
         return self.knee_rows([frame])[0]
