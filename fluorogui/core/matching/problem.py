@@ -86,7 +86,7 @@ class MatchResult:
     sd_body: list[float] | None = None
     #: ... and their whole 6x6 covariance (mm, deg), for what is computed from the pose
     #: (the knee's kinematics); None where the outlines fix nothing in some direction
-    cov_body: np.ndarray | None = field(default=None, repr=False)
+    cov_body: np.ndarray | None = field(default=None, repr=False, compare=False)
     #: did the optimiser itself stop by its criterion (``converged`` also needs the checks)
     optimiser_converged: bool = False
     #: the checks of its own evidence it failed (``quality.MATCH_CHECKS`` names; ``judge_match``)
