@@ -14,6 +14,7 @@ from fluorogui.core.projection.pose import (
     rotvec_matrix,
     transform_points,
 )
+from fluorogui.core.search import find
 from fluorogui.core.search import shape_search as ss
 from fluorogui.core.search.find import Placement, find_components, near_candidates
 from fluorogui.simulation.demo import anatomy_meshes, demo_views, knee_bend_poses, posed_anatomy, render_view
@@ -263,3 +264,40 @@ def test_dark_regions_made_once_give_both_rounds_their_points(scene):
             assert len(afresh[0]) >= 3 and (len(afresh[1]) >= 1) == (peaks > 0)
             for a, b in zip(afresh, shared):
                 assert len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b))
+
+
+def _distinct_one_by_one(order, rotations, k, min_deg):
+    """The rule ``find._distinct`` keeps: each of ``order`` farther than ``min_deg`` from all kept before it."""
+    out = []
+    for i in order:
+        if all(find._angle_deg(rotations[i], rotations[j]) > min_deg for j in out):
+            out.append(int(i))
+            if len(out) == k:
+                break
+    return out
+
+
+def test_distinct_keeps_what_the_one_by_one_rule_keeps():
+    """``find._distinct`` removes near duplicates of each kept orientation all at once: the
+    same candidates, in the same order, as the one-by-one rule, on the rotations the search
+    scans (the 4000-orientation grid, the 5-degree steps about its best) in many orders,
+    with rotations at and exactly on the limit of others, and fewer than ``k`` distinct."""
+    rng = np.random.default_rng(5)
+    grid = find._grid(4000)
+    for trial in range(24):
+        base = grid[rng.choice(len(grid), 300, replace=False)]
+        local = np.matmul(find._LOCAL_STEPS[None], base[:40][:, None]).reshape(-1, 3, 3)
+        axes = rng.normal(size=(20, 3))
+        axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+        min_deg = (20.0, 8.0, 45.0)[trial % 3]
+        on_limit = np.stack([rotvec_matrix(np.radians(min_deg) * a) @ base[0] for a in axes])
+        if trial % 4 < 2:  # the limit the very angle of one of them: not farther than it
+            min_deg = find._angle_deg(base[0], on_limit[0])
+        rotations = np.concatenate([base, local, on_limit])
+        order = rng.permutation(len(rotations))
+        if trial % 2:
+            order = np.r_[0, order[order != 0]]  # base[0] kept first: those on its limit are judged
+        for k in (1, 6, 40) if trial % 6 else (6, 5000):
+            assert find._distinct(order, rotations, k, min_deg) == _distinct_one_by_one(order, rotations, k, min_deg)
+    same = np.repeat(grid[:1], 5, axis=0)  # fewer distinct than asked for
+    assert find._distinct(np.arange(5), same, 3) == [0]
