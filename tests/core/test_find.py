@@ -4,6 +4,7 @@ how soon it stops when cancelled: benchmarks/bench_budgets.py and bench_find.py.
 import cv2
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 from fluorogui.core.cancel import Cancelled
 from fluorogui.core.projection.mesh import prepare_mesh
@@ -183,6 +184,34 @@ def test_edge_refinement_pulls_a_rough_pose_in(scene):
     # measured 0.093 deg, 0.0096 mm
     assert angle < 0.185 and np.linalg.norm(c - c0) < 0.019, (angle, np.linalg.norm(c - c0))
     assert right > 0.99  # measured 0.995
+
+
+def test_outline_nearest_vertices_as_a_balanced_tree_finds_them(scene, monkeypatch):
+    """``outline`` finds each point's nearest model vertex with a quickly built tree
+    (unbalanced, not compacted): the same vertices and distances as a default cKDTree, at
+    poses about the right one of both components in both views."""
+    _, views, meshes, truth, _ = scene
+    made = []
+
+    def tree(data, **kwargs):
+        made.append((np.array(data), kwargs))
+        return cKDTree(data, **kwargs)
+
+    monkeypatch.setattr(ss, "cKDTree", tree)
+    rng = np.random.default_rng(4)
+    for name, mesh in meshes.items():
+        coarse = ss.shape_library(mesh).coarse
+        for _ in range(4):
+            R = rotvec_matrix(np.radians(rng.normal(0, 8, 3))) @ rotation_matrix(*truth[name][3:])
+            c = R @ mesh.centroid + truth[name][:3] + rng.normal(0, 3, 3)
+            for view in views:
+                made.clear()
+                pts, _, model = ss.outline(coarse, R, c, view, spacing_px=3.0)
+                (uv, kwargs), = made
+                assert kwargs == {"balanced_tree": False, "compact_nodes": False}
+                fast, default = cKDTree(uv, **kwargs).query(pts), cKDTree(uv).query(pts)
+                assert np.array_equal(fast[0], default[0]) and np.array_equal(fast[1], default[1])
+                assert len(model) == len(pts)
 
 
 def _unit(v):

