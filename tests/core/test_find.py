@@ -214,6 +214,26 @@ def test_outline_nearest_vertices_as_a_balanced_tree_finds_them(scene, monkeypat
                 assert len(model) == len(pts)
 
 
+def test_edge_maps_are_the_plain_formula(scene):
+    """``EdgeMaps`` makes its oriented scores in place: every level and direction the
+    plain ``rint(clip((gx cos t + gy sin t) * 127 / ref, -127, 127))``, on both views."""
+    images = scene[0]
+    for image in images:
+        maps = ss.EdgeMaps(image, ss.field_of_view(image))
+        img = ss.to_unit_float(image)
+        for name, (_, sigma) in ss.LEVELS.items():
+            level_scale, flat, H, W, _ = maps.levels[name]
+            small = cv2.resize(img, None, fx=level_scale, fy=level_scale, interpolation=cv2.INTER_AREA)
+            blurred = cv2.GaussianBlur(small, (0, 0), sigma)
+            gx, gy = cv2.Sobel(blurred, cv2.CV_32F, 1, 0) / 8.0, cv2.Sobel(blurred, cv2.CV_32F, 0, 1) / 8.0
+            ref = maps.g_ref * (level_scale / maps.work)
+            planes = flat.reshape(ss.N_BINS, H, W)
+            for k, t in enumerate(2 * np.pi * np.arange(ss.N_BINS) / ss.N_BINS):
+                plain = np.rint(np.clip((gx * np.cos(t) + gy * np.sin(t)) * (127.0 / ref), -127.0, 127.0))
+                assert np.array_equal(planes[k, ss.PAD:-ss.PAD, ss.PAD:-ss.PAD], plain.astype(np.int8))
+            assert not planes[:, :ss.PAD].any() and not planes[:, :, -ss.PAD:].any()
+
+
 def _unit(v):
     return v / np.linalg.norm(v)
 

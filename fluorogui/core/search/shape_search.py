@@ -229,9 +229,16 @@ class EdgeMaps:
             gy = cv2.Sobel(s, cv2.CV_32F, 0, 1) / 8.0
             ref = self.g_ref * (scale / self.work)  # gradients per map pixel scale with the pixel size
             maps = np.zeros((N_BINS, s.shape[0] + 2 * PAD, s.shape[1] + 2 * PAD), np.int8)  # score x 127
+            # clip((gx cos t + gy sin t) * 127 / ref), rounded, in float64 as the float64 cos and
+            # sin make it; the gradients widened once and every step in place (a third faster)
+            gx64, gy64 = gx.astype(np.float64), gy.astype(np.float64)
+            v, w = np.empty_like(gx64), np.empty_like(gx64)
             for k, t in enumerate(theta):
-                v = np.clip((gx * np.cos(t) + gy * np.sin(t)) * (127.0 / ref), -127.0, 127.0)
-                maps[k, PAD:-PAD, PAD:-PAD] = np.rint(v)
+                np.multiply(gx64, np.cos(t), out=v)
+                v += np.multiply(gy64, np.sin(t), out=w)
+                v *= 127.0 / ref
+                np.rint(np.clip(v, -127.0, 127.0, out=v), out=v)
+                maps[k, PAD:-PAD, PAD:-PAD] = v
             self.levels[name] = (scale, maps.ravel(), maps.shape[1], maps.shape[2], s.shape)
 
     def with_hidden(self, hidden: np.ndarray | None, neutral: float) -> "EdgeMaps":
