@@ -101,9 +101,9 @@ def _smooth_closed(p: np.ndarray, k: int) -> np.ndarray:
 
 def _closed_resample(p: np.ndarray, k: int) -> np.ndarray:
     seg = np.linalg.norm(np.diff(np.vstack([p, p[:1]]), axis=0), axis=1)
-    s = np.r_[0.0, np.cumsum(seg)]
+    s = np.concatenate([[0.0], np.cumsum(seg)])  # (np.r_ took most of the time of these small arrays)
     t = (np.arange(k) + 0.5) * s[-1] / k
-    return np.column_stack([np.interp(t, s, np.r_[p[:, 0], p[0, 0]]), np.interp(t, s, np.r_[p[:, 1], p[0, 1]])])
+    return np.column_stack([np.interp(t, s, np.append(p[:, 0], p[0, 0])), np.interp(t, s, np.append(p[:, 1], p[0, 1]))])
 
 
 # -- silhouettes along many directions ----------------------------------------------------------
@@ -135,15 +135,24 @@ class ShapeLibrary:
         b = np.cross(d, a)
         c = mesh.centroid
         V = coarse.vertices - c
-        # every direction at once: the source is at -distance * d from the centroid
-        front = (coarse.face_normals @ c - coarse.face_offsets)[:, None] - distance * (coarse.face_normals @ d.T) > 0
+        # every direction at once: the source is at -distance * d from the centroid. (The
+        # (faces, n) and (n, V) arrays are tens of MB: each made once and worked on in place,
+        # and the plane's two coordinates kept apart, so that their extremes are row reductions)
+        toward = np.matmul(coarse.face_normals, d.T)
+        toward *= distance
+        front = np.subtract((coarse.face_normals @ c - coarse.face_offsets)[:, None], toward, out=toward) > 0
         on = (front[coarse.edge_faces[:, 0]] != front[coarse.edge_faces[:, 1]]).T.copy()  # (n, E): silhouette edges
         depth = d @ V.T + distance  # (n, V): along each direction from its source
-        xy_all = np.stack([a @ V.T, b @ V.T], axis=-1) * (distance / depth)[..., None]  # on the plane through c
+        ratio = np.divide(distance, depth, out=depth)
+        xy = [np.multiply(e @ V.T, ratio, out=ratio if k else None) for k, e in enumerate((a, b))]  # on the plane
         points = np.zeros((n_directions, n_points, 2))
-        lo = xy_all.min(axis=1) - 2.0  # every vertex projects inside the outline: its bounding box
-        size = (np.ceil((xy_all.max(axis=1) - lo + 2.0) / resolution_mm) + 1).astype(int)
-        fixed = np.round((xy_all - lo[:, None, :]) * (16 / resolution_mm)).astype(np.int32)
+        lo = np.column_stack([x.min(axis=1) for x in xy]) - 2.0  # every vertex projects inside: its bounding box
+        size = (np.ceil((np.column_stack([x.max(axis=1) for x in xy]) - lo + 2.0) / resolution_mm) + 1).astype(int)
+        fixed = np.empty(xy[0].shape + (2,), np.int32)
+        for k, x in enumerate(xy):
+            x -= lo[:, k:k + 1]
+            x *= 16 / resolution_mm
+            fixed[..., k] = np.round(x, out=x)
         for j in range(n_directions):
             edges = np.vstack([coarse.edges[on[j]], coarse.open_edges])
             canvas = np.zeros((size[j, 1], size[j, 0]), np.uint8)
