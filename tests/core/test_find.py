@@ -234,6 +234,26 @@ def test_edge_maps_are_the_plain_formula(scene):
             assert not planes[:, :ss.PAD].any() and not planes[:, :, -ss.PAD:].any()
 
 
+def test_edge_map_indices_are_the_plain_formula(scene):
+    """``EdgeMaps.index`` works in place and takes the direction bin with a mask: the same
+    indices as the plain formula, for template outlines in every direction, on both
+    levels, with points far outside the map (clipped) among them."""
+    images, views, meshes, _, _ = scene
+    maps = ss.EdgeMaps(images[0])
+    lib = ss.shape_library(meshes["tibial"])
+    rotations = find._grid(600)
+    points, normals = ss.place_templates(lib, views[0], rotations, np.array([2.0, -4.0, -15.0]))
+    points[::7] *= 3.0  # off the map
+    for level in ss.LEVELS:
+        scale, _, H, W, (h, w) = maps.levels[level]
+        q = points * scale + (scale - 1.0) / 2.0
+        x = np.clip(np.rint(q[..., 0]), -ss.PAD // 2, w + ss.PAD // 2).astype(np.int64) + ss.PAD
+        y = np.clip(np.rint(q[..., 1]), -ss.PAD // 2, h + ss.PAD // 2).astype(np.int64) + ss.PAD
+        turn = np.arctan2(normals[..., 1], normals[..., 0]) * (ss.N_BINS / (2 * np.pi))
+        b = np.rint(turn).astype(np.int64) % ss.N_BINS
+        assert np.array_equal(maps.index(level, points, normals), (b * H + y) * W + x)
+
+
 def _unit(v):
     return v / np.linalg.norm(v)
 
