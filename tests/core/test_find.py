@@ -254,6 +254,48 @@ def test_edge_map_indices_are_the_plain_formula(scene):
         assert np.array_equal(maps.index(level, points, normals), (b * H + y) * W + x)
 
 
+def test_segments_are_drawn_as_opencv_draws_them(scene):
+    """``shape_search.draw_segments`` sets the very pixels ``cv2.polylines`` (1 px, LINE_8,
+    4 fraction bits) sets: random segments of every slope and length (points, axis-aligned
+    and diagonal ones, ends on half pixels among them), the silhouette edges of outlines,
+    and ends off the canvas (left to OpenCV)."""
+    rng = np.random.default_rng(8)
+
+    def both(segments, shape):
+        plain, ours = np.zeros(shape, np.uint8), np.zeros(shape, np.uint8)
+        cv2.polylines(plain, segments, False, 1, 1, cv2.LINE_8, 4)
+        ss.draw_segments(ours, segments)
+        assert np.array_equal(plain, ours)
+
+    for trial in range(3000):
+        n = int(rng.integers(1, 40))
+        segments = rng.integers(0, 60 * 16, size=(n, 2, 2))
+        kind = trial % 5
+        if kind == 1:  # short
+            segments[:, 1] = segments[:, 0] + rng.integers(-100, 100, size=(n, 2))
+        elif kind == 2:  # axis-aligned and diagonal
+            d = rng.integers(-100, 100, size=n)
+            segments[:, 1, 0] = segments[:, 0, 0] + d * rng.integers(0, 2, size=n)
+            segments[:, 1, 1] = segments[:, 0, 1] + d * rng.integers(-1, 2, size=n)
+        elif kind == 3:  # ends on and about half pixels
+            segments = segments // 16 * 16 + rng.choice([0, 7, 8, 9, 15], size=segments.shape)
+        elif kind == 4:  # points
+            segments[:, 1] = segments[:, 0]
+        both(np.clip(segments, 0, 60 * 16 - 1).astype(np.int32), (64, 64))
+    both(np.array([[[-40, 20], [300, 500]]], np.int32), (24, 24))  # off the canvas
+    _, views, meshes, truth, _ = scene
+    for name, mesh in meshes.items():
+        coarse = ss.shape_library(mesh).coarse
+        R = rotation_matrix(*truth[name][3:])
+        t = truth[name][:3]
+        for view in views:
+            found = ss.facing_edges(coarse, R.T @ (view.source - t))
+            uv = view.project(coarse.vertices[found.ends] @ R.T + t)
+            lo = np.floor(uv.min(0)) - 2.0
+            size = (np.ceil(uv.max(0) - lo) + 3).astype(int)
+            both(np.round((uv - lo) * 16).astype(np.int32)[found.local], (size[1], size[0]))
+
+
 def _unit(v):
     return v / np.linalg.norm(v)
 
