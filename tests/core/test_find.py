@@ -4,6 +4,7 @@ how soon it stops when cancelled: benchmarks/bench_budgets.py and bench_find.py.
 import cv2
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 from fluorogui.core.cancel import Cancelled
 from fluorogui.core.projection.mesh import prepare_mesh
@@ -14,6 +15,7 @@ from fluorogui.core.projection.pose import (
     rotvec_matrix,
     transform_points,
 )
+from fluorogui.core.search import find
 from fluorogui.core.search import shape_search as ss
 from fluorogui.core.search.find import Placement, find_components, near_candidates
 from fluorogui.simulation.demo import anatomy_meshes, demo_views, knee_bend_poses, posed_anatomy, render_view
@@ -184,6 +186,116 @@ def test_edge_refinement_pulls_a_rough_pose_in(scene):
     assert right > 0.99  # measured 0.995
 
 
+def test_outline_nearest_vertices_as_a_balanced_tree_finds_them(scene, monkeypatch):
+    """``outline`` finds each point's nearest model vertex with a quickly built tree
+    (unbalanced, not compacted): the same vertices and distances as a default cKDTree, at
+    poses about the right one of both components in both views."""
+    _, views, meshes, truth, _ = scene
+    made = []
+
+    def tree(data, **kwargs):
+        made.append((np.array(data), kwargs))
+        return cKDTree(data, **kwargs)
+
+    monkeypatch.setattr(ss, "cKDTree", tree)
+    rng = np.random.default_rng(4)
+    for name, mesh in meshes.items():
+        coarse = ss.shape_library(mesh).coarse
+        for _ in range(4):
+            R = rotvec_matrix(np.radians(rng.normal(0, 8, 3))) @ rotation_matrix(*truth[name][3:])
+            c = R @ mesh.centroid + truth[name][:3] + rng.normal(0, 3, 3)
+            for view in views:
+                made.clear()
+                pts, _, model = ss.outline(coarse, R, c, view, spacing_px=3.0)
+                (uv, kwargs), = made
+                assert kwargs == {"balanced_tree": False, "compact_nodes": False}
+                fast, default = cKDTree(uv, **kwargs).query(pts), cKDTree(uv).query(pts)
+                assert np.array_equal(fast[0], default[0]) and np.array_equal(fast[1], default[1])
+                assert len(model) == len(pts)
+
+
+def test_edge_maps_are_the_plain_formula(scene):
+    """``EdgeMaps`` makes its oriented scores in place: every level and direction the
+    plain ``rint(clip((gx cos t + gy sin t) * 127 / ref, -127, 127))``, on both views."""
+    images = scene[0]
+    for image in images:
+        maps = ss.EdgeMaps(image, ss.field_of_view(image))
+        img = ss.to_unit_float(image)
+        for name, (_, sigma) in ss.LEVELS.items():
+            level_scale, flat, H, W, _ = maps.levels[name]
+            small = cv2.resize(img, None, fx=level_scale, fy=level_scale, interpolation=cv2.INTER_AREA)
+            blurred = cv2.GaussianBlur(small, (0, 0), sigma)
+            gx, gy = cv2.Sobel(blurred, cv2.CV_32F, 1, 0) / 8.0, cv2.Sobel(blurred, cv2.CV_32F, 0, 1) / 8.0
+            ref = maps.g_ref * (level_scale / maps.work)
+            planes = flat.reshape(ss.N_BINS, H, W)
+            for k, t in enumerate(2 * np.pi * np.arange(ss.N_BINS) / ss.N_BINS):
+                plain = np.rint(np.clip((gx * np.cos(t) + gy * np.sin(t)) * (127.0 / ref), -127.0, 127.0))
+                assert np.array_equal(planes[k, ss.PAD:-ss.PAD, ss.PAD:-ss.PAD], plain.astype(np.int8))
+            assert not planes[:, :ss.PAD].any() and not planes[:, :, -ss.PAD:].any()
+
+
+def test_edge_map_indices_are_the_plain_formula(scene):
+    """``EdgeMaps.index`` works in place and takes the direction bin with a mask: the same
+    indices as the plain formula, for template outlines in every direction, on both
+    levels, with points far outside the map (clipped) among them."""
+    images, views, meshes, _, _ = scene
+    maps = ss.EdgeMaps(images[0])
+    lib = ss.shape_library(meshes["tibial"])
+    rotations = find._grid(600)
+    points, normals = ss.place_templates(lib, views[0], rotations, np.array([2.0, -4.0, -15.0]))
+    points[::7] *= 3.0  # off the map
+    for level in ss.LEVELS:
+        scale, _, H, W, (h, w) = maps.levels[level]
+        q = points * scale + (scale - 1.0) / 2.0
+        x = np.clip(np.rint(q[..., 0]), -ss.PAD // 2, w + ss.PAD // 2).astype(np.int64) + ss.PAD
+        y = np.clip(np.rint(q[..., 1]), -ss.PAD // 2, h + ss.PAD // 2).astype(np.int64) + ss.PAD
+        turn = np.arctan2(normals[..., 1], normals[..., 0]) * (ss.N_BINS / (2 * np.pi))
+        b = np.rint(turn).astype(np.int64) % ss.N_BINS
+        assert np.array_equal(maps.index(level, points, normals), (b * H + y) * W + x)
+
+
+def test_segments_are_drawn_as_opencv_draws_them(scene):
+    """``shape_search.draw_segments`` sets the very pixels ``cv2.polylines`` (1 px, LINE_8,
+    4 fraction bits) sets: random segments of every slope and length (points, axis-aligned
+    and diagonal ones, ends on half pixels among them), the silhouette edges of outlines,
+    and ends off the canvas (left to OpenCV)."""
+    rng = np.random.default_rng(8)
+
+    def both(segments, shape):
+        plain, ours = np.zeros(shape, np.uint8), np.zeros(shape, np.uint8)
+        cv2.polylines(plain, segments, False, 1, 1, cv2.LINE_8, 4)
+        ss.draw_segments(ours, segments)
+        assert np.array_equal(plain, ours)
+
+    for trial in range(3000):
+        n = int(rng.integers(1, 40))
+        segments = rng.integers(0, 60 * 16, size=(n, 2, 2))
+        kind = trial % 5
+        if kind == 1:  # short
+            segments[:, 1] = segments[:, 0] + rng.integers(-100, 100, size=(n, 2))
+        elif kind == 2:  # axis-aligned and diagonal
+            d = rng.integers(-100, 100, size=n)
+            segments[:, 1, 0] = segments[:, 0, 0] + d * rng.integers(0, 2, size=n)
+            segments[:, 1, 1] = segments[:, 0, 1] + d * rng.integers(-1, 2, size=n)
+        elif kind == 3:  # ends on and about half pixels
+            segments = segments // 16 * 16 + rng.choice([0, 7, 8, 9, 15], size=segments.shape)
+        elif kind == 4:  # points
+            segments[:, 1] = segments[:, 0]
+        both(np.clip(segments, 0, 60 * 16 - 1).astype(np.int32), (64, 64))
+    both(np.array([[[-40, 20], [300, 500]]], np.int32), (24, 24))  # off the canvas
+    _, views, meshes, truth, _ = scene
+    for name, mesh in meshes.items():
+        coarse = ss.shape_library(mesh).coarse
+        R = rotation_matrix(*truth[name][3:])
+        t = truth[name][:3]
+        for view in views:
+            found = ss.facing_edges(coarse, R.T @ (view.source - t))
+            uv = view.project(coarse.vertices[found.ends] @ R.T + t)
+            lo = np.floor(uv.min(0)) - 2.0
+            size = (np.ceil(uv.max(0) - lo) + 3).astype(int)
+            both(np.round((uv - lo) * 16).astype(np.int32)[found.local], (size[1], size[0]))
+
+
 def _unit(v):
     return v / np.linalg.norm(v)
 
@@ -263,3 +375,40 @@ def test_dark_regions_made_once_give_both_rounds_their_points(scene):
             assert len(afresh[0]) >= 3 and (len(afresh[1]) >= 1) == (peaks > 0)
             for a, b in zip(afresh, shared):
                 assert len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b))
+
+
+def _distinct_one_by_one(order, rotations, k, min_deg):
+    """The rule ``find._distinct`` keeps: each of ``order`` farther than ``min_deg`` from all kept before it."""
+    out = []
+    for i in order:
+        if all(find._angle_deg(rotations[i], rotations[j]) > min_deg for j in out):
+            out.append(int(i))
+            if len(out) == k:
+                break
+    return out
+
+
+def test_distinct_keeps_what_the_one_by_one_rule_keeps():
+    """``find._distinct`` removes near duplicates of each kept orientation all at once: the
+    same candidates, in the same order, as the one-by-one rule, on the rotations the search
+    scans (the 4000-orientation grid, the 5-degree steps about its best) in many orders,
+    with rotations at and exactly on the limit of others, and fewer than ``k`` distinct."""
+    rng = np.random.default_rng(5)
+    grid = find._grid(4000)
+    for trial in range(24):
+        base = grid[rng.choice(len(grid), 300, replace=False)]
+        local = np.matmul(find._LOCAL_STEPS[None], base[:40][:, None]).reshape(-1, 3, 3)
+        axes = rng.normal(size=(20, 3))
+        axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+        min_deg = (20.0, 8.0, 45.0)[trial % 3]
+        on_limit = np.stack([rotvec_matrix(np.radians(min_deg) * a) @ base[0] for a in axes])
+        if trial % 4 < 2:  # the limit the very angle of one of them: not farther than it
+            min_deg = find._angle_deg(base[0], on_limit[0])
+        rotations = np.concatenate([base, local, on_limit])
+        order = rng.permutation(len(rotations))
+        if trial % 2:
+            order = np.r_[0, order[order != 0]]  # base[0] kept first: those on its limit are judged
+        for k in (1, 6, 40) if trial % 6 else (6, 5000):
+            assert find._distinct(order, rotations, k, min_deg) == _distinct_one_by_one(order, rotations, k, min_deg)
+    same = np.repeat(grid[:1], 5, axis=0)  # fewer distinct than asked for
+    assert find._distinct(np.arange(5), same, 3) == [0]

@@ -2,11 +2,13 @@
 (``core.search.relocate``): the patch under its projection in the earlier frame, found
 again in each view of the later one, triangulates to its new centroid; views that
 disagree give no answer."""
+import cv2
 import numpy as np
 import pytest
 
 from fluorogui.core.projection.mesh import prepare_mesh
 from fluorogui.core.projection.pose import rotation_matrix, transform_points
+from fluorogui.core.search import relocate
 from fluorogui.core.search.relocate import image_shift, relocated_centroid, with_centroid
 from fluorogui.simulation.phantoms import femoral_component_mesh
 from fluorogui.simulation.protocols import dual_orthogonal_views
@@ -61,3 +63,33 @@ def test_with_centroid_moves_but_does_not_turn(scene):
     moved = with_centroid(BEFORE, mesh, target)
     assert np.allclose(_centroid(mesh, moved), target)
     assert np.allclose(rotation_matrix(*moved[3:]), rotation_matrix(*BEFORE[3:]))
+
+
+def test_the_patch_is_cut_where_the_whole_grown_region_puts_it(scene):
+    """``image_shift`` grows the region only in its box: the same shift and correlation as
+    growing it over the whole image and cutting the patch where its pixels are, for regions
+    inside the image, at its borders and in its corner."""
+    _, _, images = scene
+    before, after = images["before"][0], images["after"][0]
+    h, w = before.shape
+    margin = relocate.EDGE_MARGIN_PX
+    for v0, v1, u0, u1 in ((300, 420, 350, 600), (0, 90, 200, 330), (h - 70, h, w - 120, w), (500, 503, 0, 4)):
+        region = np.zeros((h, w), bool)
+        region[v0:v1, u0:u1] = True
+        region[v0 + 1:v1 - 1:3, u0 + 1:u1 - 1:2] = False  # not a plain box
+        grown = cv2.dilate(region.astype(np.uint8), np.ones((2 * margin + 1,) * 2, np.uint8))
+        rows, cols = np.nonzero(grown)
+        y0, y1, x0, x1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
+        scale = min(1.0, relocate.WORK_WIDTH / max(h, w))
+        r = int(relocate.REACH * w)
+        Y0, Y1, X0, X1 = max(y0 - r, 0), min(y1 + r, h), max(x0 - r, 0), min(x1 + r, w)
+        small = [cv2.resize(np.asarray(a, np.float32), None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+                 for a in (before[y0:y1, x0:x1], grown[y0:y1, x0:x1], after[Y0:Y1, X0:X1])]
+        found = image_shift(before, after, region)
+        if min(small[0].shape) < 3:
+            assert found is None
+            continue
+        score = cv2.matchTemplate(small[2], small[0], cv2.TM_CCOEFF_NORMED, mask=(small[1] > 0.5).astype(np.float32))
+        score[~np.isfinite(score)] = -1.0
+        _, best, _, (u, v) = cv2.minMaxLoc(score)
+        assert np.array_equal(found[0], [u / scale + X0 - x0, v / scale + Y0 - y0]) and found[1] == best

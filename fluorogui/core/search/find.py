@@ -210,14 +210,36 @@ def _pose_change(mesh: PreparedMesh, a, b) -> tuple[float, float]:
     return (float(np.linalg.norm(Ra @ mesh.centroid + a[:3] - Rb @ mesh.centroid - b[:3])), _angle_deg(Ra, Rb))
 
 
+#: angles (deg) this close to a threshold are taken one by one with ``_angle_deg``: the
+#: batched trace sums its products in another order (a few 1e-16 apart)
+_HAIR_DEG = 1e-6
+
+
 def _distinct(order, rotations, k: int, min_deg: float = 20.0) -> list[int]:
-    """The first ``k`` of ``order`` at least ``min_deg`` apart in rotation."""
+    """The first ``k`` of ``order`` more than ``min_deg`` apart in rotation: each one
+    taken is the first left, and removes those within ``min_deg`` of it from the rest,
+    all at once (the one-by-one loop over ~1400 orientations took ~6 ms a centre). The
+    same as keeping each ``i`` of ``order`` farther than ``min_deg`` from all those kept
+    before it, an angle within a hair of ``min_deg`` taken as that rule takes it."""
+    order = np.asarray(order, dtype=np.intp)
+    left = np.ones(len(order), bool)
     out: list[int] = []
-    for i in order:
-        if all(_angle_deg(rotations[i], rotations[j]) > min_deg for j in out):
-            out.append(int(i))
-            if len(out) == k:
-                break
+    while len(out) < k:
+        free = np.flatnonzero(left)
+        if not len(free):
+            break
+        first = free[0]
+        kept = int(order[first])
+        out.append(kept)
+        rest = order[free[1:]]
+        # trace(Ra.T @ Rb) of every pair at once: the sum of their elementwise products
+        trace = np.einsum("ij,nij->n", rotations[kept], rotations[rest])
+        angle = np.degrees(np.arccos(np.clip((trace - 1.0) / 2.0, -1.0, 1.0)))
+        near = ~(angle > min_deg)
+        for m in np.flatnonzero(~(np.abs(angle - min_deg) > _HAIR_DEG)):  # (and NaN)
+            near[m] = not _angle_deg(rotations[kept], rotations[rest[m]]) > min_deg
+        left[first] = False
+        left[free[1:][near]] = False
     return out
 
 

@@ -42,16 +42,20 @@ def image_shift(before: np.ndarray, after: np.ndarray, region: np.ndarray,
         return None
     h, w = before.shape[:2]
     scale = min(1.0, WORK_WIDTH / max(h, w))
-    grown = cv2.dilate(region.astype(np.uint8), np.ones((2 * EDGE_MARGIN_PX + 1,) * 2, np.uint8))
-    rows, cols = np.nonzero(grown)
-    y0, y1, x0, x1 = rows.min(), rows.max() + 1, cols.min(), cols.max() + 1
+    # the region grown by a square of EDGE_MARGIN_PX: its box is the region's, that much wider
+    # (within the image), and it is grown only there (the same pixels; looking for them in
+    # the whole grown image took 4 ms of each call)
+    left, top, width, height = cv2.boundingRect(np.ascontiguousarray(region, dtype=bool).view(np.uint8))
+    y0, y1 = max(top - EDGE_MARGIN_PX, 0), min(top + height + EDGE_MARGIN_PX, region.shape[0])
+    x0, x1 = max(left - EDGE_MARGIN_PX, 0), min(left + width + EDGE_MARGIN_PX, region.shape[1])
+    grown = cv2.dilate(region[y0:y1, x0:x1].astype(np.uint8), np.ones((2 * EDGE_MARGIN_PX + 1,) * 2, np.uint8))
     r = int(reach * w)
     Y0, Y1, X0, X1 = max(y0 - r, 0), min(y1 + r, h), max(x0 - r, 0), min(x1 + r, w)
 
     def small(a):
         return cv2.resize(np.asarray(a, np.float32), None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
 
-    patch, mask, window = small(before[y0:y1, x0:x1]), small(grown[y0:y1, x0:x1]), small(after[Y0:Y1, X0:X1])
+    patch, mask, window = small(before[y0:y1, x0:x1]), small(grown), small(after[Y0:Y1, X0:X1])
     if min(patch.shape) < 3 or patch.shape[0] > window.shape[0] or patch.shape[1] > window.shape[1]:
         return None
     score = cv2.matchTemplate(window, patch, cv2.TM_CCOEFF_NORMED, mask=(mask > 0.5).astype(np.float32))
