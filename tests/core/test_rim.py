@@ -54,6 +54,43 @@ def test_path_lengths_agree_with_the_independent_ray_caster(tray):
     assert agree.all(), agree.mean()
 
 
+def test_path_lengths_from_a_shared_projection_are_the_same(tray):
+    """The rim's gathers share one projection of the mesh per pose (``project_mesh``): the
+    lengths are the ones a call projecting it itself gives, to the last bit."""
+    from fluorogui.core.projection.path_length import project_mesh
+
+    mesh, pose, _ = tray
+    view = VIEWS[1]
+    outline = predicted_outline(mesh, pose, view)
+    projected = project_mesh(mesh, pose, view)
+    for uv in (outline, outline[::7] - 0.3, outline[:40] + 1.7):
+        assert np.array_equal(path_lengths(mesh, pose, view, uv, projected=projected),
+                              path_lengths(mesh, pose, view, uv))
+
+
+def test_gathers_at_one_pose_share_the_model_and_give_what_a_fresh_one_gives(tray):
+    """A gather made after another at the same pose (the judgement's sparse points, then
+    all of them) reuses the model at that pose, and gives what it gives alone."""
+    mesh, pose, world = tray
+    view = VIEWS[0]
+    image = xray_image(view, [Body(world, mesh.faces, 1.0)], XrayModel(), np.random.default_rng(3))
+    points = component_outline(image, predicted_outline(mesh, pose, view))
+
+    def fresh(pts):
+        rim._POSED.clear()
+        return rim._gather_uncached(image, view, mesh, pose, points=pts, exclude=None)
+
+    alone = fresh(points)
+    rim._POSED.clear()
+    rim._gather_uncached(image, view, mesh, pose, points=points[::5], exclude=None)
+    assert len(rim._POSED) == 1
+    shared = rim._gather_uncached(image, view, mesh, pose, points=points, exclude=None)
+    assert len(rim._POSED) == 1  # made once
+    for name, array in vars(alone[0]).items():
+        assert np.array_equal(array, vars(shared[0])[name], equal_nan=True), name
+    assert np.array_equal(alone[1], shared[1])
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("mu", [1.0, 0.5])
 def test_refined_outline_sits_on_the_true_silhouette(tray, mu):

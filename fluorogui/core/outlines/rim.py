@@ -76,7 +76,7 @@ from fluorogui.core.outlines.second_edge import edge_shape, second_edges
 from fluorogui.core.outlines.spline import outward_normals, simple_or_plain
 from fluorogui.core.projection.geometry import View
 from fluorogui.core.projection.mesh import PreparedMesh
-from fluorogui.core.projection.path_length import path_lengths
+from fluorogui.core.projection.path_length import ProjectedMesh, path_lengths, project_mesh
 from fluorogui.core.projection.pose import rotation_matrix
 from fluorogui.core.projection.silhouette import mesh_silhouette
 from fluorogui.core.threads import each_view
@@ -158,15 +158,49 @@ def _gather(image, view, mesh, pose, *, points, exclude=None) -> tuple[_Points, 
     return result
 
 
+@dataclass(frozen=True)
+class _Posed:
+    """The model at one pose in one view, as every gather there uses it: its outline
+    (every 0.5 px), the outline's outward normals and curvature, a tree to find the
+    nearest outline point, and the mesh projected for the path lengths."""
+
+    outline: np.ndarray  # (Q, 2) px
+    normals: np.ndarray  # (Q, 2)
+    bend: np.ndarray  # (Q,) 1/px
+    tree: cKDTree
+    projected: ProjectedMesh
+
+
+#: the last few ``_Posed``: the rim judgement's sparse and full gathers, and the
+#: refinement's, ask at the same pose for different points
+_POSED: list = []
+
+
+def _posed(view, mesh, pose: np.ndarray) -> _Posed:
+    """The model at ``pose`` in ``view`` (made once per view, mesh and pose)."""
+    with _GATHERED_LOCK:
+        for entry in _POSED:
+            if entry[0] is view and entry[1] is mesh and np.array_equal(entry[2], pose):
+                return entry[3]
+    outline = mesh_silhouette(mesh, rotation_matrix(*pose[3:]), pose[:3], view).resample(spacing_px=0.5).points_px
+    normals = outward_normals(outline)
+    posed = _Posed(outline, normals, outline_curvature(outline, normals), cKDTree(outline),
+                   project_mesh(mesh, pose, view))
+    with _GATHERED_LOCK:
+        _POSED.insert(0, (view, mesh, pose.copy(), posed))
+        del _POSED[4:]
+    return posed
+
+
 def _gather_uncached(image, view, mesh, pose, *, points, exclude) -> tuple[_Points, np.ndarray]:
-    model = mesh_silhouette(mesh, rotation_matrix(*pose[3:]), pose[:3], view).resample(spacing_px=0.5).points_px
-    normals_model = outward_normals(model)
-    _, nearest = cKDTree(model).query(points)
-    m, n = model[nearest], normals_model[nearest]
-    bend = outline_curvature(model, normals_model)[nearest]
+    posed = _posed(view, mesh, pose)
+    _, nearest = posed.tree.query(points)
+    m, n = posed.outline[nearest], posed.normals[nearest]
+    bend = posed.bend[nearest]
     at = np.einsum("ij,ij->i", points - m, n)
     inward = m[:, None, :] - _L_OFFSETS[None, :, None] * n[:, None, :]
-    lengths = path_lengths(mesh, pose, view, inward.reshape(-1, 2)).reshape(len(points), -1)
+    lengths = path_lengths(mesh, pose, view, inward.reshape(-1, 2),
+                           projected=posed.projected).reshape(len(points), -1)
     r = int(np.ceil(np.hypot(_REACH, _LATERAL))) + 1
     du, dv = np.meshgrid(np.arange(-r, r + 1), np.arange(-r, r + 1))
     cols = np.round(points[:, 0]).astype(int)[:, None] + du.ravel()[None, :]

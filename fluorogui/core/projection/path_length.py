@@ -2,6 +2,8 @@
 crosses, the quantity the rim profile model (``core.outlines.rim``) turns into darkening."""
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from fluorogui.core.projection.geometry import View
@@ -9,15 +11,37 @@ from fluorogui.core.projection.mesh import PreparedMesh
 from fluorogui.core.projection.pose import rotation_matrix
 
 
-def path_lengths(mesh: PreparedMesh, pose, view: View, uv: np.ndarray, *, cell_px: float = 2.0) -> np.ndarray:
-    """Length (mm) of the ray from the source through each pixel position ``uv`` (K, 2)
-    inside the closed mesh at ``pose``: the sum over the triangles it crosses of the
-    distance from the source, + where it leaves and - where it enters."""
-    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+@dataclass(frozen=True)
+class ProjectedMesh:
+    """A mesh placed at a pose and projected into a view: what ``path_lengths`` needs of
+    it whatever the pixels asked about (the whole mesh projected: most of a call's cost
+    on a small query)."""
+
+    world: np.ndarray  # (N, 3) the vertices in the world, mm
+    triangles: np.ndarray  # (M, 3, 2) each face's corners in the image, px
+    lo: np.ndarray  # (M, 2) each face's pixel box
+    hi: np.ndarray
+
+
+def project_mesh(mesh: PreparedMesh, pose, view: View) -> ProjectedMesh:
+    """``mesh`` at ``pose`` (mm, degrees) projected into ``view``, for ``path_lengths``."""
     pose = np.asarray(pose, dtype=float)
     world = mesh.vertices @ rotation_matrix(*pose[3:]).T + pose[:3]
-    tri2 = view.project(world)[mesh.faces]  # (M, 3, 2)
-    lo, hi = tri2.min(1), tri2.max(1)
+    triangles = view.project(world)[mesh.faces]
+    return ProjectedMesh(world, triangles, triangles.min(1), triangles.max(1))
+
+
+def path_lengths(mesh: PreparedMesh, pose, view: View, uv: np.ndarray, *, cell_px: float = 2.0,
+                 projected: ProjectedMesh | None = None) -> np.ndarray:
+    """Length (mm) of the ray from the source through each pixel position ``uv`` (K, 2)
+    inside the closed mesh at ``pose``: the sum over the triangles it crosses of the
+    distance from the source, + where it leaves and - where it enters. ``projected``
+    (``project_mesh`` of the same mesh, pose and view) saves projecting the mesh again."""
+    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+    pose = np.asarray(pose, dtype=float)
+    if projected is None:
+        projected = project_mesh(mesh, pose, view)
+    world, tri2, lo, hi = projected.world, projected.triangles, projected.lo, projected.hi
     # keep the triangles whose box meets the queries' box, then bin them in cells
     qlo, qhi = uv.min(0) - cell_px, uv.max(0) + cell_px
     near = np.all(hi >= qlo, axis=1) & np.all(lo <= qhi, axis=1)
