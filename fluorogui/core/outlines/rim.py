@@ -349,12 +349,18 @@ def fit_rim_model(pts: _Points, max_points: int = 120, tolerance: float = 0.005,
 
 
 def fit_rim_models(views_pts: list[_Points], max_points: int = 120, tolerance: float = 0.005,
-                   sigma_grid: tuple = SIGMA_GRID) -> list[RimModel]:
+                   sigma_grid: tuple = SIGMA_GRID, *, below: float | None = None) -> list[RimModel]:
     """``fit_rim_model`` over the views of one component at once: one attenuation (the
     same metal in every view), chosen on the sum of the views' residual curves, each
     relative to its own least (its noise), and each view's blur where that lands. A
     noisy view's own attenuation varies by several per cent from draw to draw, and the
-    views' outlines move the pose in opposite ways with it."""
+    views' outlines move the pose in opposite ways with it.
+
+    ``below``: the caller asks only whether the attenuation is below this (``edge_models``'
+    quick fit). Where every view's coarse curve fitted and even the top of the finer grid
+    about the coarse vertex lies below it, the finer grid is not computed (its vertex
+    stays within that grid, so it could only land below too) and the coarse estimate is
+    returned: below as well, with blurs that are not the finer grid's."""
     curves = each_view(lambda pts: _residual_per_mu(pts, max_points, sigma_grid), views_pts)  # side by side
     fitted = [c for c in curves if c is not None]
     if not fitted:
@@ -370,7 +376,9 @@ def fit_rim_models(views_pts: list[_Points], max_points: int = 120, tolerance: f
     # blur where it lands
     log_mu = _parabola_vertex(np.log(MU_GRID), total, best)[0]
     grid = np.log(MU_GRID)
-    if 0 < best < len(MU_GRID) - 1:
+    surely_below = (below is not None and all(c is not None for c in curves)
+                    and np.exp((log_mu + FINE_LOG_MU_STEPS)[-1]) < below)
+    if 0 < best < len(MU_GRID) - 1 and not surely_below:
         grid = log_mu + FINE_LOG_MU_STEPS
         curves = each_view(lambda pc: _residual_per_mu_near(pc[0], max_points, sigma_grid, tuple(np.exp(grid)),
                                                             sigma=pc[1][1][best]) if pc[1] is not None else None,
@@ -609,7 +617,7 @@ def edge_models(images, views, mesh: PreparedMesh, pose, *, outlines_px, exclude
     if not fitted:
         return models
     quick = fit_rim_models([sparse[k] for k in fitted], max_points=DECIDE_POINTS, tolerance=DECIDE_TOLERANCE,
-                           sigma_grid=DECIDE_SIGMAS)
+                           sigma_grid=DECIDE_SIGMAS, below=MAYBE_SOFT_BELOW_MU)  # only its verdict counts there
     if quick[0].mu >= MAYBE_SOFT_BELOW_MU:
         for k, model in zip(fitted, quick):
             models[k] = model
