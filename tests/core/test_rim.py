@@ -91,6 +91,23 @@ def test_gathers_at_one_pose_share_the_model_and_give_what_a_fresh_one_gives(tra
     assert np.array_equal(alone[1], shared[1])
 
 
+def test_a_grid_of_fits_on_shared_candidates_gives_what_each_fit_alone_gives(tray):
+    """The fits of a grid share their candidates (and the deficits of each attenuation
+    there, over every blur): each pair's residuals are those of a fit made alone."""
+    mesh, pose, world = tray
+    view = VIEWS[0]
+    image = xray_image(view, [Body(world, mesh.faces, 1.0)], XrayModel(), np.random.default_rng(3))
+    points = component_outline(image, predicted_outline(mesh, pose, view))
+    pts, _ = rim._gather(image, view, mesh, pose, points=points[::4])
+    shared = rim._candidates(pts)
+    for sigma in (0.6, 1.1):
+        for mu in (0.5, 1.0, 50.0):
+            residual, s0 = rim._fit_residuals(pts, shared, mu, sigma)
+            alone = rim._residuals(pts, mu, sigma)
+            assert np.array_equal(residual, alone[0]) and np.array_equal(s0, alone[1])
+    assert sorted(shared.deficits) == [0.5, 1.0, 50.0]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("mu", [1.0, 0.5])
 def test_refined_outline_sits_on_the_true_silhouette(tray, mu):

@@ -240,8 +240,17 @@ def _blur_inside(sigma: float) -> np.ndarray:
 
 def _templates(lengths: np.ndarray, mu: float, sigma: float) -> np.ndarray:
     """Blurred deficit profiles (P, len(_X)): 0 far outside, 1 - exp(-mu L) inside."""
-    L = lengths[:, _LI0[_INSIDE]] * (1.0 - _LFRAC[_INSIDE]) + lengths[:, _LI0[_INSIDE] + 1] * _LFRAC[_INSIDE]
-    return (1.0 - np.exp(-mu * L)) @ _blur_inside(float(sigma))
+    return _deficits(_inside_lengths(lengths), mu) @ _blur_inside(float(sigma))
+
+
+def _inside_lengths(lengths: np.ndarray) -> np.ndarray:
+    """The path length profiles (P, len(_L_OFFSETS)) at the inside samples of ``_X``."""
+    return lengths[:, _LI0[_INSIDE]] * (1.0 - _LFRAC[_INSIDE]) + lengths[:, _LI0[_INSIDE] + 1] * _LFRAC[_INSIDE]
+
+
+def _deficits(inside_lengths: np.ndarray, mu: float) -> np.ndarray:
+    """The unblurred deficit 1 - exp(-mu L) at the inside samples."""
+    return 1.0 - np.exp(-mu * inside_lengths)
 
 
 @dataclass
@@ -252,11 +261,15 @@ class _Candidates:
     s0: np.ndarray  # (P, S) candidate boundaries along the normal, from the model boundary
     flat: np.ndarray  # (P, S, W) each pixel's template sample below it (flat index into (P, len(_X)))
     frac: np.ndarray  # (P, S, W) and how far on to the next
+    flat_next: np.ndarray  # flat + 1
+    frac_rest: np.ndarray  # 1 - frac
     weight: np.ndarray  # (P, 1, W)
     value: np.ndarray  # (P, 1, W) weighted
     s_rel: np.ndarray  # (P, 1, W) px along the normal from the outline point
     near: np.ndarray  # indices of the points with a second edge near
     shapes: dict  # sigma -> the bone edge's profile at the near points (``edge_shape``) and its slope outwards
+    inside_lengths: np.ndarray  # the points' path lengths at the inside samples (``_inside_lengths``)
+    deficits: dict  # mu -> their unblurred deficits (``_deficits``): a grid's blurs share them
 
 
 def _candidates(pts: _Points, search: np.ndarray = _SEARCH) -> _Candidates:
@@ -268,8 +281,9 @@ def _candidates(pts: _Points, search: np.ndarray = _SEARCH) -> _Candidates:
     frac = np.clip(idx - i0, 0.0, 1.0)
     flat = i0 + (np.arange(P) * len(_X))[:, None, None]
     weight = pts.weight[:, None, :]
-    return _Candidates(s0, flat, frac, weight, pts.value[:, None, :] * weight,
-                       (pts.s - pts.at[:, None])[:, None, :], np.flatnonzero(np.isfinite(pts.edge)), {})
+    return _Candidates(s0, flat, frac, flat + 1, 1 - frac, weight, pts.value[:, None, :] * weight,
+                       (pts.s - pts.at[:, None])[:, None, :], np.flatnonzero(np.isfinite(pts.edge)), {},
+                       _inside_lengths(pts.lengths), {})
 
 
 def _residuals(pts: _Points, mu: float, sigma: float, search: np.ndarray = _SEARCH) -> tuple[np.ndarray, np.ndarray]:
@@ -283,17 +297,20 @@ def _residuals(pts: _Points, mu: float, sigma: float, search: np.ndarray = _SEAR
 
 def _fit_residuals(pts: _Points, c: _Candidates, mu: float, sigma: float) -> tuple[np.ndarray, np.ndarray]:
     """``_residuals`` for the candidates ``c`` of ``pts``."""
-    T = _templates(pts.lengths, mu, sigma)
+    if mu not in c.deficits:
+        c.deficits[mu] = _deficits(c.inside_lengths, mu)
+    T = c.deficits[mu] @ _blur_inside(float(sigma))  # (``_templates``)
     T_in = np.gradient(T, _FINE, axis=1).ravel()  # how the template grows inwards (per px)
     T = T.ravel()
-    t = np.take(T, c.flat) * (1 - c.frac) + np.take(T, c.flat + 1) * c.frac
-    t_in = np.take(T_in, c.flat) * (1 - c.frac) + np.take(T_in, c.flat + 1) * c.frac
+    t = np.take(T, c.flat) * c.frac_rest + np.take(T, c.flat_next) * c.frac
+    t_in = np.take(T_in, c.flat) * c.frac_rest + np.take(T_in, c.flat_next) * c.frac
     # value ~ (B + G s)(1 - t) + O t: a background with a slope across the edge, dimmed
     # by the metal, and what comes through the metal (scatter, glare) deep inside it.
     # The blur of the sloped background times the metal's shadow adds G sigma^2 dt/dx
     # (exact for a Gaussian blur): left out, a background brightening outwards looks like
     # an edge further in (0.02 px inside on the X-ray model's leg, the attenuation 8 % high)
-    basis = [(1 - t) * c.weight, (c.s_rel * (1 - t) + sigma ** 2 * t_in) * c.weight, t * c.weight]
+    outside = 1 - t
+    basis = [outside * c.weight, (c.s_rel * outside + sigma ** 2 * t_in) * c.weight, t * c.weight]
     residual, coef = least_squares(basis, c.value)
     darker = coef[..., 2] < coef[..., 0]  # the metal is darker than its surround
     near = c.near
@@ -313,7 +330,7 @@ def _fit_residuals(pts: _Points, c: _Candidates, mu: float, sigma: float) -> tup
         s, w = c.s_rel[near], c.weight[near]
         cross = sigma ** 2 * t_in[near] * w
         basis_b = bone * sub[0] + bone_slope * cross
-        basis_g = bone * s * (1 - t[near]) * w + (bone + s * bone_slope) * cross
+        basis_g = bone * s * outside[near] * w + (bone + s * bone_slope) * cross
         res, coef3 = least_squares([basis_b, basis_g, sub[2]], c.value[near])
         residual[near], darker[near] = res, coef3[..., 2] < coef3[..., 0]
     residual = np.where(darker, residual, np.inf)
