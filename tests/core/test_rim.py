@@ -68,6 +68,33 @@ def test_path_lengths_from_a_shared_projection_are_the_same(tray):
                               path_lengths(mesh, pose, view, uv))
 
 
+def test_the_point_in_triangle_test_keeps_the_pairs_the_plain_test_keeps(tray):
+    """``path_length._inside`` (per-face edges, the second test only where the first
+    passed) keeps, in order, exactly the (point, face) pairs the textbook barycentric test
+    keeps: every face against points on, inside and outside the outline."""
+    from fluorogui.core.projection.path_length import _inside, project_mesh
+
+    mesh, pose, _ = tray
+    view = VIEWS[0]
+    outline = predicted_outline(mesh, pose, view)[::3]
+    centre = outline.mean(0)
+    uv = np.vstack([outline + s * (centre - outline) / np.linalg.norm(centre - outline, axis=1)[:, None]
+                    for s in (-1.0, 0.0, 0.01, 0.3, 2.5)])
+    projected = project_mesh(mesh, pose, view)
+    query, face = (x.ravel() for x in np.meshgrid(np.arange(len(uv)), np.arange(len(mesh.faces)), indexing="ij"))
+    a, b, c = (projected.triangles[face, k] for k in range(3))
+    v0, v1, v2 = b - a, c - a, uv[query] - a
+    den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
+    ok = np.abs(den) > 1e-12
+    den = np.where(ok, den, 1.0)
+    w1 = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
+    w2 = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
+    plain = ok & (w1 >= 0) & (w2 >= 0) & (w1 + w2 <= 1)
+    kept = _inside(projected, uv, query, face)
+    assert plain.sum() > 300 and (~plain).sum() > 1000 * plain.sum()
+    assert np.array_equal(kept[0], query[plain]) and np.array_equal(kept[1], face[plain])
+
+
 def test_gathers_at_one_pose_share_the_model_and_give_what_a_fresh_one_gives(tray):
     """A gather made after another at the same pose (the judgement's sparse points, then
     all of them) reuses the model at that pose, and gives what it gives alone."""
