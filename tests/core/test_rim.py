@@ -63,6 +63,9 @@ def test_path_lengths_from_a_shared_projection_are_the_same(tray):
     view = VIEWS[1]
     outline = predicted_outline(mesh, pose, view)
     projected = project_mesh(mesh, pose, view)
+    # each face's box, made corner by corner: numpy's min and max over the corners
+    assert np.array_equal(projected.lo, projected.triangles.min(1))
+    assert np.array_equal(projected.hi, projected.triangles.max(1))
     for uv in (outline, outline[::7] - 0.3, outline[:40] + 1.7):
         assert np.array_equal(path_lengths(mesh, pose, view, uv, projected=projected),
                               path_lengths(mesh, pose, view, uv))

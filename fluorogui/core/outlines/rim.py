@@ -220,7 +220,7 @@ def _gather_uncached(image, view, mesh, pose, *, points, exclude) -> tuple[_Poin
     s_used = pick(s_point + 0.5 * bend[:, None] * t_point ** 2) + at[:, None]
     blocked = np.zeros(value.shape)
     if exclude is not None:
-        blocked = np.asarray(exclude, dtype=float)[np.clip(rows, 0, h - 1), np.clip(cols, 0, w - 1)]
+        blocked = np.asarray(exclude)[np.clip(rows, 0, h - 1), np.clip(cols, 0, w - 1)].astype(float)
     found, edge_k = second_edges(image, points, n, exclude)
     edge = at + found
     edge[~(found <= SECOND_EDGE_REACH_PX)] = np.nan

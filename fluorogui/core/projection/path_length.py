@@ -38,8 +38,11 @@ def project_mesh(mesh: PreparedMesh, pose, view: View) -> ProjectedMesh:
     area2 = e0[:, 0] * e1[:, 1] - e1[:, 0] * e0[:, 1]
     flat = ~(np.abs(area2) > 1e-12)
     columns = lambda x: tuple(np.ascontiguousarray(x[:, i]) for i in range(2))  # noqa: E731
-    return ProjectedMesh(world, triangles, triangles.min(1), triangles.max(1), columns(a),
-                         (*columns(e0), *columns(e1)), np.where(flat, 1.0, area2), flat)
+    # each face's box, corner by corner (min(1) over the three corners took ten times longer)
+    b, c = triangles[:, 1], triangles[:, 2]
+    lo, hi = np.minimum(np.minimum(a, b), c), np.maximum(np.maximum(a, b), c)
+    return ProjectedMesh(world, triangles, lo, hi, columns(a), (*columns(e0), *columns(e1)),
+                         np.where(flat, 1.0, area2), flat)
 
 
 def path_lengths(mesh: PreparedMesh, pose, view: View, uv: np.ndarray, *, cell_px: float = 2.0,
