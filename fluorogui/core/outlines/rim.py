@@ -171,9 +171,11 @@ class _Posed:
     projected: ProjectedMesh
 
 
-#: the last few ``_Posed``: the rim judgement's sparse and full gathers, and the
-#: refinement's, ask at the same pose for different points
+#: the last ``_Posed``, one per view of a component (a femur's is some 7 MB): the rim
+#: judgement's sparse and full gathers, and the refinement's, ask at the same pose for
+#: different points
 _POSED: list = []
+_POSED_KEPT = 2
 
 
 def _posed(view, mesh, pose: np.ndarray) -> _Posed:
@@ -188,7 +190,7 @@ def _posed(view, mesh, pose: np.ndarray) -> _Posed:
                    project_mesh(mesh, pose, view))
     with _GATHERED_LOCK:
         _POSED.insert(0, (view, mesh, pose.copy(), posed))
-        del _POSED[4:]
+        del _POSED[_POSED_KEPT:]
     return posed
 
 

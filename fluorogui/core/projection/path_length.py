@@ -19,7 +19,6 @@ class ProjectedMesh:
     its signed area, as the point-in-triangle test uses them (one column each)."""
 
     world: np.ndarray  # (N, 3) the vertices in the world, mm
-    triangles: np.ndarray  # (M, 3, 2) each face's corners in the image, px
     lo: np.ndarray  # (M, 2) each face's pixel box
     hi: np.ndarray
     corner: tuple  # (u, v) of each face's first corner, (M,) each
@@ -41,7 +40,7 @@ def project_mesh(mesh: PreparedMesh, pose, view: View) -> ProjectedMesh:
     # each face's box, corner by corner (min(1) over the three corners took ten times longer)
     b, c = triangles[:, 1], triangles[:, 2]
     lo, hi = np.minimum(np.minimum(a, b), c), np.maximum(np.maximum(a, b), c)
-    return ProjectedMesh(world, triangles, lo, hi, columns(a), (*columns(e0), *columns(e1)),
+    return ProjectedMesh(world, lo, hi, columns(a), (*columns(e0), *columns(e1)),
                          np.where(flat, 1.0, area2), flat)
 
 
