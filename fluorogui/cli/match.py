@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -76,7 +77,7 @@ def run(args) -> int:
         settings.match.validate()
     except ValueError as exc:
         raise UsageError(f"fluorogui: {exc}") from None
-    inputs.load_images(args.image, views)  # a damaged or blank image refused before any work
+    images = inputs.load_images(args.image, views)  # a damaged or blank image refused before any work
     component = args.component or component_name(args.model)
     models = {component: args.model}
     if args.other:
@@ -92,7 +93,10 @@ def run(args) -> int:
         session.set_pose(other, 0, inputs.start_pose(args.other_pose, "--other-pose"))
     for k, path in enumerate(args.outline or []):
         session.set_outline((0, k, component), inputs.read_outline(path, views[k]), "Outline file", reviewed=True)
-    result = session.match(0, component)[0]
+    # the session's own match, handed the images read above (read once, not twice)
+    results = replace(session.match_job(0, component), images=images).run()
+    session.store(results)
+    result = results[0]
     if len(views) == 1:
         from fluorogui.workflow.messages import SINGLE_PLANE_NOTE
 

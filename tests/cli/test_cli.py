@@ -72,6 +72,23 @@ def test_match_json_contract(scene, capsys):
     assert out["method"] == "fast" and out["converged"]
 
 
+def test_match_reads_each_image_once(scene, capsys, monkeypatch):
+    """The images checked before any work are the ones matched: each file read once."""
+    from fluorogui.io import images
+
+    read = []
+    original = images.read_image
+
+    def counted(path, *args, **kwargs):
+        read.append(str(path))
+        return original(path, *args, **kwargs)
+
+    monkeypatch.setattr(images, "read_image", counted)
+    assert main(_args(scene, extra=["--json"])) == 0
+    capsys.readouterr()
+    assert sorted(read) == sorted(scene["images"])
+
+
 def test_match_with_outline_files(scene, capsys, tmp_path):
     from fluorogui.core.projection.pose import rotation_matrix
     from fluorogui.core.projection.silhouette import mesh_silhouette

@@ -54,6 +54,91 @@ def test_path_lengths_agree_with_the_independent_ray_caster(tray):
     assert agree.all(), agree.mean()
 
 
+def test_path_lengths_from_a_shared_projection_are_the_same(tray):
+    """The rim's gathers share one projection of the mesh per pose (``project_mesh``): the
+    lengths are the ones a call projecting it itself gives, to the last bit."""
+    from fluorogui.core.projection.path_length import project_mesh
+
+    mesh, pose, _ = tray
+    view = VIEWS[1]
+    outline = predicted_outline(mesh, pose, view)
+    projected = project_mesh(mesh, pose, view)
+    # each face's box, made corner by corner: numpy's min and max over the corners
+    triangles = view.project(projected.world)[mesh.faces]
+    assert np.array_equal(projected.lo, triangles.min(1)) and np.array_equal(projected.hi, triangles.max(1))
+    for uv in (outline, outline[::7] - 0.3, outline[:40] + 1.7):
+        assert np.array_equal(path_lengths(mesh, pose, view, uv, projected=projected),
+                              path_lengths(mesh, pose, view, uv))
+
+
+def test_the_point_in_triangle_test_keeps_the_pairs_the_plain_test_keeps(tray):
+    """``path_length._inside`` (per-face edges, the second test only where the first
+    passed) keeps, in order, exactly the (point, face) pairs the textbook barycentric test
+    keeps: every face against points on, inside and outside the outline."""
+    from fluorogui.core.projection.path_length import _inside, project_mesh
+
+    mesh, pose, _ = tray
+    view = VIEWS[0]
+    outline = predicted_outline(mesh, pose, view)[::3]
+    centre = outline.mean(0)
+    uv = np.vstack([outline + s * (centre - outline) / np.linalg.norm(centre - outline, axis=1)[:, None]
+                    for s in (-1.0, 0.0, 0.01, 0.3, 2.5)])
+    projected = project_mesh(mesh, pose, view)
+    triangles = view.project(projected.world)[mesh.faces]
+    query, face = (x.ravel() for x in np.meshgrid(np.arange(len(uv)), np.arange(len(mesh.faces)), indexing="ij"))
+    a, b, c = (triangles[face, k] for k in range(3))
+    v0, v1, v2 = b - a, c - a, uv[query] - a
+    den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
+    ok = np.abs(den) > 1e-12
+    den = np.where(ok, den, 1.0)
+    w1 = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
+    w2 = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
+    plain = ok & (w1 >= 0) & (w2 >= 0) & (w1 + w2 <= 1)
+    kept = _inside(projected, uv, query, face)
+    assert plain.sum() > 300 and (~plain).sum() > 1000 * plain.sum()
+    assert np.array_equal(kept[0], query[plain]) and np.array_equal(kept[1], face[plain])
+
+
+def test_gathers_at_one_pose_share_the_model_and_give_what_a_fresh_one_gives(tray):
+    """A gather made after another at the same pose (the judgement's sparse points, then
+    all of them) reuses the model at that pose, and gives what it gives alone."""
+    mesh, pose, world = tray
+    view = VIEWS[0]
+    image = xray_image(view, [Body(world, mesh.faces, 1.0)], XrayModel(), np.random.default_rng(3))
+    points = component_outline(image, predicted_outline(mesh, pose, view))
+
+    def fresh(pts):
+        rim._POSED.clear()
+        return rim._gather_uncached(image, view, mesh, pose, points=pts, exclude=None)
+
+    alone = fresh(points)
+    rim._POSED.clear()
+    rim._gather_uncached(image, view, mesh, pose, points=points[::5], exclude=None)
+    assert len(rim._POSED) == 1
+    shared = rim._gather_uncached(image, view, mesh, pose, points=points, exclude=None)
+    assert len(rim._POSED) == 1  # made once
+    for name, array in vars(alone[0]).items():
+        assert np.array_equal(array, vars(shared[0])[name], equal_nan=True), name
+    assert np.array_equal(alone[1], shared[1])
+
+
+def test_a_grid_of_fits_on_shared_candidates_gives_what_each_fit_alone_gives(tray):
+    """The fits of a grid share their candidates (and the deficits of each attenuation
+    there, over every blur): each pair's residuals are those of a fit made alone."""
+    mesh, pose, world = tray
+    view = VIEWS[0]
+    image = xray_image(view, [Body(world, mesh.faces, 1.0)], XrayModel(), np.random.default_rng(3))
+    points = component_outline(image, predicted_outline(mesh, pose, view))
+    pts, _ = rim._gather(image, view, mesh, pose, points=points[::4])
+    shared = rim._candidates(pts)
+    for sigma in (0.6, 1.1):
+        for mu in (0.5, 1.0, 50.0):
+            residual, s0 = rim._fit_residuals(pts, shared, mu, sigma)
+            alone = rim._residuals(pts, mu, sigma)
+            assert np.array_equal(residual, alone[0]) and np.array_equal(s0, alone[1])
+    assert sorted(shared.deficits) == [0.5, 1.0, 50.0]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("mu", [1.0, 0.5])
 def test_refined_outline_sits_on_the_true_silhouette(tray, mu):

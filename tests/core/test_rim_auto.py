@@ -112,3 +112,38 @@ def test_the_views_of_a_component_are_judged_with_one_attenuation(tray):
     alone = [edge_model(i, v, mesh, truth, outline_px=o) for i, v, o in zip(images, VIEWS, outlines)]
     assert all(is_soft(m) for m in together + alone)
     assert together[0].mu == together[1].mu == pytest.approx(1.0, rel=0.15)
+
+
+@pytest.mark.parametrize("mu", [1.0, 50.0])
+def test_the_quick_fit_skips_its_finer_grid_only_where_its_verdict_is_sure(tray, monkeypatch, mu):
+    """``edge_models``' quick fit needs only whether the attenuation is below
+    ``MAYBE_SOFT_BELOW_MU`` (``below``): on the soft tray the finer grid about the coarse
+    vertex (which cannot leave that grid) is skipped, on the step edge it is not, and the
+    verdict is that of the fit with every grid (the step's models too)."""
+    from fluorogui.core.matching.loop import segment_outlines
+    from fluorogui.core.outlines import rim
+
+    mesh, truth, _ = tray
+    images = _images(tray, mu)
+    sparse = []
+    for image, view, outline in zip(images, VIEWS, segment_outlines(images, VIEWS, mesh, truth)):
+        pts, _ = rim._gather(image, view, mesh, truth, points=outline[::len(outline) // rim.DECIDE_POINTS])
+        sparse.append(rim._subset(pts, rim._usable(pts)))
+    residual_per_mu, grids = rim._residual_per_mu, []
+
+    def counted(*args, **kwargs):
+        grids.append(args)
+        return residual_per_mu(*args, **kwargs)
+
+    monkeypatch.setattr(rim, "_residual_per_mu", counted)
+    quick = dict(max_points=rim.DECIDE_POINTS, tolerance=rim.DECIDE_TOLERANCE, sigma_grid=rim.DECIDE_SIGMAS)
+    skipping = rim.fit_rim_models(sparse, **quick, below=rim.MAYBE_SOFT_BELOW_MU)
+    skipped_grids = len(grids)
+    grids.clear()
+    whole = rim.fit_rim_models(sparse, **quick)
+    verdict = [models[0].mu >= rim.MAYBE_SOFT_BELOW_MU for models in (skipping, whole)]
+    assert verdict[0] == verdict[1] == (mu > 2)
+    if mu > 2:
+        assert skipping == whole and skipped_grids == len(grids)  # a step: its models are kept, every grid made
+    else:
+        assert skipped_grids == 2 and len(grids) == 4  # the two views' finer grids left out

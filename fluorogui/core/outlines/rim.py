@@ -76,7 +76,7 @@ from fluorogui.core.outlines.second_edge import edge_shape, second_edges
 from fluorogui.core.outlines.spline import outward_normals, simple_or_plain
 from fluorogui.core.projection.geometry import View
 from fluorogui.core.projection.mesh import PreparedMesh
-from fluorogui.core.projection.path_length import path_lengths
+from fluorogui.core.projection.path_length import ProjectedMesh, path_lengths, project_mesh
 from fluorogui.core.projection.pose import rotation_matrix
 from fluorogui.core.projection.silhouette import mesh_silhouette
 from fluorogui.core.threads import each_view
@@ -158,15 +158,51 @@ def _gather(image, view, mesh, pose, *, points, exclude=None) -> tuple[_Points, 
     return result
 
 
+@dataclass(frozen=True)
+class _Posed:
+    """The model at one pose in one view, as every gather there uses it: its outline
+    (every 0.5 px), the outline's outward normals and curvature, a tree to find the
+    nearest outline point, and the mesh projected for the path lengths."""
+
+    outline: np.ndarray  # (Q, 2) px
+    normals: np.ndarray  # (Q, 2)
+    bend: np.ndarray  # (Q,) 1/px
+    tree: cKDTree
+    projected: ProjectedMesh
+
+
+#: the last ``_Posed``, one per view of a component (a femur's is some 7 MB): the rim
+#: judgement's sparse and full gathers, and the refinement's, ask at the same pose for
+#: different points
+_POSED: list = []
+_POSED_KEPT = 2
+
+
+def _posed(view, mesh, pose: np.ndarray) -> _Posed:
+    """The model at ``pose`` in ``view`` (made once per view, mesh and pose)."""
+    with _GATHERED_LOCK:
+        for entry in _POSED:
+            if entry[0] is view and entry[1] is mesh and np.array_equal(entry[2], pose):
+                return entry[3]
+    outline = mesh_silhouette(mesh, rotation_matrix(*pose[3:]), pose[:3], view).resample(spacing_px=0.5).points_px
+    normals = outward_normals(outline)
+    posed = _Posed(outline, normals, outline_curvature(outline, normals), cKDTree(outline),
+                   project_mesh(mesh, pose, view))
+    with _GATHERED_LOCK:
+        _POSED.insert(0, (view, mesh, pose.copy(), posed))
+        del _POSED[_POSED_KEPT:]
+    return posed
+
+
 def _gather_uncached(image, view, mesh, pose, *, points, exclude) -> tuple[_Points, np.ndarray]:
-    model = mesh_silhouette(mesh, rotation_matrix(*pose[3:]), pose[:3], view).resample(spacing_px=0.5).points_px
-    normals_model = outward_normals(model)
-    _, nearest = cKDTree(model).query(points)
-    m, n = model[nearest], normals_model[nearest]
-    bend = outline_curvature(model, normals_model)[nearest]
+    posed = _posed(view, mesh, pose)
+    _, nearest = posed.tree.query(points)
+    m, n = posed.outline[nearest], posed.normals[nearest]
+    bend = posed.bend[nearest]
     at = np.einsum("ij,ij->i", points - m, n)
     inward = m[:, None, :] - _L_OFFSETS[None, :, None] * n[:, None, :]
-    lengths = path_lengths(mesh, pose, view, inward.reshape(-1, 2)).reshape(len(points), -1)
+    lengths = path_lengths(mesh, pose, view, inward.reshape(-1, 2),
+                           projected=posed.projected).reshape(len(points), -1)
     r = int(np.ceil(np.hypot(_REACH, _LATERAL))) + 1
     du, dv = np.meshgrid(np.arange(-r, r + 1), np.arange(-r, r + 1))
     cols = np.round(points[:, 0]).astype(int)[:, None] + du.ravel()[None, :]
@@ -186,7 +222,7 @@ def _gather_uncached(image, view, mesh, pose, *, points, exclude) -> tuple[_Poin
     s_used = pick(s_point + 0.5 * bend[:, None] * t_point ** 2) + at[:, None]
     blocked = np.zeros(value.shape)
     if exclude is not None:
-        blocked = np.asarray(exclude, dtype=float)[np.clip(rows, 0, h - 1), np.clip(cols, 0, w - 1)]
+        blocked = np.asarray(exclude)[np.clip(rows, 0, h - 1), np.clip(cols, 0, w - 1)].astype(float)
     found, edge_k = second_edges(image, points, n, exclude)
     edge = at + found
     edge[~(found <= SECOND_EDGE_REACH_PX)] = np.nan
@@ -206,8 +242,17 @@ def _blur_inside(sigma: float) -> np.ndarray:
 
 def _templates(lengths: np.ndarray, mu: float, sigma: float) -> np.ndarray:
     """Blurred deficit profiles (P, len(_X)): 0 far outside, 1 - exp(-mu L) inside."""
-    L = lengths[:, _LI0[_INSIDE]] * (1.0 - _LFRAC[_INSIDE]) + lengths[:, _LI0[_INSIDE] + 1] * _LFRAC[_INSIDE]
-    return (1.0 - np.exp(-mu * L)) @ _blur_inside(float(sigma))
+    return _deficits(_inside_lengths(lengths), mu) @ _blur_inside(float(sigma))
+
+
+def _inside_lengths(lengths: np.ndarray) -> np.ndarray:
+    """The path length profiles (P, len(_L_OFFSETS)) at the inside samples of ``_X``."""
+    return lengths[:, _LI0[_INSIDE]] * (1.0 - _LFRAC[_INSIDE]) + lengths[:, _LI0[_INSIDE] + 1] * _LFRAC[_INSIDE]
+
+
+def _deficits(inside_lengths: np.ndarray, mu: float) -> np.ndarray:
+    """The unblurred deficit 1 - exp(-mu L) at the inside samples."""
+    return 1.0 - np.exp(-mu * inside_lengths)
 
 
 @dataclass
@@ -218,11 +263,15 @@ class _Candidates:
     s0: np.ndarray  # (P, S) candidate boundaries along the normal, from the model boundary
     flat: np.ndarray  # (P, S, W) each pixel's template sample below it (flat index into (P, len(_X)))
     frac: np.ndarray  # (P, S, W) and how far on to the next
+    flat_next: np.ndarray  # flat + 1
+    frac_rest: np.ndarray  # 1 - frac
     weight: np.ndarray  # (P, 1, W)
     value: np.ndarray  # (P, 1, W) weighted
     s_rel: np.ndarray  # (P, 1, W) px along the normal from the outline point
     near: np.ndarray  # indices of the points with a second edge near
     shapes: dict  # sigma -> the bone edge's profile at the near points (``edge_shape``) and its slope outwards
+    inside_lengths: np.ndarray  # the points' path lengths at the inside samples (``_inside_lengths``)
+    deficits: dict  # mu -> their unblurred deficits (``_deficits``): a grid's blurs share them
 
 
 def _candidates(pts: _Points, search: np.ndarray = _SEARCH) -> _Candidates:
@@ -234,8 +283,9 @@ def _candidates(pts: _Points, search: np.ndarray = _SEARCH) -> _Candidates:
     frac = np.clip(idx - i0, 0.0, 1.0)
     flat = i0 + (np.arange(P) * len(_X))[:, None, None]
     weight = pts.weight[:, None, :]
-    return _Candidates(s0, flat, frac, weight, pts.value[:, None, :] * weight,
-                       (pts.s - pts.at[:, None])[:, None, :], np.flatnonzero(np.isfinite(pts.edge)), {})
+    return _Candidates(s0, flat, frac, flat + 1, 1 - frac, weight, pts.value[:, None, :] * weight,
+                       (pts.s - pts.at[:, None])[:, None, :], np.flatnonzero(np.isfinite(pts.edge)), {},
+                       _inside_lengths(pts.lengths), {})
 
 
 def _residuals(pts: _Points, mu: float, sigma: float, search: np.ndarray = _SEARCH) -> tuple[np.ndarray, np.ndarray]:
@@ -249,17 +299,20 @@ def _residuals(pts: _Points, mu: float, sigma: float, search: np.ndarray = _SEAR
 
 def _fit_residuals(pts: _Points, c: _Candidates, mu: float, sigma: float) -> tuple[np.ndarray, np.ndarray]:
     """``_residuals`` for the candidates ``c`` of ``pts``."""
-    T = _templates(pts.lengths, mu, sigma)
+    if mu not in c.deficits:
+        c.deficits[mu] = _deficits(c.inside_lengths, mu)
+    T = c.deficits[mu] @ _blur_inside(float(sigma))  # (``_templates``)
     T_in = np.gradient(T, _FINE, axis=1).ravel()  # how the template grows inwards (per px)
     T = T.ravel()
-    t = np.take(T, c.flat) * (1 - c.frac) + np.take(T, c.flat + 1) * c.frac
-    t_in = np.take(T_in, c.flat) * (1 - c.frac) + np.take(T_in, c.flat + 1) * c.frac
+    t = np.take(T, c.flat) * c.frac_rest + np.take(T, c.flat_next) * c.frac
+    t_in = np.take(T_in, c.flat) * c.frac_rest + np.take(T_in, c.flat_next) * c.frac
     # value ~ (B + G s)(1 - t) + O t: a background with a slope across the edge, dimmed
     # by the metal, and what comes through the metal (scatter, glare) deep inside it.
     # The blur of the sloped background times the metal's shadow adds G sigma^2 dt/dx
     # (exact for a Gaussian blur): left out, a background brightening outwards looks like
     # an edge further in (0.02 px inside on the X-ray model's leg, the attenuation 8 % high)
-    basis = [(1 - t) * c.weight, (c.s_rel * (1 - t) + sigma ** 2 * t_in) * c.weight, t * c.weight]
+    outside = 1 - t
+    basis = [outside * c.weight, (c.s_rel * outside + sigma ** 2 * t_in) * c.weight, t * c.weight]
     residual, coef = least_squares(basis, c.value)
     darker = coef[..., 2] < coef[..., 0]  # the metal is darker than its surround
     near = c.near
@@ -279,7 +332,7 @@ def _fit_residuals(pts: _Points, c: _Candidates, mu: float, sigma: float) -> tup
         s, w = c.s_rel[near], c.weight[near]
         cross = sigma ** 2 * t_in[near] * w
         basis_b = bone * sub[0] + bone_slope * cross
-        basis_g = bone * s * (1 - t[near]) * w + (bone + s * bone_slope) * cross
+        basis_g = bone * s * outside[near] * w + (bone + s * bone_slope) * cross
         res, coef3 = least_squares([basis_b, basis_g, sub[2]], c.value[near])
         residual[near], darker[near] = res, coef3[..., 2] < coef3[..., 0]
     residual = np.where(darker, residual, np.inf)
@@ -315,12 +368,23 @@ def fit_rim_model(pts: _Points, max_points: int = 120, tolerance: float = 0.005,
 
 
 def fit_rim_models(views_pts: list[_Points], max_points: int = 120, tolerance: float = 0.005,
-                   sigma_grid: tuple = SIGMA_GRID) -> list[RimModel]:
+                   sigma_grid: tuple = SIGMA_GRID, *, below: float | None = None) -> list[RimModel]:
     """``fit_rim_model`` over the views of one component at once: one attenuation (the
     same metal in every view), chosen on the sum of the views' residual curves, each
     relative to its own least (its noise), and each view's blur where that lands. A
     noisy view's own attenuation varies by several per cent from draw to draw, and the
-    views' outlines move the pose in opposite ways with it."""
+    views' outlines move the pose in opposite ways with it.
+
+    ``below``: the caller asks only whether the attenuation is below this (``edge_models``'
+    quick fit). Where every view's coarse curve fitted and even the top of the finer grid
+    about the coarse vertex lies below it, the finer grid is not computed (its vertex
+    stays within that grid, so it could only land below too) and the coarse estimate is
+    returned: below as well, with blurs that are not the finer grid's. (The one way the
+    finer grid could have said otherwise: no pair of it fitting a single point of the
+    first view, whose model would then have fallen back to ``STEP``, where the coarse
+    grid's pairs about the same attenuations did fit. At every frame's pose of the real
+    biplane sequence, both components, the finer grid was skipped in 22 of 66 quick fits
+    and every verdict was the whole fit's.)"""
     curves = each_view(lambda pts: _residual_per_mu(pts, max_points, sigma_grid), views_pts)  # side by side
     fitted = [c for c in curves if c is not None]
     if not fitted:
@@ -336,7 +400,9 @@ def fit_rim_models(views_pts: list[_Points], max_points: int = 120, tolerance: f
     # blur where it lands
     log_mu = _parabola_vertex(np.log(MU_GRID), total, best)[0]
     grid = np.log(MU_GRID)
-    if 0 < best < len(MU_GRID) - 1:
+    surely_below = (below is not None and all(c is not None for c in curves)
+                    and np.exp((log_mu + FINE_LOG_MU_STEPS)[-1]) < below)
+    if 0 < best < len(MU_GRID) - 1 and not surely_below:
         grid = log_mu + FINE_LOG_MU_STEPS
         curves = each_view(lambda pc: _residual_per_mu_near(pc[0], max_points, sigma_grid, tuple(np.exp(grid)),
                                                             sigma=pc[1][1][best]) if pc[1] is not None else None,
@@ -575,7 +641,7 @@ def edge_models(images, views, mesh: PreparedMesh, pose, *, outlines_px, exclude
     if not fitted:
         return models
     quick = fit_rim_models([sparse[k] for k in fitted], max_points=DECIDE_POINTS, tolerance=DECIDE_TOLERANCE,
-                           sigma_grid=DECIDE_SIGMAS)
+                           sigma_grid=DECIDE_SIGMAS, below=MAYBE_SOFT_BELOW_MU)  # only its verdict counts there
     if quick[0].mu >= MAYBE_SOFT_BELOW_MU:
         for k, model in zip(fitted, quick):
             models[k] = model

@@ -2,6 +2,8 @@
 crosses, the quantity the rim profile model (``core.outlines.rim``) turns into darkening."""
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from fluorogui.core.projection.geometry import View
@@ -9,15 +11,50 @@ from fluorogui.core.projection.mesh import PreparedMesh
 from fluorogui.core.projection.pose import rotation_matrix
 
 
-def path_lengths(mesh: PreparedMesh, pose, view: View, uv: np.ndarray, *, cell_px: float = 2.0) -> np.ndarray:
-    """Length (mm) of the ray from the source through each pixel position ``uv`` (K, 2)
-    inside the closed mesh at ``pose``: the sum over the triangles it crosses of the
-    distance from the source, + where it leaves and - where it enters."""
-    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+@dataclass(frozen=True)
+class ProjectedMesh:
+    """A mesh placed at a pose and projected into a view: what ``path_lengths`` needs of
+    it whatever the pixels asked about (the whole mesh projected: most of a call's cost
+    on a small query), with each face's first corner, its two edges from there and twice
+    its signed area, as the point-in-triangle test uses them (one column each)."""
+
+    world: np.ndarray  # (N, 3) the vertices in the world, mm
+    lo: np.ndarray  # (M, 2) each face's pixel box
+    hi: np.ndarray
+    corner: tuple  # (u, v) of each face's first corner, (M,) each
+    edges: tuple  # (u0, v0, u1, v1): its edges to the second and third corners
+    area2: np.ndarray  # (M,) the edges' cross product; 1 where the face is flat (``flat``)
+    flat: np.ndarray  # (M,) bool: an edge-on face (no point lies inside it)
+
+
+def project_mesh(mesh: PreparedMesh, pose, view: View) -> ProjectedMesh:
+    """``mesh`` at ``pose`` (mm, degrees) projected into ``view``, for ``path_lengths``."""
     pose = np.asarray(pose, dtype=float)
     world = mesh.vertices @ rotation_matrix(*pose[3:]).T + pose[:3]
-    tri2 = view.project(world)[mesh.faces]  # (M, 3, 2)
-    lo, hi = tri2.min(1), tri2.max(1)
+    triangles = view.project(world)[mesh.faces]
+    a = triangles[:, 0]
+    e0, e1 = triangles[:, 1] - a, triangles[:, 2] - a
+    area2 = e0[:, 0] * e1[:, 1] - e1[:, 0] * e0[:, 1]
+    flat = ~(np.abs(area2) > 1e-12)
+    columns = lambda x: tuple(np.ascontiguousarray(x[:, i]) for i in range(2))  # noqa: E731
+    # each face's box, corner by corner (min(1) over the three corners took ten times longer)
+    b, c = triangles[:, 1], triangles[:, 2]
+    lo, hi = np.minimum(np.minimum(a, b), c), np.maximum(np.maximum(a, b), c)
+    return ProjectedMesh(world, lo, hi, columns(a), (*columns(e0), *columns(e1)),
+                         np.where(flat, 1.0, area2), flat)
+
+
+def path_lengths(mesh: PreparedMesh, pose, view: View, uv: np.ndarray, *, cell_px: float = 2.0,
+                 projected: ProjectedMesh | None = None) -> np.ndarray:
+    """Length (mm) of the ray from the source through each pixel position ``uv`` (K, 2)
+    inside the closed mesh at ``pose``: the sum over the triangles it crosses of the
+    distance from the source, + where it leaves and - where it enters. ``projected``
+    (``project_mesh`` of the same mesh, pose and view) saves projecting the mesh again."""
+    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+    pose = np.asarray(pose, dtype=float)
+    if projected is None:
+        projected = project_mesh(mesh, pose, view)
+    world, lo, hi = projected.world, projected.lo, projected.hi
     # keep the triangles whose box meets the queries' box, then bin them in cells
     qlo, qhi = uv.min(0) - cell_px, uv.max(0) + cell_px
     near = np.all(hi >= qlo, axis=1) & np.all(lo <= qhi, axis=1)
@@ -52,17 +89,8 @@ def path_lengths(mesh: PreparedMesh, pose, view: View, uv: np.ndarray, *, cell_p
     q_rep = np.repeat(np.arange(len(uv)), n_cand)
     j = np.arange(n_cand.sum()) - np.repeat(np.cumsum(n_cand) - n_cand, n_cand)
     f = face_sorted[first[q_rep] + j]
-    # 2D point in triangle (barycentric), then the 3D crossing along the ray
-    a, b, c = tri2[f, 0], tri2[f, 1], tri2[f, 2]
-    p = uv[q_rep]
-    v0, v1, v2 = b - a, c - a, p - a
-    den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
-    ok = np.abs(den) > 1e-12
-    den = np.where(ok, den, 1.0)
-    w1 = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
-    w2 = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
-    inside = ok & (w1 >= 0) & (w2 >= 0) & (w1 + w2 <= 1)
-    q_rep, f = q_rep[inside], f[inside]
+    q_rep, f = _inside(projected, uv, q_rep, f)
+    # the 3D crossing along the ray
     _, directions = view.ray(uv)
     d = directions[q_rep]
     R = rotation_matrix(*pose[3:])
@@ -73,3 +101,21 @@ def path_lengths(mesh: PreparedMesh, pose, view: View, uv: np.ndarray, *, cell_p
     t = np.einsum("ij,ij->i", corner - view.source, normals) / np.where(facing, dn, 1.0)
     signed = np.where(facing, np.sign(dn) * t, 0.0)  # + leaving (back face), - entering
     return np.maximum(np.bincount(q_rep, weights=signed, minlength=len(uv)), 0.0)
+
+
+def _inside(projected: ProjectedMesh, uv: np.ndarray, query: np.ndarray, face: np.ndarray):
+    """The (query, face) pairs whose point ``uv[query]`` lies in the projected face, in
+    their order: barycentric w1 >= 0, w2 >= 0 and w1 + w2 <= 1 on a face that is not
+    edge-on, each pair's numbers as the plain test computes them; the pairs that fail the
+    first test (most: a cell's faces mostly lie beside its points) are dropped before the
+    second is made (a real tray's 1.2 million pairs: 160 -> 52 ms)."""
+    u0, v0, u1, v1 = projected.edges
+    du = uv[:, 0][query] - projected.corner[0][face]
+    dv = uv[:, 1][query] - projected.corner[1][face]
+    area2 = projected.area2[face]
+    w1 = (du * v1[face] - u1[face] * dv) / area2
+    keep = ~projected.flat[face] & (w1 >= 0)
+    query, face, du, dv, area2, w1 = query[keep], face[keep], du[keep], dv[keep], area2[keep], w1[keep]
+    w2 = (u0[face] * dv - du * v0[face]) / area2
+    inside = (w2 >= 0) & (w1 + w2 <= 1)
+    return query[inside], face[inside]

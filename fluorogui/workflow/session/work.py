@@ -51,12 +51,17 @@ class MatchJob:
     fixed: dict = field(default_factory=dict)  # other components (mesh, pose) to mask
     settings: WorkflowSettings = field(default_factory=WorkflowSettings)
     rim: dict = field(default_factory=dict)  # component -> rim models per view judged before
+    # the frame's images when the caller has read them already (``fluorogui match`` checks
+    # them before any work); None: read from ``image_paths``
+    images: list[np.ndarray] | None = None
 
     def run(self, live: Callable | None = None, cancel: Callable[[], bool] | None = None) -> list[FrameResult]:
         """The results, one per component. ``live(component, calls, objective_mm, pose)``
         follows every step of the matcher. Raises InputError for a missing image and
         ``Cancelled`` when ``cancel()`` turns true."""
-        images = read_frame_images(self.frame, self.image_paths, len(self.views), views=self.views)
+        images = self.images
+        if images is None:
+            images = read_frame_images(self.frame, self.image_paths, len(self.views), views=self.views)
         matcher = FrameMatcher(self.views, self.settings, near_search(self.views, self.settings), live=live,
                               rim=self.rim)
         found = matcher.match_frame(self.frame, images, self.inputs, fixed=self.fixed, cancel=cancel)
