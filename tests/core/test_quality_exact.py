@@ -33,3 +33,21 @@ def test_near_edges_equal_the_distance_transform(tol_px):
         np.testing.assert_array_equal(_near_edges(edges, row, col, tol_px), expected)
     none = np.zeros((30, 40), dtype=bool)  # no edges at all: nothing is near one
     assert not _near_edges(none, np.arange(30), np.arange(30), 1.5).any()
+
+
+def test_outline_support_equals_the_balanced_tree_share():
+    """The unbalanced k-d tree gives the same nearest distances, so the same share."""
+    from scipy.spatial import cKDTree
+
+    from fluorogui.core.matching.quality import outline_support
+    from fluorogui.core.outlines.spline import resample_closed_polyline
+
+    rng = np.random.default_rng(5)
+    th = np.linspace(0, 2 * np.pi, 700, endpoint=False)
+    r = 100 + 20 * np.sin(3 * th)
+    model = np.column_stack([400 + 1.3 * r * np.cos(th), 380 + r * np.sin(th)])
+    image = model[::2] + rng.normal(0, 1.0, (350, 2))  # within and beyond the tolerance
+    dense = resample_closed_polyline(model, spacing=0.5)
+    for tol_px in (0.5, 1.0, 1.5):
+        expected = float(np.mean(cKDTree(dense).query(image)[0] <= tol_px))
+        assert 0 < expected < 1 and outline_support(image, model, tol_px=tol_px) == expected

@@ -69,7 +69,8 @@ def straightforward_length(spline: OutlineSpline, spacing: float) -> tuple[int, 
 
 
 def straightforward_closest(spline: OutlineSpline, p: np.ndarray):
-    """``closest`` with fancy indexing and the chords' lengths computed per query."""
+    """``closest`` with fancy indexing, the chords' lengths computed per query and
+    np.linalg.norm's lengths."""
     poly, tp, tree, chords, _ = spline._seed_tree()
     _, k = tree.query(p)
     before = (k - 1) % len(poly)
@@ -81,7 +82,8 @@ def straightforward_closest(spline: OutlineSpline, p: np.ndarray):
     use_after = np.einsum("ij,ij->i", miss_after, miss_after) <= np.einsum("ij,ij->i", miss_before, miss_before)
     t = np.where(use_after, tp[k] + w_after * (tp[k + 1] - tp[k]), tp[k] - w_before * (tp[k] - t_before))
     t, g, d1 = spline._refine(p, t, t_before, tp[k + 1], steps=1)
-    return np.linalg.norm(p - g, axis=1), g, spline._unit_outward(d1), spline.wrap(t)
+    n = np.column_stack([d1[:, 1], -d1[:, 0]]) * spline.outward_sign()
+    return np.linalg.norm(p - g, axis=1), g, n / np.linalg.norm(n, axis=1, keepdims=True), spline.wrap(t)
 
 
 @pytest.mark.parametrize("seed", [2, 3])

@@ -199,7 +199,9 @@ def outline_support(image_outline_px: np.ndarray, model_outline_px: np.ndarray, 
     model = resample_closed_polyline(np.asarray(model_outline_px, dtype=float), spacing=0.5)
     if len(image_pts) == 0 or len(model) == 0:
         return 0.0
-    d, _ = cKDTree(model).query(image_pts)
+    # only the distances count, never which point gives them: the unbalanced tree (quicker
+    # to build, ~15 % in all here) finds the same nearest distance
+    d, _ = cKDTree(model, balanced_tree=False).query(image_pts)
     return float(np.mean(d <= tol_px))
 
 

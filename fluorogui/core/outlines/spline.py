@@ -213,6 +213,13 @@ def validate_outline(points) -> np.ndarray:
     return pts
 
 
+def _row_lengths(v: np.ndarray) -> np.ndarray:
+    """Lengths of the rows of (N, 2) ``v``, the same numbers as ``np.linalg.norm(v, axis=1)``
+    (sqrt(x^2 + y^2); a sum of two is the same in either order) without its costly reduction
+    over a short axis."""
+    return np.sqrt(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1])
+
+
 def _unit_interval(x: np.ndarray) -> np.ndarray:
     """``x`` clipped to [0, 1] (np.clip's wrapper costs more than the work on short arrays)."""
     return np.minimum(np.maximum(x, 0.0), 1.0)
@@ -451,8 +458,11 @@ class OutlineSpline:
 
     def _unit_outward(self, d: np.ndarray) -> np.ndarray:
         """Unit outward normals from tangents (N, 2)."""
-        n = np.column_stack([d[:, 1], -d[:, 0]]) * self.outward_sign()
-        return n / np.linalg.norm(n, axis=1, keepdims=True)
+        sign = self.outward_sign()
+        n = np.empty_like(d)
+        np.multiply(d[:, 1], sign, out=n[:, 0])
+        np.multiply(-d[:, 0], sign, out=n[:, 1])
+        return n / _row_lengths(n)[:, None]
 
     # -- Eq. (4): point to spline distance ---------------------------------------------------------
     def closest(self, points, newton_steps: int = 1):
@@ -480,7 +490,7 @@ class OutlineSpline:
         use_after = np.einsum("ij,ij->i", miss_after, miss_after) <= np.einsum("ij,ij->i", miss_before, miss_before)
         t = np.where(use_after, t_at + w_after * (t_after - t_at), t_at - w_before * (t_at - t_before))
         t, g, d1 = self._refine(p, t, t_before, t_after, steps=newton_steps)
-        return np.linalg.norm(p - g, axis=1), g, self._unit_outward(d1), self.wrap(t)
+        return _row_lengths(p - g), g, self._unit_outward(d1), self.wrap(t)
 
     def _refine(self, p, t, lo, hi, *, steps: int, start=None):
         """Safeguarded Newton on f(t) = g'(t) . (g(t) - p) = 0 inside [lo, hi]: a step is
