@@ -98,3 +98,18 @@ def test_spline_evaluation_and_closest_equal_the_straightforward_forms(seed):
     p = queries_around(spline, seed)
     for fast, plain in zip(spline.closest(p), straightforward_closest(spline, p)):
         np.testing.assert_array_equal(fast, plain)
+
+
+def test_wrap_equals_the_modulo_form():
+    spline = OutlineSpline.fit(traced_outline(4))
+    t0, period = spline.t_range[0], spline.period
+    rng = np.random.default_rng(4)
+    inside = rng.uniform(*spline.t_range, 700)
+    cases = [inside, np.r_[inside, t0 - 1e-9], np.r_[inside, spline.t_range[1]], np.r_[inside, -0.0, 0.0],
+             rng.uniform(t0 - 3 * period, t0 + 3 * period, 700), np.zeros(0), np.float64(t0 + 1.5), -0.0]
+    for t in cases:
+        expected = t0 + np.mod(np.asarray(t, dtype=float) - t0, period)
+        got = spline.wrap(t)
+        assert np.shape(got) == np.shape(expected)
+        np.testing.assert_array_equal(got, expected)
+        assert np.array_equal(np.signbit(got), np.signbit(expected))

@@ -327,8 +327,13 @@ class OutlineSpline:
 
     def wrap(self, t) -> np.ndarray:
         """Parameters mapped into [t0, t1)."""
-        t0 = self.t_range[0]
-        return t0 + np.mod(np.asarray(t, dtype=float) - t0, self.period)
+        t0, period = self.t_range[0], self.period
+        offset = np.asarray(t, dtype=float) - t0
+        # mostly all are in range already, where np.mod (several times dearer than the test)
+        # returns its argument unchanged (a zero as +0, which adds to t0 as -0 does)
+        if offset.size and offset.min() >= 0.0 and offset.max() < period:
+            return t0 + offset
+        return t0 + np.mod(offset, period)
 
     def evaluate(self, t, order: int = 0) -> np.ndarray:
         """Points (N, 2) of g (or its ``order``-th derivative) at parameters t (wrapped)."""
