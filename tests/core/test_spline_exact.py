@@ -113,3 +113,15 @@ def test_wrap_equals_the_modulo_form():
         assert np.shape(got) == np.shape(expected)
         np.testing.assert_array_equal(got, expected)
         assert np.array_equal(np.signbit(got), np.signbit(expected))
+
+
+def test_row_lengths_equal_numpy_norm():
+    """``_row_lengths`` (outline steps, chords, point-to-spline distances, the fold test's
+    scale) gives np.linalg.norm's numbers, tiny, huge and zero rows included."""
+    from fluorogui.core.outlines.spline import _row_lengths
+
+    rng = np.random.default_rng(6)
+    steps = np.diff(traced_outline(6), axis=0)
+    odd = np.array([[0.0, 0.0], [-0.0, 0.0], [1e-200, 3e-201], [1e150, -2e150], [3.0, -4.0]])
+    for v in (steps, rng.normal(0, 1, (5000, 2)) * 10.0 ** rng.uniform(-12, 12, (5000, 1)), odd):
+        np.testing.assert_array_equal(_row_lengths(v), np.linalg.norm(v, axis=1))

@@ -24,6 +24,13 @@ class OutlineError(ValueError):
 
 
 # -- polylines --------------------------------------------------------------------------------
+def _row_lengths(v: np.ndarray) -> np.ndarray:
+    """Lengths of the rows of (N, 2) ``v``, the same numbers as ``np.linalg.norm(v, axis=1)``
+    (sqrt(x^2 + y^2); a sum of two is the same in either order) without its costly reduction
+    over a short axis."""
+    return np.sqrt(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1])
+
+
 def _drop_repeated_points(points: np.ndarray) -> np.ndarray:
     """Remove consecutive duplicates, including a closing point equal to the first."""
     return points[_distinct(points)]
@@ -34,7 +41,7 @@ def _distinct(points: np.ndarray) -> np.ndarray:
     keep = np.ones(len(points), dtype=bool)
     if len(points) < 2:
         return keep
-    keep[1:] = np.linalg.norm(np.diff(points, axis=0), axis=1) > 1e-9
+    keep[1:] = _row_lengths(np.diff(points, axis=0)) > 1e-9
     last = len(points) - 1
     while last > 0 and (not keep[last] or np.linalg.norm(points[last] - points[0]) <= 1e-9):
         keep[last] = False
@@ -119,7 +126,8 @@ def self_intersections(points) -> tuple[np.ndarray, list[tuple[int, int]]]:
     d0, d1 = b - a, np.roll(b - a, -1, axis=0)
     cross = d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]
     dot = np.einsum("ij,ij->i", d0, d1)
-    scale = np.linalg.norm(d0, axis=1) * np.linalg.norm(d1, axis=1)
+    length = _row_lengths(d0)
+    scale = length * np.roll(length, -1)  # d1 is d0 rolled: so are its lengths
     folds = np.flatnonzero((np.abs(cross) <= 1e-12 * scale) & (dot < 0))
     lo, hi = np.minimum(a, b), np.maximum(a, b)
     order = np.argsort(lo[:, 0], kind="stable")
@@ -211,13 +219,6 @@ def validate_outline(points) -> np.ndarray:
         original = int(np.flatnonzero(np.all(np.isclose(pts, unique[where], atol=1e-9, rtol=0), axis=1))[0])
         raise OutlineError(f"outline crosses itself at point {original}")
     return pts
-
-
-def _row_lengths(v: np.ndarray) -> np.ndarray:
-    """Lengths of the rows of (N, 2) ``v``, the same numbers as ``np.linalg.norm(v, axis=1)``
-    (sqrt(x^2 + y^2); a sum of two is the same in either order) without its costly reduction
-    over a short axis."""
-    return np.sqrt(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1])
 
 
 def _unit_interval(x: np.ndarray) -> np.ndarray:
