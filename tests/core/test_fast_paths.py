@@ -105,3 +105,16 @@ def test_no_facing_reference_for_a_source_close_to_the_mesh():
     assert len(mesh.cache["facing"]) == 1
     # the edges seen from close by are a silhouette loop: every vertex on it has two of them
     assert len(edges) > 10 and np.all(np.bincount(edges.ravel())[np.unique(edges)] == 2)
+
+
+def test_jacobian_rows_equal_the_stacked_form():
+    """``_FastEvaluation._add`` writes [nJ | -(nJ x (X - c)) / rho] in place: the same bits
+    as stacking the two blocks."""
+    from fluorogui.core.matching.fast import _FastEvaluation
+
+    rng = np.random.default_rng(7)
+    nJ, X, c = rng.normal(0, 3, (500, 3)), rng.normal(0, 40, (500, 3)), rng.normal(0, 40, 3)
+    ev = _FastEvaluation.__new__(_FastEvaluation)
+    ev.r, ev.J, ev.w = [], [], []
+    ev._add(rng.normal(size=500), nJ, X, c, rho=31.7)
+    np.testing.assert_array_equal(ev.J[0], np.hstack([nJ, -_times_skew(nJ, X - c) / 31.7]))

@@ -95,9 +95,12 @@ class _FastEvaluation:
         """Residual rows with d/d(delta_c [mm], omega*rho [mm]) for X' = exp(w)(X - c) + c + delta;
         each block (one view, one direction) sums to weight 1, shared by the outline's
         ``weight_at`` where it has weights."""
-        dw = -_times_skew(nJ, X - c) / rho
+        J = np.empty((len(r), 6))  # [nJ | -(nJ x (X - c)) / rho], written in place (no hstack)
+        J[:, :3] = nJ
+        skew = _times_skew(nJ, X - c)
+        np.divide(np.negative(skew, out=skew), rho, out=J[:, 3:])
         self.r.append(r)
-        self.J.append(np.hstack([nJ, dw]))
+        self.J.append(J)
         self.w.append(np.full(len(r), 1.0 / len(r)) if weights is None else weights / np.sum(weights))
 
     def robust_cost(self, huber: float) -> float:

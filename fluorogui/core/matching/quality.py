@@ -146,12 +146,33 @@ def edge_supported_points(image: np.ndarray, outline_px: np.ndarray, *, occluded
         return pts, none
     crop = np.asarray(image, dtype=np.float32)[v0:v1, u0:u1]
     edges = canny_edges(crop, thresholds[0], thresholds[1], sigma)
-    distance = cv2.distanceTransform((~edges).astype(np.uint8), cv2.DIST_L2, 5)
     local = pts - (u0, v0)
     inside = (local[:, 0] >= 0) & (local[:, 0] < u1 - u0) & (local[:, 1] >= 0) & (local[:, 1] < v1 - v0)
     col = np.clip(np.round(local[:, 0]).astype(int), 0, u1 - u0 - 1)
     row = np.clip(np.round(local[:, 1]).astype(int), 0, v1 - v0 - 1)
-    return pts, (distance[row, col] <= tol_px) & inside
+    return pts, _near_edges(edges, row, col, tol_px) & inside
+
+
+#: OpenCV's 5x5 L2 chamfer distance (``cv2.distanceTransform(..., cv2.DIST_L2, 5)``) is 0 on an
+#: edge, 1 beside one, 1.4 (1.400009 in its fixed point) diagonally and at least 2 beyond:
+#: for tolerances in this range "within tolerance" is "an edge pixel among the 3 x 3"
+NEIGHBOURHOOD_TOLERANCES = (1.41, 2.0)
+
+
+def _near_edges(edges: np.ndarray, row: np.ndarray, col: np.ndarray, tol_px: float) -> np.ndarray:
+    """Per pixel (row, col) of the boolean edge map, whether its chamfer distance to an edge
+    pixel is at most ``tol_px``: the 3 x 3 look-up where that is the same (the usual 1.5 px,
+    ~20x cheaper than the whole crop's distance transform), else the distance transform."""
+    if not NEIGHBOURHOOD_TOLERANCES[0] <= tol_px < NEIGHBOURHOOD_TOLERANCES[1]:
+        distance = cv2.distanceTransform((~edges).astype(np.uint8), cv2.DIST_L2, 5)
+        return distance[row, col] <= tol_px
+    padded = np.zeros((edges.shape[0] + 2, edges.shape[1] + 2), dtype=bool)  # nothing beyond the crop
+    padded[1:-1, 1:-1] = edges
+    near = np.zeros(len(row), dtype=bool)
+    for dr in (0, 1, 2):
+        for dc in (0, 1, 2):
+            near |= padded[row + dr, col + dc]
+    return near
 
 
 def hidden_where_no_edges(image: np.ndarray, model_outline_px: np.ndarray, hidden: np.ndarray | None, *,
@@ -178,7 +199,9 @@ def outline_support(image_outline_px: np.ndarray, model_outline_px: np.ndarray, 
     model = resample_closed_polyline(np.asarray(model_outline_px, dtype=float), spacing=0.5)
     if len(image_pts) == 0 or len(model) == 0:
         return 0.0
-    d, _ = cKDTree(model).query(image_pts)
+    # only the distances count, never which point gives them: the unbalanced tree (quicker
+    # to build, ~15 % in all here) finds the same nearest distance
+    d, _ = cKDTree(model, balanced_tree=False).query(image_pts)
     return float(np.mean(d <= tol_px))
 
 

@@ -24,6 +24,13 @@ class OutlineError(ValueError):
 
 
 # -- polylines --------------------------------------------------------------------------------
+def _row_lengths(v: np.ndarray) -> np.ndarray:
+    """Lengths of the rows of (N, 2) ``v``, the same numbers as ``np.linalg.norm(v, axis=1)``
+    (sqrt(x^2 + y^2); a sum of two is the same in either order) without its costly reduction
+    over a short axis."""
+    return np.sqrt(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1])
+
+
 def _drop_repeated_points(points: np.ndarray) -> np.ndarray:
     """Remove consecutive duplicates, including a closing point equal to the first."""
     return points[_distinct(points)]
@@ -34,7 +41,7 @@ def _distinct(points: np.ndarray) -> np.ndarray:
     keep = np.ones(len(points), dtype=bool)
     if len(points) < 2:
         return keep
-    keep[1:] = np.linalg.norm(np.diff(points, axis=0), axis=1) > 1e-9
+    keep[1:] = _row_lengths(np.diff(points, axis=0)) > 1e-9
     last = len(points) - 1
     while last > 0 and (not keep[last] or np.linalg.norm(points[last] - points[0]) <= 1e-9):
         keep[last] = False
@@ -67,6 +74,30 @@ def outward_normals(closed) -> np.ndarray:
     of them (..., K, 2), either orientation: the central difference turned a quarter,
     flipped where the shoelace area is negative."""
     p = np.asarray(closed, dtype=float)
+    if p.shape[-2] < 3:  # too short for the slices below: the plain form
+        return _outward_normals_rolled(p)
+    # next minus previous vertex, written with slices (np.roll copies twice as much)
+    tangent = np.empty_like(p)
+    np.subtract(p[..., 2:, :], p[..., :-2, :], out=tangent[..., 1:-1, :])
+    np.subtract(p[..., 1, :], p[..., -1, :], out=tangent[..., 0, :])
+    np.subtract(p[..., 0, :], p[..., -2, :], out=tangent[..., -1, :])
+    normal = np.empty_like(p)
+    normal[..., 0] = tangent[..., 1]
+    np.negative(tangent[..., 0], out=normal[..., 1])
+    # the length as np.linalg.norm computes it: sqrt(n_u^2 + n_v^2)
+    length = np.sqrt(normal[..., 0] * normal[..., 0] + normal[..., 1] * normal[..., 1])
+    normal /= np.maximum(length, 1e-12)[..., None]
+    # twice the shoelace area: the sum of x_i y_(i+1) - x_(i+1) y_i, in the same order
+    x, y = p[..., 0], p[..., 1]
+    terms = np.empty(x.shape)
+    np.subtract(x[..., :-1] * y[..., 1:], x[..., 1:] * y[..., :-1], out=terms[..., :-1])
+    np.subtract(x[..., -1] * y[..., 0], x[..., 0] * y[..., -1], out=terms[..., -1])
+    area2 = np.sum(terms, axis=-1)
+    return np.where((area2 > 0)[..., None, None], normal, -normal)
+
+
+def _outward_normals_rolled(p: np.ndarray) -> np.ndarray:
+    """``outward_normals`` written with np.roll (any number of vertices)."""
     tangent = np.roll(p, -1, axis=-2) - np.roll(p, 1, axis=-2)
     normal = np.stack([tangent[..., 1], -tangent[..., 0]], axis=-1)
     normal /= np.maximum(np.linalg.norm(normal, axis=-1, keepdims=True), 1e-12)
@@ -95,7 +126,8 @@ def self_intersections(points) -> tuple[np.ndarray, list[tuple[int, int]]]:
     d0, d1 = b - a, np.roll(b - a, -1, axis=0)
     cross = d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]
     dot = np.einsum("ij,ij->i", d0, d1)
-    scale = np.linalg.norm(d0, axis=1) * np.linalg.norm(d1, axis=1)
+    length = _row_lengths(d0)
+    scale = length * np.roll(length, -1)  # d1 is d0 rolled: so are its lengths
     folds = np.flatnonzero((np.abs(cross) <= 1e-12 * scale) & (dot < 0))
     lo, hi = np.minimum(a, b), np.maximum(a, b)
     order = np.argsort(lo[:, 0], kind="stable")
@@ -214,6 +246,9 @@ class OutlineSpline:
         # piecewise-polynomial form (intervals, 4, 2) for fast vectorised evaluation
         self._breaks = pieces[0].x
         self._coeffs = np.ascontiguousarray(np.stack([piece.c.T for piece in pieces], axis=-1))
+        # the same by power first (order, intervals, 2): a gather along the pieces then gives
+        # each power's (N, 2) block contiguous, which halves the arithmetic's cost
+        self._coeffs_by_power = np.ascontiguousarray(np.moveaxis(self._coeffs, 1, 0))
         self._polyline = None
         self._seed_polyline = None
         self._outward = None
@@ -293,8 +328,13 @@ class OutlineSpline:
 
     def wrap(self, t) -> np.ndarray:
         """Parameters mapped into [t0, t1)."""
-        t0 = self.t_range[0]
-        return t0 + np.mod(np.asarray(t, dtype=float) - t0, self.period)
+        t0, period = self.t_range[0], self.period
+        offset = np.asarray(t, dtype=float) - t0
+        # mostly all are in range already, where np.mod (several times dearer than the test)
+        # returns its argument unchanged (a zero as +0, which adds to t0 as -0 does)
+        if offset.size and offset.min() >= 0.0 and offset.max() < period:
+            return t0 + offset
+        return t0 + np.mod(offset, period)
 
     def evaluate(self, t, order: int = 0) -> np.ndarray:
         """Points (N, 2) of g (or its ``order``-th derivative) at parameters t (wrapped)."""
@@ -306,17 +346,18 @@ class OutlineSpline:
         c = self._coeffs
         k = c.shape[1] - 1
         i = self._interval(t)
-        dx = (t - self._breaks[i])[:, None]
-        local = c[i]  # (N, order, 2), highest power first
+        dx = (t - self._breaks.take(i))[:, None]
         if k == 3:  # the cubic case written out: about twice as fast as the general loop
-            a, b, cc = local[:, 0], local[:, 1], local[:, 2]
+            # (take, not c[i]: numpy's fancy indexing costs several times more here)
+            a, b, cc, d = self._coeffs_by_power.take(i, axis=1)
             ax = a * dx
-            out = [((ax + b) * dx + cc) * dx + local[:, 3]]
+            out = [((ax + b) * dx + cc) * dx + d]
             if max_order >= 1:
                 out.append((3.0 * ax + 2.0 * b) * dx + cc)
             if max_order >= 2:
                 out.append(6.0 * ax + 2.0 * b)
             return out
+        local = c[i]  # (N, order, 2), highest power first
         out = []
         for order in range(max_order + 1):
             acc = local[:, 0] * self._falling(k, order)
@@ -343,9 +384,9 @@ class OutlineSpline:
         if table is None:
             return np.minimum(np.maximum(np.searchsorted(breaks, t, side="right") - 1, 0), n_pieces - 1)
         # (np.minimum/maximum: np.clip's wrapper costs more than the work on these short arrays)
-        i = table[np.minimum(np.maximum(((t - start) / width).astype(np.int64), 0), len(table) - 1)]
+        i = table.take(np.minimum(np.maximum(((t - start) / width).astype(np.int64), 0), len(table) - 1))
         # a bin is narrower than any piece, so the piece is the tabled one or the next
-        return np.minimum(i + (t >= breaks[np.minimum(i + 1, n_pieces)]), n_pieces - 1)
+        return np.minimum(i + (t >= breaks.take(np.minimum(i + 1, n_pieces))), n_pieces - 1)
 
     @staticmethod
     def _falling(power: int, order: int) -> float:
@@ -358,28 +399,36 @@ class OutlineSpline:
     def _dense_polyline(self):
         """Cached (points, parameters, cumulative arc length) at <= 0.25 px spacing."""
         if self._polyline is None:
-            t, pts = self._polyline_at(self.POLYLINE_SPACING_PX)
-            seg = np.linalg.norm(np.diff(np.vstack([pts, pts[:1]]), axis=0), axis=1)
-            self._polyline = (pts, t, np.concatenate([[0.0], np.cumsum(seg)]))
+            t, pts, chord2 = self._polyline_at(self.POLYLINE_SPACING_PX)
+            self._polyline = (pts, t, np.concatenate([[0.0], np.cumsum(np.sqrt(chord2))]))
         return self._polyline
 
     def _polyline_at(self, spacing: float):
-        """Parameters (n + 1,) from t0 to t1 and the n points before t1, chords <= spacing."""
+        """Parameters (n + 1,) from t0 to t1, the n points before t1 (chords <= spacing) and
+        the closed polyline's n squared chord lengths."""
         n = 64
         while True:
             t = self.t_range[0] + np.arange(n + 1) * (self.period / n)
             pts = self.evaluate(t[:-1])
-            longest = np.linalg.norm(np.diff(np.vstack([pts, pts[:1]]), axis=0), axis=1).max()
+            chords = np.empty_like(pts)
+            np.subtract(pts[1:], pts[:-1], out=chords[:-1])
+            np.subtract(pts[0], pts[-1], out=chords[-1])
+            # squared lengths as np.linalg.norm sums them; the longest chord is the root of
+            # the largest (the square root is monotonic), taken once instead of n times
+            chord2 = chords[:, 0] * chords[:, 0] + chords[:, 1] * chords[:, 1]
+            longest = np.sqrt(chord2.max())
             if longest <= spacing or n > 1 << 22:
-                return t, pts
+                return t, pts, chord2
             n = int(np.ceil(n * longest / spacing * 1.05))
 
     def _seed_tree(self):
         """Cached k-d tree of the polyline used to seed ``closest``."""
         if self._seed_polyline is None:
-            t, pts = self._polyline_at(self.SEED_SPACING_PX)
+            t, pts, _ = self._polyline_at(self.SEED_SPACING_PX)
             chords = np.roll(pts, -1, axis=0) - pts
-            self._seed_polyline = (pts, t, cKDTree(pts, leafsize=16), chords)
+            # each chord's squared length, once per spline instead of per query point
+            chord2 = np.einsum("ij,ij->i", chords, chords)
+            self._seed_polyline = (pts, t, cKDTree(pts, leafsize=16), chords, chord2)
         return self._seed_polyline
 
     def sample(self, n: int, skip_gaps: bool = False) -> np.ndarray:
@@ -415,8 +464,11 @@ class OutlineSpline:
 
     def _unit_outward(self, d: np.ndarray) -> np.ndarray:
         """Unit outward normals from tangents (N, 2)."""
-        n = np.column_stack([d[:, 1], -d[:, 0]]) * self.outward_sign()
-        return n / np.linalg.norm(n, axis=1, keepdims=True)
+        sign = self.outward_sign()
+        n = np.empty_like(d)
+        np.multiply(d[:, 1], sign, out=n[:, 0])
+        np.multiply(-d[:, 0], sign, out=n[:, 1])
+        return n / _row_lengths(n)[:, None]
 
     # -- Eq. (4): point to spline distance ---------------------------------------------------------
     def closest(self, points, newton_steps: int = 1):
@@ -426,23 +478,25 @@ class OutlineSpline:
         Signed distances, if needed, are ``sum(normals * (points - closest), axis=1)``.
         """
         p = np.atleast_2d(np.asarray(points, dtype=float))
-        poly, tp, tree, chords = self._seed_tree()
+        poly, tp, tree, chords, chord2 = self._seed_tree()
         _, k = tree.query(p)
         m = len(poly)
         before = (k - 1) % m
-        t_before = tp[before] - np.where(k == 0, self.period, 0.0)
+        # (take, not fancy indexing: several times cheaper on these short arrays)
+        t_at, t_after = tp.take(k), tp.take(k + 1)
+        t_before = tp.take(before) - np.where(k == 0, self.period, 0.0)
         # project on the chords before and after the nearest vertex; keep the nearer foot
-        rel = p - poly[k]
-        along = chords[k]
-        w_after = _unit_interval(np.einsum("ij,ij->i", rel, along) / np.einsum("ij,ij->i", along, along))
-        back = -chords[before]
-        w_before = _unit_interval(np.einsum("ij,ij->i", rel, back) / np.einsum("ij,ij->i", back, back))
+        rel = p - poly.take(k, axis=0)
+        along = chords.take(k, axis=0)
+        w_after = _unit_interval(np.einsum("ij,ij->i", rel, along) / chord2.take(k))
+        back = -chords.take(before, axis=0)
+        w_before = _unit_interval(np.einsum("ij,ij->i", rel, back) / chord2.take(before))
         miss_after = rel - w_after[:, None] * along
         miss_before = rel - w_before[:, None] * back
         use_after = np.einsum("ij,ij->i", miss_after, miss_after) <= np.einsum("ij,ij->i", miss_before, miss_before)
-        t = np.where(use_after, tp[k] + w_after * (tp[k + 1] - tp[k]), tp[k] - w_before * (tp[k] - t_before))
-        t, g, d1 = self._refine(p, t, t_before, tp[k + 1], steps=newton_steps)
-        return np.linalg.norm(p - g, axis=1), g, self._unit_outward(d1), self.wrap(t)
+        t = np.where(use_after, t_at + w_after * (t_after - t_at), t_at - w_before * (t_at - t_before))
+        t, g, d1 = self._refine(p, t, t_before, t_after, steps=newton_steps)
+        return _row_lengths(p - g), g, self._unit_outward(d1), self.wrap(t)
 
     def _refine(self, p, t, lo, hi, *, steps: int, start=None):
         """Safeguarded Newton on f(t) = g'(t) . (g(t) - p) = 0 inside [lo, hi]: a step is
