@@ -3,7 +3,7 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from fluorogui.core.outlines.field import field_of_view, intensifier_disc
+from fluorogui.core.outlines.field import field_of_view, intensifier_disc, to_unit_float
 from fluorogui.core.search.orientation import orientation_grid
 
 
@@ -54,3 +54,18 @@ def test_field_of_view_at_full_resolution_shrinks_by_its_margin():
     radius = np.sqrt(fov.sum() / np.pi)
     assert abs(radius - (480 - 2 * 15)) < 3.0  # 15 px at half resolution is 30 px here
     assert not (fov & ~disc).any()
+
+
+def test_unit_float_images_are_the_copy_they_were():
+    """Without the copy of an image that already is float32 in [0, 1], the same numbers."""
+    img, _ = _disc_image(64, 20, noise=3.0)
+    for image in (img, img.astype(np.float32), img.astype(np.uint8), np.clip(img, 0, 255).astype(np.float32) / 255.0,
+                  np.clip(img, 0, 255).astype(np.uint16), np.dstack([img] * 3).astype(np.uint8)):
+        plain = np.asarray(image).astype(np.float32)
+        if plain.ndim == 3:
+            plain = cv2.cvtColor(plain, cv2.COLOR_BGR2GRAY)
+        lo, hi = float(plain.min()), float(plain.max())
+        if lo < 0.0 or hi > 1.0:
+            plain = (plain - lo) / max(hi - lo, 1e-12)
+        got = to_unit_float(image)
+        assert got.dtype == np.float32 and np.array_equal(got, plain)

@@ -141,6 +141,26 @@ def test_drawing_gathering_and_snapping_are_the_plain_ones_on_random_segments():
             assert np.array_equal(got, want), trial
 
 
+def test_snap_takes_the_first_of_equally_near_candidates_as_argmin_does():
+    """Points on the shared ends of a polyline's segments, candidates repeated and in every
+    order: several candidates at the same distance, the first in the row wins; with a NaN
+    segment, the first NaN (np.argmin's choice)."""
+    rng = np.random.default_rng(5)
+    vertices = np.cumsum(rng.integers(-3, 4, (40, 2)), axis=0).astype(float)
+    P0, P1 = vertices[:-1], vertices[1:]
+    pts = np.vstack([vertices[1:-1], vertices[1:-1] + 0.5, vertices[1:-1] + rng.uniform(-1, 1, (38, 2))])
+    cand = rng.integers(-1, len(P0), (len(pts), 25))
+    cand[:, 0] = np.tile(np.arange(38), 3)  # a filled candidate in every row
+    cand[:, 7] = cand[:, 0] + 1  # and the other segment at the same vertex
+    cand[:, 3] = cand[:, 0]  # repeated
+    for got, want in zip(_snap(pts, cand, P0, P1), plain_snap(pts, cand, P0, P1)):
+        assert np.array_equal(got, want)
+    P0 = P0.copy()
+    P0[[3, 11]] = np.nan
+    for got, want in zip(_snap(pts, cand, P0, P1), plain_snap(pts, cand, P0, P1)):
+        assert np.array_equal(got, want, equal_nan=True)
+
+
 def test_snap_refuses_a_point_without_candidates():
     P0, P1 = np.array([[0.0, 0.0]]), np.array([[1.0, 0.0]])
     with pytest.raises(ValueError):

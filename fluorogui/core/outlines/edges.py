@@ -129,11 +129,12 @@ def subpixel_edges(gx: np.ndarray, gy: np.ndarray, pixels: np.ndarray, *, max_sh
     k = len(pixels)
     width = min(k, 4096)
     rows = -(-k // width)
-    pad = rows * width - k
+    map_u, map_v = np.zeros((2, rows * width), dtype=np.float32)  # the padding stays 0 (np.pad's, cheaper)
     for step in (-1.0, 0.0, 1.0):
-        map_u = np.pad((pixels[:, 0] + step * direction[:, 0]).astype(np.float32), (0, pad)).reshape(rows, width)
-        map_v = np.pad((pixels[:, 1] + step * direction[:, 1]).astype(np.float32), (0, pad)).reshape(rows, width)
-        sampled = cv2.remap(mag, map_u, map_v, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+        map_u[:k] = pixels[:, 0] + step * direction[:, 0]
+        map_v[:k] = pixels[:, 1] + step * direction[:, 1]
+        sampled = cv2.remap(mag, map_u.reshape(rows, width), map_v.reshape(rows, width), cv2.INTER_LINEAR,
+                            borderMode=cv2.BORDER_REFLECT)
         samples.append(sampled.reshape(-1)[:k].astype(float))
     before, centre, after = samples
     if fit == "gaussian":  # a parabola through the log-magnitude is exact for a Gaussian peak
@@ -278,6 +279,7 @@ class _Along:
         self.dense, self.arc, self.total = _arc_parameter(np.asarray(predicted_px, dtype=float))
         self.tree = cKDTree(self.dense)
         self._normals = None
+        self._bin_pixels = {}
 
     @property
     def normals(self) -> np.ndarray:
@@ -288,6 +290,19 @@ class _Along:
     def query(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Distance to, and index of, each point's nearest dense sample."""
         return self.tree.query(points)
+
+    def bin_pixels(self, n_bins: int, shape) -> tuple[np.ndarray, np.ndarray]:
+        """(row, col) of the pixel at the centre of each of ``n_bins`` equal bins along the
+        outline, clipped to an image of ``shape`` (kept: ``uncovered_arc`` asks again)."""
+        key = (n_bins, tuple(shape[:2]))
+        if key not in self._bin_pixels:
+            dense = self.dense
+            centre = np.interp((np.arange(n_bins) + 0.5) * self.total / n_bins, self.arc, np.arange(len(dense)))
+            at = dense[np.clip(np.round(centre).astype(int), 0, len(dense) - 1)]
+            col = np.clip(np.round(at[:, 0]).astype(int), 0, shape[1] - 1)
+            row = np.clip(np.round(at[:, 1]).astype(int), 0, shape[0] - 1)
+            self._bin_pixels[key] = (row, col)
+        return self._bin_pixels[key]
 
 
 def contour_fit(contour: np.ndarray, predicted_px: np.ndarray, tolerance_px: float = 8.0) -> float:
@@ -399,17 +414,45 @@ def best_translation(edge_mask: np.ndarray, predicted_px: np.ndarray, search_px:
     return best
 
 
+class _EdgeMap:
+    """An edge map with its connected-edge labels and its pixels (row-major, as ``np.nonzero``),
+    each made once and shared by the predictions measured against the map."""
+
+    def __init__(self, mask: np.ndarray):
+        self.mask = mask
+        self._labels = self._pixels = None
+
+    @property
+    def labels(self) -> np.ndarray:
+        if self._labels is None:
+            self._labels = cv2.connectedComponents(self.mask.astype(np.uint8), connectivity=8)[1]
+        return self._labels
+
+    @property
+    def pixels(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._pixels is None:
+            self._pixels = np.nonzero(self.mask)
+        return self._pixels
+
+
 def _dark_edge_points(image, edges, predicted, sigma, *, polarity, gradients=None, within_px=None, along=None,
-                      magnitude=None):
+                      magnitude=None, band=None):
     """Sub-pixel points of the pixels of an edge map, their connected-edge labels (of the
     whole map), whether each has the expected polarity relative to the predicted
     outline, and each point's ``along.query`` (distance to the prediction's dense samples
     and the nearest one's index); with ``within_px``, only of the pixels that may lie that
     close to the prediction once refined (noise gives a weak edge map tens of thousands of
-    pixels). ``along`` (the prediction's ``_Along``), ``gradients`` and ``magnitude`` are
-    made here when not given."""
-    _, labels = cv2.connectedComponents(edges.astype(np.uint8), connectivity=8)
-    rows, cols = np.nonzero(edges if within_px is None else edges & _band(edges.shape, predicted, within_px))
+    pixels). ``edges`` is a boolean image or its ``_EdgeMap``; ``along`` (the prediction's
+    ``_Along``), ``gradients``, ``magnitude`` and ``band`` (``_band`` of the prediction and
+    ``within_px``) are made here when not given."""
+    edge_map = edges if isinstance(edges, _EdgeMap) else _EdgeMap(edges)
+    rows, cols = edge_map.pixels
+    if within_px is not None:  # the pixels of the map in the band (as nonzero(edges & band), without the image)
+        if band is None:
+            band = _band(edge_map.mask.shape, predicted, within_px)
+        inside = band[rows, cols]
+        rows, cols = rows[inside], cols[inside]
+    labels = edge_map.labels
     _, gx, gy = gradients if gradients is not None else smoothed_gradients(image, sigma)
     refined, grad = subpixel_edges(gx, gy, np.column_stack([cols, rows]).astype(float), magnitude=magnitude)
     if polarity not in ("dark", "any"):
@@ -446,14 +489,11 @@ def uncovered_arc(points: np.ndarray, predicted_px: np.ndarray, *, tolerance_px:
     never count as uncovered. ``along`` (the prediction's ``_Along``) and ``near`` (the
     points' ``along.query``) save making them again."""
     along = along or _Along(predicted_px)
-    dense, arc, total = along.dense, along.arc, along.total
+    arc, total = along.arc, along.total
     n_bins = max(4, int(np.ceil(total / bin_px)))
     covered = np.zeros(n_bins, dtype=bool)
     if hidden is not None:
-        centre = np.interp((np.arange(n_bins) + 0.5) * total / n_bins, arc, np.arange(len(dense)))
-        at = dense[np.clip(np.round(centre).astype(int), 0, len(dense) - 1)]
-        col = np.clip(np.round(at[:, 0]).astype(int), 0, hidden.shape[1] - 1)
-        row = np.clip(np.round(at[:, 1]).astype(int), 0, hidden.shape[0] - 1)
+        row, col = along.bin_pixels(n_bins, hidden.shape)
         covered |= hidden[row, col]
     bins = np.zeros(0, dtype=int)
     if len(points):
@@ -466,10 +506,17 @@ def uncovered_arc(points: np.ndarray, predicted_px: np.ndarray, *, tolerance_px:
     # runs of uncovered bins on the closed outline (rotate so a covered bin comes first)
     shift = int(np.flatnonzero(covered)[0])
     rolled = np.roll(gap, -shift)
-    keep = np.zeros(n_bins, dtype=bool)
-    for start, stop in _runs(rolled):
-        if (stop - start) * total / n_bins >= min_gap_px:
-            keep[start:stop] = True
+    if min_gap_px <= 0:  # every run is long enough
+        return bins, gap
+    padded = np.zeros(n_bins + 2, dtype=np.int8)
+    padded[1:-1] = rolled
+    start, stop = np.flatnonzero(np.diff(padded)).reshape(-1, 2).T  # the runs of ``_runs``
+    long_enough = (stop - start) * total / n_bins >= min_gap_px  # (the same operations, per run)
+    # mark the long runs' first bins +1 and the bins after them -1: their running sum is 1 on them
+    marks = np.zeros(n_bins + 1, dtype=np.int64)
+    marks[start[long_enough]] = 1
+    marks[stop[long_enough]] -= 1
+    keep = np.cumsum(marks[:-1]) > 0
     return bins, np.roll(keep, shift)
 
 
@@ -553,6 +600,14 @@ def _outline_in_region(image, predicted, roi, keep, *, sigma, tolerance_px, pola
             weak_map.append(weak & inside if keep is None else weak & inside & keep)
         return weak_map[0]
 
+    edge_map = _EdgeMap(edges)
+    weak_only = []  # the weak map's edges that are not default edges, as an _EdgeMap
+
+    def weak_only_edges():
+        if not weak_only:
+            weak_only.append(_EdgeMap(weak_edges() & ~edges))
+        return weak_only[0]
+
     def gather(shift):
         """Edge points along the prediction shifted by ``shift``: the shifted prediction, the
         points, their pieces, whether the default edges left gaps, how many 1 px bins stay
@@ -563,9 +618,10 @@ def _outline_in_region(image, predicted, roi, keep, *, sigma, tolerance_px, pola
         # edge is two pixels thick); pieces are the connected edges
         # points farther than tolerance_px from the prediction count nowhere (not as
         # cover, left out of the merge): only those near are refined
-        refined, labels, agrees, near = _dark_edge_points(image, edges, pred, sigma, polarity=polarity,
-                                                          gradients=gradients,
-                                                          within_px=tolerance_px, along=along, magnitude=magnitude)
+        band = _band(edges.shape, pred, tolerance_px)  # (for both edge maps)
+        refined, labels, agrees, near = _dark_edge_points(image, edge_map, pred, sigma, polarity=polarity,
+                                                          gradients=gradients, within_px=tolerance_px, along=along,
+                                                          magnitude=magnitude, band=band)
         points, pieces = refined[agrees], labels[agrees]
         near = (near[0][agrees], near[1][agrees])
         had_gaps = False
@@ -574,11 +630,11 @@ def _outline_in_region(image, predicted, roi, keep, *, sigma, tolerance_px, pola
                                    along=along,
                                    near=near)
             had_gaps = bool(gap.any())
-            weak = weak_edges() & ~edges if had_gaps else None
-            if had_gaps and weak.any():
+            weak = weak_only_edges() if had_gaps else None
+            if had_gaps and len(weak.pixels[0]):
                 w_points, w_labels, w_agrees, w_near = _dark_edge_points(image, weak, pred, sigma, polarity=polarity,
                                                                          gradients=gradients, within_px=tolerance_px,
-                                                                         along=along, magnitude=magnitude)
+                                                                         along=along, magnitude=magnitude, band=band)
                 w_bins, _ = uncovered_arc(w_points, pred, tolerance_px=tolerance_px, min_gap_px=min_gap_px, along=along,
                                           near=w_near)
                 use = w_agrees & gap[w_bins]

@@ -20,11 +20,12 @@ def image_unit(shape) -> float:
 
 
 def to_unit_float(image: np.ndarray) -> np.ndarray:
-    """Grey image as float32 in [0, 1] (8/16-bit or float; colour converted)."""
+    """Grey image as float32 in [0, 1] (8/16-bit or float; colour converted): the image
+    itself when it already is one (read it, do not write to it)."""
     img = np.asarray(image)
     if img.ndim == 3:
         img = cv2.cvtColor(img.astype(np.float32), cv2.COLOR_BGR2GRAY)
-    img = img.astype(np.float32)
+    img = img.astype(np.float32, copy=False)
     lo, hi = float(img.min()), float(img.max())
     if lo < 0.0 or hi > 1.0:
         img = (img - lo) / max(hi - lo, 1e-12)

@@ -120,14 +120,17 @@ def _segment_cells(segments: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     half the cost.)"""
     x0, y0 = segments[:, 0, 0], segments[:, 0, 1]
     dx, dy = segments[:, 1, 0] - x0, segments[:, 1, 1] - y0
-    n = np.floor(np.maximum(np.abs(dx), np.abs(dy))).astype(np.int64) + 2  # samples per segment
+    # (the cells' coordinates are not negative, so the cast's truncation is np.floor)
+    n = np.maximum(np.abs(dx), np.abs(dy)).astype(np.int64) + 2  # samples per segment
     seg = np.repeat(np.arange(len(segments), dtype=np.int32), n)
     k = np.arange(len(seg)) - np.repeat(np.cumsum(n) - n, n)
     frac = k / np.repeat(n - 1, n)
-    col = np.floor(np.repeat(x0, n) + frac * np.repeat(dx, n) + 0.5).astype(np.int64)
-    row = np.floor(np.repeat(y0, n) + frac * np.repeat(dy, n) + 0.5).astype(np.int64)
+    col = (np.repeat(x0, n) + frac * np.repeat(dx, n) + 0.5).astype(np.int64)
+    cell = (np.repeat(y0, n) + frac * np.repeat(dy, n) + 0.5).astype(np.int64)  # the row, then the flat index
+    cell *= shape[1]
+    cell += col
     drawn = np.full(shape, -1, np.int32)
-    drawn.ravel()[row * shape[1] + col] = seg
+    drawn.ravel()[cell] = seg
     return drawn
 
 
@@ -156,29 +159,42 @@ def _nearby_segments(drawn: np.ndarray, cells: np.ndarray) -> np.ndarray:
 def _snap(pts, cand, P0, P1):
     """For every point the nearest point on its candidate segments (``cand``, -1 for none):
     (segment, parameter along it, the point). Of equally near candidates the first in its
-    row. Only the filled candidates are measured (about a fifth of a 5 x 5 square)."""
-    ax, ay = P0[:, 0], P0[:, 1]
-    abx, aby = P1[:, 0] - ax, P1[:, 1] - ay
-    length2 = np.maximum(abx * abx + aby * aby, 1e-12)
+    row. Only the filled candidates are measured (about a fifth of a 5 x 5 square); the
+    segments' numbers are gathered in one step from a table of them, and each row's nearest
+    is found over its own candidates (``reduceat``), not over a padded square."""
+    table = np.empty((5, len(P0)))  # per segment: a, b - a, |b - a|^2 (at least 1e-12)
+    ax, ay, abx, aby, length2 = table
+    ax[:], ay[:] = P0[:, 0], P0[:, 1]
+    np.subtract(P1[:, 0], ax, out=abx)
+    np.subtract(P1[:, 1], ay, out=aby)
+    np.maximum(abx * abx + aby * aby, 1e-12, out=length2)
+    width = cand.shape[1]
     flat = cand.ravel()
     at = np.flatnonzero(flat >= 0)  # the filled candidates, row by row
+    starts = np.searchsorted(at, np.arange(len(pts)) * width)  # each row's first
+    if len(pts) and np.diff(np.append(starts, len(at))).min() == 0:
+        raise ValueError("a point without a candidate segment")  # (the contour cell itself holds one)
     s = flat[at]
-    row = at // cand.shape[1]
+    row = at // width
     px, py = pts[:, 0][row], pts[:, 1][row]
-    sax, say, sabx, saby = ax[s], ay[s], abx[s], aby[s]
-    lam = ((px - sax) * sabx + (py - say) * saby) / length2[s]
+    sax, say, sabx, saby, slength2 = np.take(table, s, axis=1)
+    lam = ((px - sax) * sabx + (py - say) * saby) / slength2
     np.maximum(lam, 0.0, out=lam)
     np.minimum(lam, 1.0, out=lam)
     qx, qy = sax + lam * sabx, say + lam * saby
     dx, dy = qx - px, qy - py
-    d2 = np.full(flat.shape, np.inf)
-    d2[at] = dx * dx + dy * dy
-    best = np.arange(len(pts)) * cand.shape[1] + np.argmin(d2.reshape(cand.shape), axis=1)
-    where = np.full(flat.shape, -1)
-    where[at] = np.arange(len(at))
-    best = where[best]
-    if len(best) and best.min() < 0:
-        raise ValueError("a point without a candidate segment")  # (the contour cell itself holds one)
+    d2 = dx * dx + dy * dy
+    if not len(pts):
+        return s, lam, np.column_stack([qx, qy])
+    nearest = np.minimum.reduceat(d2, starts)
+    # the first candidate of its row at the row's nearest distance (np.argmin's choice)
+    best = np.minimum.reduceat(np.where(d2 == nearest[row], np.arange(len(at)), len(at)), starts)
+    if best.max() >= len(at):  # a NaN distance (no nearest equals itself): argmin's choice, the first NaN
+        d2_square = np.full(flat.shape, np.inf)
+        d2_square[at] = d2
+        where = np.full(flat.shape, -1)
+        where[at] = np.arange(len(at))
+        best = where[np.arange(len(pts)) * width + np.argmin(d2_square.reshape(cand.shape), axis=1)]
     return s[best], lam[best], np.column_stack([qx[best], qy[best]])
 
 
