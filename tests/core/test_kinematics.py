@@ -170,14 +170,17 @@ def test_sd_propagation_matches_a_monte_carlo_spread():
 
 def _body_sampled(matrix, centroid, cov, rng, n):
     """Poses moved by body motions drawn from ``cov`` (centroid world mm, turn about the model
-    axes deg), made with scipy's rotations: another route than the propagation's."""
+    axes deg), each turn made from its quaternion: another route than the propagation's
+    rotation vector."""
     from fluorogui.core.projection.pose import matrix_to_pose
 
     motions = rng.multivariate_normal(np.zeros(6), cov, size=n)
     R, t = matrix[:3, :3], matrix[:3, 3]
     out = []
     for m in motions:
-        R2 = R @ Rotation.from_rotvec(m[3:], degrees=True).as_matrix()
+        angle = np.radians(np.linalg.norm(m[3:]))
+        axis = m[3:] / np.linalg.norm(m[3:])
+        R2 = R @ Rotation.from_quat([*(axis * np.sin(angle / 2)), np.cos(angle / 2)]).as_matrix()
         M = np.eye(4)
         M[:3, :3] = R2
         M[:3, 3] = (R @ centroid + t + m[:3]) - R2 @ centroid

@@ -21,6 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 SIDES = ("right", "left")
 KINEMATICS_COLUMNS = ("flexion_deg", "varus_deg", "internal_deg", "medial_mm", "anterior_mm", "distraction_mm")
@@ -249,12 +250,7 @@ def moved_by_body(matrix, motion, centroid) -> np.ndarray:
     axes: ``R' = R exp(turn)``)."""
     matrix = np.asarray(matrix, dtype=float)
     motion, centroid = np.asarray(motion, dtype=float), np.asarray(centroid, dtype=float)
-    w = np.radians(motion[3:])
-    angle = float(np.linalg.norm(w))
-    K = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
-    turn = np.eye(3) + K if angle < 1e-12 else (
-        np.eye(3) + np.sin(angle) / angle * K + (1 - np.cos(angle)) / angle**2 * (K @ K))
-    R = matrix[:3, :3] @ turn
+    R = matrix[:3, :3] @ Rotation.from_rotvec(motion[3:], degrees=True).as_matrix()
     out = matrix.copy()
     out[:3, :3] = R
     out[:3, 3] = matrix[:3, :3] @ centroid + matrix[:3, 3] + motion[:3] - R @ centroid
