@@ -4,8 +4,6 @@ closed outline, the precision of the fits along it (the rim's point weights), a 
 outline's curvature, and the rule that leaves out fits pulled off by another edge."""
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 
 
@@ -52,10 +50,19 @@ def smooth_along(values: np.ndarray, half_window: int) -> np.ndarray:
         return np.nan_to_num(values)
     padded = np.r_[values[-half_window:], values, values[:half_window]]
     windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half_window + 1)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # windows without a number
-        out = np.nanmedian(windows, axis=1)
-    return np.nan_to_num(out)
+    return np.nan_to_num(nanmedian_rows(windows))
+
+
+def nanmedian_rows(windows: np.ndarray) -> np.ndarray:
+    """``np.nanmedian(windows, axis=1)``, NaN for rows without a number, and no warning
+    for those: the view threads run this side by side, and ``warnings.catch_warnings``
+    changes the process's filters, so one thread leaving it let another's "All-NaN slice"
+    warning through."""
+    out = np.full(len(windows), np.nan)
+    some = ~np.isnan(windows).all(axis=1)
+    if some.any():
+        out[some] = np.nanmedian(windows[some], axis=1)
+    return out
 
 
 #: points either side whose fits measure a point's precision (``precision_weights``)
@@ -87,10 +94,8 @@ def precision_weights(found: np.ndarray, half_window: int = PRECISION_HALF_WINDO
     half = min(half_window, (len(found) - 1) // 2)
     padded = np.r_[found[-half:], found, found[:half]] if half else found
     windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # windows without a number
-        centre = np.nanmedian(windows, axis=1)
-        spread = 1.4826 * np.nanmedian(np.abs(windows - centre[:, None]), axis=1)
+    centre = nanmedian_rows(windows)
+    spread = 1.4826 * nanmedian_rows(np.abs(windows - centre[:, None]))
     spread = np.where(np.isfinite(spread), spread, np.nanmedian(spread))
     w = 1.0 / np.maximum(spread, PRECISION_FLOOR_PX) ** 2
     w = np.clip(w / w.mean(), 1.0 / PRECISION_RANGE, PRECISION_RANGE)
