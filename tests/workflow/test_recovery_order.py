@@ -211,3 +211,37 @@ def test_tracking_locates_a_component_after_a_jump_only(monkeypatch):
     np.testing.assert_allclose(far.located, [10.0, 20.0, 30.0, 0.0, 0.0, 0.0])  # the prediction's turn kept
     assert compared == [(1.0, 20.0)]  # the last matched frame's images against this one's
     assert reads == [0, 1, 2, 20]  # frame 1's from memory
+
+
+def test_after_a_jump_the_others_are_masked_where_their_search_places_them(monkeypatch):
+    """After a jump the tibia's prediction extrapolates: the femur, matched first, is masked
+    with the tibia where the search near it places it (made once, for the mask and for the
+    tibia's own first start). The tibia lands within 1 mm of that: no second round.
+    Between neighbouring frames the mask stays at the prediction and nothing is searched."""
+    searched, masks = [], []
+
+    def find_near(images, component, mesh, pose, cancel=None):
+        searched.append((component, pose is not None))
+        return NEAR if component == "tibial" else None  # the femur's: nothing near, nor in the whole image
+
+    def occlusion_masks(views, others, near, mesh, margin_px=3):
+        masks.append([np.asarray(pose).copy() for _, pose in others])
+        return [np.zeros((4, 4), bool)] * 2
+
+    def attempt(self, images, job, start, occluded, cancel, loop=None):
+        pose = np.asarray(start, float) + (0.1 if job.component == "tibial" else 0.0)
+        return FrameResult(0, job.component, pose, Status.MATCHED, "", rim_models=self._rims_for(images, job.component))
+
+    monkeypatch.setattr(framematch, "occlusion_masks", occlusion_masks)
+    monkeypatch.setattr(FrameMatcher, "attempt", attempt)
+    mesh = SimpleNamespace(centroid=np.zeros(3), radius=30.0)
+    jump = [("femoral", False), ("femoral", True), ("tibial", True)]
+    for gap, tibia_masked_at, searches in ((NEAR_FIRST_GAP + 3, NEAR, jump), (1, PREDICTED, [])):
+        searched.clear()
+        masks.clear()
+        jobs = [ComponentInput("femoral", mesh, np.zeros(6), gap=gap, probe=False),
+                ComponentInput("tibial", mesh, PREDICTED, gap=gap, probe=False)]
+        results = FrameMatcher(VIEWS, WorkflowSettings(), find_near).match_frame(0, IMAGES, jobs)
+        np.testing.assert_array_equal(masks[0][0], tibia_masked_at)  # the femur's mask
+        assert len(masks) == 2 and results["femoral"].attempts == 1  # no second round
+        assert sorted(searched) == searches  # (component, near): each search once at most
