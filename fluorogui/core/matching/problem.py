@@ -28,7 +28,7 @@ class MatchSettings:
     outline_spacing_mm: float | None = None  # paper alternative: one point every d mm on the intensifier
     model_points: int = 15000  # paper: size of the point cloud
     max_calls: int = 800
-    xtol: float = 0.0005  # mm and degrees: stop when every variable changes less
+    xtol: float = 0.0005  # mm and degrees: stop when the next step changes every variable less (fast: see _below_noise)
     fd_step: float = 0.1  # paper: finite-difference step (mm, deg); the paper does not give one
     spacing_px: float = 2.0  # fast: spacing of image outline points when outline_points is None
     # fast: spacing of model outline points (outline_points None); 2 px apart, the points kept
