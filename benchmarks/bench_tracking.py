@@ -21,6 +21,13 @@ Sections (all by default, or name some):
   frames it flags, how many are right poses; on ``real`` judged against the stored
   reference or, where it has no pose (past frame 160), by the region fit:
   ``flag_precision.region_fit_verdict``, about 10 s a pose).
+* ``jumps``: the generated knee bend (``--frames``, default 200 here) tracked from nothing
+  at every ``--stride``-th frame only (default 10 and 20, one run each, one worker): every
+  frame after the first is a jump, as in the real sequence's sample of every 20th frame,
+  where the prediction extrapolates beyond the motion seen and the searches near it come
+  first. Per stride: matched frames, the worst and RMS error against the truth per
+  component, frames shown as matched more than 1 mm / 1 deg off (target 0) and the wall
+  time (``--bends DIR``: draw the bend there once and use it again).
 * ``partial``: a generated 20-frame bend that drifts so the tibial tray leaves view 2's
   field of view (down to ~45 % of its outline visible); per frame the visible share, the
   error against the truth and the status: matched within 0.1 mm / 0.2 deg while the
@@ -43,7 +50,7 @@ Sections (all by default, or name some):
   (their systematic difference, its spread over frames, and the reported SDs over that).
 
 Errors are body-fixed (``core.projection.pose.pose_error``): translation mm, rotation angles deg.
-Usage: .venv/bin/python benchmarks/bench_tracking.py [demo] [synthetic] [partial] [batch] [real]
+Usage: .venv/bin/python benchmarks/bench_tracking.py [demo] [synthetic] [jumps] [partial] [batch] [real]
            [--workers N] [--frames N] [--no-occlusion] [--overlap-at-start] [--xray] [--bends DIR] [--json OUT]
            [--figure OUT.png] [--region-fit]
 """
@@ -227,6 +234,47 @@ def _visible_share(session: Session, component: str, pose) -> list[float]:
         centre = (np.asarray(view.image_size) - 1) / 2.0
         inside = np.linalg.norm(pts - centre, axis=1) < FIELD_RADIUS_FRACTION * view.image_size[0]
         out.append(float(np.mean(inside)))
+    return out
+
+
+def bench_jumps(args) -> dict:
+    import shutil
+
+    from fluorogui.simulation.knee_bend import build_knee_sequence
+
+    models = DATA / "biplane-tka" / "models"
+    frames = args.frames if args.frames != 100 else 200  # (100 is the synthetic section's default)
+    folder = args.bends / f"jumps-{frames}" if args.bends else Path(tempfile.mkdtemp(prefix="bench-jumps-"))
+    project = folder / "knee_bend.fluoro"
+    if not project.exists():
+        folder.mkdir(parents=True, exist_ok=True)
+        build_knee_sequence(folder, models / "femoral_component.stl", models / "tibial_component.stl",
+                            frames=frames, workers=2)
+    out = {}
+    for stride in args.stride or (10, 20):
+        run = Path(tempfile.mkdtemp(prefix="bench-jumps-run-", dir=folder.parent))  # (the models' paths are relative)
+        shutil.copytree(folder, run, dirs_exist_ok=True)
+        session = Session.open(run / "knee_bend.fluoro")
+        truth = {int(f): by for f, by in session.project.settings["truth"].items()}
+        results, wall = _track(session, 1, frames=list(range(0, frames, stride)))
+        print(f"jumps: every {stride}th of {frames} generated frames ({len(results) // 2}), tracked from nothing "
+              f"with one worker in {wall:.1f} s")
+        row = {"wall_s": wall}
+        for c in COMPONENTS:
+            rs = [r for r in results if r.component == c]
+            errors = [_errors(r.pose, truth[r.frame][c]) for r in rs if r.status == "matched"]
+            e = np.array([x[2] for x in errors]).reshape(-1, 6)
+            wrong = sum(1 for mm, deg, _ in errors if mm > 1.0 or deg > 1.0)
+            rms = (float(np.sqrt((e[:, :3] ** 2).mean())), float(np.sqrt((e[:, 3:] ** 2).mean()))) if len(e) else None
+            row[c] = {"matched": len(errors), "of": len(rs), "wrong_shown_matched": wrong, "rms": rms,
+                      "worst": [max((x[0] for x in errors), default=None), max((x[1] for x in errors), default=None)]}
+            shown = f"RMS {rms[0]:.4f} mm / {rms[1]:.4f} deg  worst {row[c]['worst'][0]:.4f} mm / " \
+                    f"{row[c]['worst'][1]:.4f} deg" if rms else "none matched"
+            print(f"  {c:8s} matched {len(errors)}/{len(rs)}  {shown}  shown as matched > 1 mm / 1 deg off: "
+                  f"{wrong} (target 0)")
+        out[str(stride)] = row
+        shutil.rmtree(run, ignore_errors=True)
+    print()
     return out
 
 
@@ -538,9 +586,11 @@ def bench_real(args) -> dict:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("sections", nargs="*", choices=["demo", "synthetic", "partial", "batch", "real"], default=[])
+    ap.add_argument("sections", nargs="*", choices=["demo", "synthetic", "jumps", "partial", "batch", "real"],
+                    default=[])
     ap.add_argument("--workers", type=int, default=2, help="processes for the synthetic sequence (default 2)")
-    ap.add_argument("--frames", type=int, default=100, help="frames of the synthetic sequence")
+    ap.add_argument("--frames", type=int, default=100, help="frames of the synthetic sequence (jumps: 200)")
+    ap.add_argument("--stride", type=int, action="append", help="jumps: track every N-th frame (default 10 and 20)")
     ap.add_argument("--no-occlusion", action="store_true",
                     help="synthetic: track without masking the other component (to compare)")
     ap.add_argument("--overlap-at-start", action="store_true",
@@ -548,15 +598,15 @@ def main(argv=None) -> int:
     ap.add_argument("--xray", action="store_true",
                     help="synthetic, batch: image the bends with the independent X-ray model (opaque metal)")
     ap.add_argument("--bends", type=Path,
-                    help="batch: draw the two bends here, or use the ones drawn here before alike (default: a new "
-                         "temporary folder)")
+                    help="batch, jumps: draw the bends here, or use the ones drawn here before alike (default: a "
+                         "new temporary folder)")
     ap.add_argument("--json", type=Path, help="write the numbers here")
     ap.add_argument("--figure", type=Path, help="write the real sequence's kinematics figure here (png/svg/pdf)")
     ap.add_argument("--region-fit", action="store_true",
                     help="real: compare every matched pose with the independent region-overlap fit (minutes)")
     args = ap.parse_args(argv)
-    sections = args.sections or ["demo", "synthetic", "partial", "batch", "real"]
-    if any(s in sections for s in ("synthetic", "partial", "batch", "real")) and not DATA.is_dir():
+    sections = args.sections or ["demo", "synthetic", "jumps", "partial", "batch", "real"]
+    if any(s in sections for s in ("synthetic", "jumps", "partial", "batch", "real")) and not DATA.is_dir():
         print(f"bench_tracking: {DATA} not found; only the demo can run", file=sys.stderr)
         sections = [s for s in sections if s == "demo"]
     out = {s: globals()[f"bench_{s}"](args) for s in sections}
