@@ -169,7 +169,7 @@ class SessionView(QObject):
             self.scene_widget.scene.render()
         if component == c.component:
             self.pose_editor.set_pose(pose)
-            self.pose_editor.set_uncertainty(_pose_sd(record))
+            self.pose_editor.set_uncertainty(*_pose_sds(record))
 
     def show_model_outline(self, component: str, pose, outlines=None) -> None:
         c, s = self.controller, self.controller.session
@@ -219,7 +219,7 @@ class SessionView(QObject):
         self.pose_editor.set_component(name if known else None)
         if known and c.frame is not None:
             self.pose_editor.set_pose(s.pose(name, c.frame))
-            self.pose_editor.set_uncertainty(_pose_sd(s.pose_record(name, c.frame)))
+            self.pose_editor.set_uncertainty(*_pose_sds(s.pose_record(name, c.frame)))
             self.show_pose_status()
         if self.scene_widget is not None and known:
             self.scene_widget.enable_gizmo(name)
@@ -276,8 +276,9 @@ class SessionView(QObject):
         self.labels.cursor.setText(f"u {u:.1f}  v {v:.1f}  value {text}")
 
 
-def _pose_sd(record):
-    """The standard deviations stored with a record's match (None without a match)."""
+def _pose_sds(record) -> tuple:
+    """The standard deviations stored with a record's match: of the pose's six values and of
+    the body's own moves and turns (each None without a match, or where it kept none)."""
     if record is None or record.match is None:
-        return None
-    return record.match.quality.get("sd")
+        return None, None
+    return record.match.quality.get("sd"), record.match.quality.get("sd_body")

@@ -35,8 +35,13 @@ def test_pose_editor_shows_the_match_uncertainty(qtbot):
     qtbot.addWidget(editor)
     editor.set_uncertainty([0.0123, 0.2, 1.5, 0.04, None, float("inf")])
     assert [label.text() for label in editor.sd_labels] == ["± 0.012", "± 0.200", "± 1.500", "± 0.040", "± ?", "± ?"]
-    editor.set_uncertainty(None)  # a pose placed by hand: nothing to show
-    assert all(label.text() == "" for label in editor.sd_labels)
+    assert editor.body_sd.isHidden()  # a match from before the body's SDs were kept
+    # the real femur near gamma 78 deg: alpha and beta trade (about 1 deg each), its own turns do not
+    editor.set_uncertainty([0.063, 0.11, 0.037, 0.996, 1.008, 0.109], [0.062, 0.121, 0.041, 0.067, 0.208, None])
+    assert not editor.body_sd.isHidden()
+    assert editor.body_sd.text() == "Turns about the model's own x, y, z axes: ± 0.067, 0.208, ?°"
+    editor.set_uncertainty(None, [0.1] * 6)  # a pose placed by hand: nothing to show
+    assert all(label.text() == "" for label in editor.sd_labels) and editor.body_sd.isHidden()
 
 
 def test_matcher_panel_settings_and_buttons(qtbot):

@@ -51,6 +51,8 @@ def test_match_both_lands_on_the_demo_truth_and_undoes_in_one_step(window, fine_
     assert window.matcher.plot.values  # the objective of the match
     sd = s.pose_record(c.component, 0).match.quality["sd"]  # the Pose tab shows the match's SDs
     assert len(sd) == 6 and [label.text() for label in window.pose_editor.sd_labels] == [f"± {v:.3f}" for v in sd]
+    turns = s.pose_record(c.component, 0).match.quality["sd_body"][3:]  # ... and the body's own turns'
+    assert window.pose_editor.body_sd.text().endswith(", ".join(f"{v:.3f}" for v in turns) + "°")
     # one undo step, through the Undo / Redo actions and back
     assert len(s.history) == 1
     window.edit.undo_action.trigger()

@@ -63,6 +63,16 @@ class PoseEditor(QWidget):
             sd.setToolTip("Standard deviation of the matched value, from how well the outlines pin it down")
             grid.addWidget(sd, i, 2)
             self.sd_labels.append(sd)
+        # the body's own turns: near gamma = +-90 deg alpha and beta trade with each other, so their
+        # SDs are large (the real femur's about 1 deg) while the pose is pinned down to a tenth of that
+        self.body_sd = QLabel("")
+        self.body_sd.setObjectName("sd_body")
+        self.body_sd.setWordWrap(True)
+        self.body_sd.setToolTip(
+            "How well the outlines pin down the model's turns about its own x, y and z axes (one standard "
+            "deviation). The quality checks judge these. The ± beside α and β can be much larger when γ is "
+            "near ±90°: those two angles then trade with each other, even though the pose itself is well "
+            "determined.")
         self.translation_step = QComboBox()
         self.rotation_step = QComboBox()
         for combo, steps, unit in ((self.translation_step, TRANSLATION_STEPS, "mm"),
@@ -81,6 +91,7 @@ class PoseEditor(QWidget):
         layout.addWidget(self.title)
         layout.addWidget(self.frame_note)
         layout.addLayout(grid)
+        layout.addWidget(self.body_sd)
         layout.addLayout(steps_form)
         layout.addWidget(hint)
         layout.addStretch(1)
@@ -104,9 +115,11 @@ class PoseEditor(QWidget):
         finally:
             self._updating = False
 
-    def set_uncertainty(self, sd) -> None:
+    def set_uncertainty(self, sd, sd_body=None) -> None:
         """Show the match's standard deviations (mm, deg; None or inf: not determined) beside
-        the values, or nothing (``sd`` None: a pose placed or edited by hand)."""
+        the values, or nothing (``sd`` None: a pose placed or edited by hand); and below
+        them, where the match kept them (``sd_body``: x, y, z mm then the turns about the
+        model's own axes, deg), the turns' SDs."""
         for i, label in enumerate(self.sd_labels):
             value = None if sd is None else sd[i]
             if sd is None:
@@ -115,6 +128,14 @@ class PoseEditor(QWidget):
                 label.setText("± ?")
             else:
                 label.setText(f"± {value:.3f}")
+        turns = None if sd is None or sd_body is None or len(sd_body) != 6 else sd_body[3:]
+        if turns is None:
+            self.body_sd.setText("")
+            self.body_sd.hide()
+            return
+        shown = ["?" if v is None or not np.isfinite(v) else f"{v:.3f}" for v in turns]
+        self.body_sd.setText(f"Turns about the model's own x, y, z axes: ± {shown[0]}, {shown[1]}, {shown[2]}°")
+        self.body_sd.show()
 
     def pose(self) -> np.ndarray:
         return np.array([spin.value() for spin in self.spins])
