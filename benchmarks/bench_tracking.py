@@ -21,7 +21,7 @@ Sections (all by default, or name some):
   frames it flags, how many are right poses; on ``real`` judged against the stored
   reference or, where it has no pose (past frame 160), by the region fit:
   ``flag_precision.region_fit_verdict``, about 10 s a pose).
-* ``jumps``: the generated knee bend (``--frames``, default 200 here) tracked from nothing
+* ``jumps``: the generated knee bend (``--jump-frames``, default 200) tracked from nothing
   at every ``--stride``-th frame only (default 10 and 20, one run each, one worker): every
   frame after the first is a jump, as in the real sequence's sample of every 20th frame,
   where the prediction extrapolates beyond the motion seen and the searches near it come
@@ -51,8 +51,8 @@ Sections (all by default, or name some):
 
 Errors are body-fixed (``core.projection.pose.pose_error``): translation mm, rotation angles deg.
 Usage: .venv/bin/python benchmarks/bench_tracking.py [demo] [synthetic] [jumps] [partial] [batch] [real]
-           [--workers N] [--frames N] [--no-occlusion] [--overlap-at-start] [--xray] [--bends DIR] [--json OUT]
-           [--figure OUT.png] [--region-fit]
+           [--workers N] [--frames N] [--jump-frames N] [--stride N] [--no-occlusion] [--overlap-at-start]
+           [--xray] [--bends DIR] [--json OUT] [--figure OUT.png] [--region-fit]
 """
 from __future__ import annotations
 
@@ -243,7 +243,7 @@ def bench_jumps(args) -> dict:
     from fluorogui.simulation.knee_bend import build_knee_sequence
 
     models = DATA / "biplane-tka" / "models"
-    frames = args.frames if args.frames != 100 else 200  # (100 is the synthetic section's default)
+    frames = args.jump_frames
     folder = args.bends / f"jumps-{frames}" if args.bends else Path(tempfile.mkdtemp(prefix="bench-jumps-"))
     project = folder / "knee_bend.fluoro"
     if not project.exists():
@@ -589,7 +589,8 @@ def main(argv=None) -> int:
     ap.add_argument("sections", nargs="*", choices=["demo", "synthetic", "jumps", "partial", "batch", "real"],
                     default=[])
     ap.add_argument("--workers", type=int, default=2, help="processes for the synthetic sequence (default 2)")
-    ap.add_argument("--frames", type=int, default=100, help="frames of the synthetic sequence (jumps: 200)")
+    ap.add_argument("--frames", type=int, default=100, help="frames of the synthetic sequence")
+    ap.add_argument("--jump-frames", type=int, default=200, help="jumps: frames of the bend drawn (default 200)")
     ap.add_argument("--stride", type=int, action="append", help="jumps: track every N-th frame (default 10 and 20)")
     ap.add_argument("--no-occlusion", action="store_true",
                     help="synthetic: track without masking the other component (to compare)")
