@@ -170,8 +170,8 @@ def _below_noise(move: np.ndarray, promised: float, cost: float, xtol: float) ->
     it (a silhouette and the closest points per view) only showed it taken by a hair or
     rejected. On frames 51-69 of the real sequence that halved the evaluations (216 -> 105),
     moving the poses by at most 0.024 mm / 0.13 deg (the tray about its stem, whose SD is
-    larger); on the generated 100-frame bend the RMS error against the truth stayed 0.0024 mm /
-    0.0048 deg (femur) and 0.0030 mm / 0.0087 deg (tray)."""
+    larger); on the generated 100-frame bend the RMS error against the truth stayed 0.0023 mm /
+    0.0047 deg (femur) and 0.0029 mm / 0.0086 deg (tray)."""
     return bool(np.all(move < xtol) or (np.all(move < 100 * xtol) and promised < NOISE_FLOOR * cost))
 
 
