@@ -422,8 +422,9 @@ class FrameMatcher:
                     cancel: Callable[[], bool] | None = None) -> dict[str, FrameResult]:
         """Match ``jobs`` in order, each with the others masked at their best known pose
         in this frame (``fixed``: component -> (mesh, pose) of components not matched here,
-        e.g. accepted ones). When a component matched later moved far from the pose the
-        earlier ones were masked with, those are matched again."""
+        e.g. accepted ones; one not matched yet: its prediction or, after a jump, where the
+        search near it places it, ``_mask_placement``). When a component matched later moved
+        far from the pose the earlier ones were masked with, those are matched again."""
         known = dict(fixed or {})
         searched: dict[str, float] = {}  # seconds of a search made for the masks, counted as the component's
         for job in jobs:
