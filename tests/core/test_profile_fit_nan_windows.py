@@ -19,10 +19,11 @@ from fluorogui.core.outlines.profile_fit import nanmedian_rows, precision_weight
 
 @pytest.fixture
 def filters_not_kept(monkeypatch):
-    """Every warning an error, and ``catch_warnings`` a no-op (another thread restored the filters)."""
-    monkeypatch.setattr(warnings, "catch_warnings", lambda *a, **k: contextlib.nullcontext())
+    """Every warning an error, and ``catch_warnings`` a no-op (another thread restored the filters);
+    the filters are restored afterwards by the real ``catch_warnings``, taken before the patch."""
     with warnings.catch_warnings():
         warnings.simplefilter("error")
+        monkeypatch.setattr(warnings, "catch_warnings", lambda *a, **k: contextlib.nullcontext())
         yield
 
 
